@@ -1,0 +1,255 @@
+//! The one event interface between the physics core and everything that records or
+//! summarises a run.
+//!
+//! The core never does I/O. It calls [`Observer::on_event`] with borrowed views of its own
+//! state; a sink copies what it needs. Building an event costs nothing beyond a few
+//! references, and the per-iteration events (which carry the Newton iterate) are only built
+//! when [`Observer::wants_iterations`] says somebody listens. The solver is generic over the
+//! observer, so with [`NullObserver`] every call compiles away.
+
+/// Which pass of the modified mass method produced a Newton iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    /// The first solve of a step, with the constraint set carried over from the last step.
+    Predictor,
+    /// A re-solve after the constraint set changed (new penetration or adhesive release).
+    Corrector,
+    /// A load increment of a static solve.
+    Static,
+}
+
+impl Phase {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Phase::Predictor => "predictor",
+            Phase::Corrector => "corrector",
+            Phase::Static => "static",
+        }
+    }
+}
+
+/// Why a constraint was released.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReleaseReason {
+    /// The eq. 2 reaction pulled the node into the obstacle (R·n < 0).
+    Adhesive,
+}
+
+/// Static facts about the run, sent once before the first step.
+#[derive(Debug, Clone)]
+pub struct RunInfo<'a> {
+    pub scenario_name: &'a str,
+    /// The scenario as TOML text (with `--set` overrides applied).
+    pub scenario_text: &'a str,
+    pub rods: &'a [RodInfo],
+    pub obstacles: &'a [crate::obstacle::Obstacle],
+    pub mode: crate::scenario::Mode,
+}
+
+/// Static facts about one rod.
+#[derive(Debug, Clone)]
+pub struct RodInfo {
+    pub name: String,
+    pub nodes: usize,
+    /// Node masses (kg).
+    pub mass: Vec<f64>,
+    /// True for nodes whose motion is prescribed by the drive.
+    pub clamped: Vec<bool>,
+    /// Rest edge lengths (m), `nodes - 1` of them.
+    pub rest_length: Vec<f64>,
+    /// Rest turning angle measure κ̄ = 2 tan(φ̄/2) at each node (0 at the ends).
+    pub rest_curvature: Vec<f64>,
+    /// Young's modulus (Pa), section area (m²), second moment (m⁴), and the section's
+    /// half-height in the bending plane (m) used for bending stress.
+    pub youngs_modulus: f64,
+    pub area: f64,
+    pub inertia: f64,
+    pub half_height: f64,
+    /// A single-node `[[particle]]`.
+    pub particle: bool,
+}
+
+/// The state of one rod at the end of a step. All vectors are interleaved `[x0, y0, x1, y1, …]`.
+#[derive(Debug, Clone, Copy)]
+pub struct RodStepView<'a> {
+    pub q: &'a [f64],
+    pub u: &'a [f64],
+    /// Eq. 2 reaction on each constrained node (N); zero for unconstrained nodes.
+    pub reaction: &'a [f64],
+    /// Contact impulse on each node over this step (N·s): reaction × dt.
+    pub impulse: &'a [f64],
+    /// Force the drive applies to each clamped node (N), from eq. 2; zero on free nodes.
+    pub drive_force: &'a [f64],
+    /// Outward obstacle normal at each constrained node; zero when not in contact.
+    pub normal: &'a [f64],
+    /// Which obstacle each node is constrained against (`usize::MAX` when free).
+    pub contact_obstacle: &'a [usize],
+    /// True for nodes constrained at the end of the step.
+    pub in_contact: &'a [bool],
+    /// Bending stress σ = E |κ − κ̄| / Δl · h/2 (Pa) at each node (0 at the ends).
+    pub bending_stress: &'a [f64],
+    /// Signed distance of each node to the nearest obstacle at the end of the step (m);
+    /// `f64::INFINITY` when there is no obstacle.
+    pub gap: &'a [f64],
+    /// Predictor position of each node in this step (before any corrector pass).
+    pub q_predictor: &'a [f64],
+}
+
+/// A constraint added or released inside a step.
+#[derive(Debug, Clone, Copy)]
+pub struct ContactChange {
+    pub step: u64,
+    pub t: f64,
+    /// Corrector pass that the change leads into (1 for the first corrector).
+    pub pass: u32,
+    pub rod: usize,
+    pub node: usize,
+    pub obstacle: usize,
+    pub normal: [f64; 2],
+    /// Signed distance of the predicted node position when it was detected (negative inside).
+    pub gap: f64,
+    /// Eq. 2 reaction of the node at the moment of release (zero when added).
+    pub reaction: [f64; 2],
+    /// Prescribed normal velocity change of the corrector (m/s) for an added constraint.
+    pub z: f64,
+}
+
+/// One event of the run.
+#[derive(Debug, Clone, Copy)]
+pub enum Event<'a> {
+    RunStart(&'a RunInfo<'a>),
+    StepBegin {
+        step: u64,
+        t: f64,
+        dt: f64,
+    },
+    /// One Newton iteration of one rod. Only sent when [`Observer::wants_iterations`].
+    Iteration {
+        step: u64,
+        t: f64,
+        phase: Phase,
+        /// 0 for the predictor, 1.. for corrector passes, load increment for static solves.
+        pass: u32,
+        /// 1-based Newton iteration number within the pass.
+        iteration: u32,
+        rod: usize,
+        /// Max-norm of the force residual on the free DOFs (N) at the start of this iteration.
+        residual: f64,
+        /// Max-norm of the Newton update (m).
+        update: f64,
+        /// The iterate after this iteration's update (interleaved positions, all nodes).
+        q: &'a [f64],
+    },
+    ConstraintAdded(ContactChange),
+    ConstraintReleased(ContactChange, ReleaseReason),
+    /// The step size changed (proximity switch, back-off after a failure, or recovery).
+    DtChanged {
+        step: u64,
+        t: f64,
+        old: f64,
+        new: f64,
+        reason: &'a str,
+    },
+    /// Newton failed on a step; the step is retried with a smaller dt.
+    NewtonFailed {
+        step: u64,
+        t: f64,
+        dt: f64,
+        rod: usize,
+        node: usize,
+        residual: f64,
+        reason: &'a str,
+    },
+    /// Something the user should know that does not stop the run.
+    Warning {
+        step: u64,
+        t: f64,
+        message: &'a str,
+    },
+    /// End of an accepted step: the full state.
+    StepEnd {
+        step: u64,
+        /// Time at the end of the step (s).
+        t: f64,
+        dt: f64,
+        /// Newton iterations spent on this step (all rods, passes and retries).
+        newton_iterations: u32,
+        /// Corrector passes spent on this step.
+        passes: u32,
+        rods: &'a [RodStepView<'a>],
+    },
+    /// The run ended; `error` is set when it stopped on a failure.
+    RunEnd {
+        steps: u64,
+        t: f64,
+        error: Option<&'a str>,
+    },
+}
+
+/// Anything that listens to a run.
+pub trait Observer {
+    /// Whether per-iteration events should be built. Default: no.
+    fn wants_iterations(&self) -> bool {
+        false
+    }
+    /// Whether step-end state (and the initial state) should be built. Default: yes.
+    fn wants_steps(&self) -> bool {
+        true
+    }
+    fn on_event(&mut self, event: &Event<'_>);
+}
+
+/// Listens to nothing; the solver specialised on it does no event work at all.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct NullObserver;
+
+impl Observer for NullObserver {
+    fn wants_steps(&self) -> bool {
+        false
+    }
+    #[inline(always)]
+    fn on_event(&mut self, _event: &Event<'_>) {}
+}
+
+/// Sends every event to several observers in order.
+#[derive(Default)]
+pub struct Fanout<'s> {
+    pub sinks: Vec<&'s mut dyn Observer>,
+}
+
+impl<'s> Fanout<'s> {
+    pub fn new() -> Self {
+        Self { sinks: Vec::new() }
+    }
+    pub fn push(&mut self, sink: &'s mut dyn Observer) {
+        self.sinks.push(sink);
+    }
+}
+
+impl Observer for Fanout<'_> {
+    fn wants_iterations(&self) -> bool {
+        self.sinks.iter().any(|s| s.wants_iterations())
+    }
+    fn wants_steps(&self) -> bool {
+        self.sinks.iter().any(|s| s.wants_steps())
+    }
+    fn on_event(&mut self, event: &Event<'_>) {
+        for s in self.sinks.iter_mut() {
+            s.on_event(event);
+        }
+    }
+}
+
+impl<T: Observer + ?Sized> Observer for &mut T {
+    fn wants_iterations(&self) -> bool {
+        (**self).wants_iterations()
+    }
+    fn wants_steps(&self) -> bool {
+        (**self).wants_steps()
+    }
+    fn on_event(&mut self, event: &Event<'_>) {
+        (**self).on_event(event)
+    }
+}

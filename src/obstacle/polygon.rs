@@ -1,0 +1,142 @@
+use super::{norm, Proximity};
+
+/// A rigid simple polygon (convex or not), vertices in either orientation.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Polygon {
+    pub vertices: Vec<[f64; 2]>,
+    #[serde(skip)]
+    centroid: [f64; 2],
+    #[serde(skip)]
+    bound_radius: f64,
+    /// +1 for counter-clockwise input, −1 for clockwise.
+    #[serde(skip)]
+    orientation: f64,
+}
+
+fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+fn segments_cross(p1: [f64; 2], p2: [f64; 2], q1: [f64; 2], q2: [f64; 2]) -> bool {
+    let d = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        cross([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]])
+    };
+    let (d1, d2, d3, d4) = (d(q1, q2, p1), d(q1, q2, p2), d(p1, p2, q1), d(p1, p2, q2));
+    ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+}
+
+impl Polygon {
+    pub fn new(vertices: Vec<[f64; 2]>) -> Result<Self, String> {
+        let n = vertices.len();
+        if n < 3 {
+            return Err(format!("{n} vertices (at least 3 are needed)"));
+        }
+        let mut area2 = 0.0;
+        let mut size: f64 = 0.0;
+        for i in 0..n {
+            let (a, b) = (vertices[i], vertices[(i + 1) % n]);
+            area2 += cross(a, b);
+            let l = norm([b[0] - a[0], b[1] - a[1]]);
+            if l == 0.0 {
+                return Err(format!("vertices {i} and {} coincide", (i + 1) % n));
+            }
+            size = size.max(l);
+        }
+        if area2.abs() <= 1e-12 * size * size {
+            return Err("zero area (the vertices are collinear)".into());
+        }
+        for i in 0..n {
+            for j in i + 1..n {
+                if j == i + 1 || (i == 0 && j == n - 1) {
+                    continue;
+                }
+                if segments_cross(
+                    vertices[i],
+                    vertices[(i + 1) % n],
+                    vertices[j],
+                    vertices[(j + 1) % n],
+                ) {
+                    return Err(format!(
+                        "edges {i} and {j} cross (the outline intersects itself)"
+                    ));
+                }
+            }
+        }
+        let centroid = [
+            vertices.iter().map(|v| v[0]).sum::<f64>() / n as f64,
+            vertices.iter().map(|v| v[1]).sum::<f64>() / n as f64,
+        ];
+        let bound_radius = vertices
+            .iter()
+            .map(|v| norm([v[0] - centroid[0], v[1] - centroid[1]]))
+            .fold(0.0, f64::max);
+        Ok(Self {
+            vertices,
+            centroid,
+            bound_radius,
+            orientation: area2.signum(),
+        })
+    }
+
+    pub fn lower_bound(&self, p: [f64; 2]) -> f64 {
+        norm([p[0] - self.centroid[0], p[1] - self.centroid[1]]) - self.bound_radius
+    }
+
+    fn contains(&self, p: [f64; 2]) -> bool {
+        let mut inside = false;
+        let n = self.vertices.len();
+        let mut j = n - 1;
+        for i in 0..n {
+            let (a, b) = (self.vertices[i], self.vertices[j]);
+            if (a[1] > p[1]) != (b[1] > p[1])
+                && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
+            {
+                inside = !inside;
+            }
+            j = i;
+        }
+        inside
+    }
+
+    pub fn query(&self, p: [f64; 2]) -> Proximity {
+        let n = self.vertices.len();
+        let mut best = (f64::INFINITY, [0.0; 2], 0usize);
+        for i in 0..n {
+            let (a, b) = (self.vertices[i], self.vertices[(i + 1) % n]);
+            let e = [b[0] - a[0], b[1] - a[1]];
+            let t = (((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1]))
+                .clamp(0.0, 1.0);
+            let c = [a[0] + t * e[0], a[1] + t * e[1]];
+            let d2 = (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2);
+            if d2 < best.0 {
+                best = (d2, c, i);
+            }
+        }
+        let (d2, c, i) = best;
+        let dist = d2.sqrt();
+        let inside = self.contains(p);
+        let (a, b) = (self.vertices[i], self.vertices[(i + 1) % n]);
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let el = norm(e);
+        // Outward normal of the closest edge (right of the edge for counter-clockwise outlines).
+        let edge_n = [self.orientation * e[1] / el, -self.orientation * e[0] / el];
+        let normal = if dist > 1e-12 * (1.0 + el) {
+            let s = if inside { -1.0 } else { 1.0 };
+            [s * (p[0] - c[0]) / dist, s * (p[1] - c[1]) / dist]
+        } else {
+            edge_n
+        };
+        Proximity {
+            distance: if inside { -dist } else { dist },
+            closest: c,
+            normal,
+        }
+    }
+
+    pub fn outline(&self) -> Vec<[f64; 2]> {
+        let mut v = self.vertices.clone();
+        v.push(self.vertices[0]);
+        v
+    }
+}

@@ -1,0 +1,855 @@
+//! Scenario files: TOML, read with located errors, `--set` overrides by dotted path.
+//!
+//! See `docs/scenario-format.md` for every key.
+
+pub mod overrides;
+pub mod reader;
+
+use crate::obstacle::Obstacle;
+pub use reader::ScenarioError;
+use reader::TableReader;
+use toml::Value;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    Dynamic,
+    Static,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stepping {
+    Fixed,
+    Proximity,
+}
+
+/// `[solve]`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Solve {
+    pub mode: Mode,
+    pub t_end: f64,
+    pub dt: f64,
+    pub stepping: Stepping,
+    pub dt_near: f64,
+    pub near_distance: f64,
+    pub gravity: [f64; 2],
+    /// Newton force tolerance relative to the problem's force scale.
+    pub force_tol: f64,
+    /// Newton update tolerance relative to the problem's length scale (round-off floor).
+    pub step_tol: f64,
+    pub max_newton_iterations: u32,
+    pub max_contact_passes: u32,
+    /// How many times a failing step may halve dt before the run stops.
+    pub max_backoff: u32,
+    /// Static mode: the first load increment (fraction of the full load).
+    pub load_step: f64,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Shape {
+    Straight {
+        start: [f64; 2],
+        end: [f64; 2],
+    },
+    Points {
+        points: Vec<[f64; 2]>,
+    },
+    /// The seed's prong: x = x0 + a (L − s)², y = y0 − s, s = 0 … L.
+    Parabola {
+        x0: f64,
+        y0: f64,
+        a: f64,
+        length: f64,
+    },
+}
+
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Section {
+    /// b out of plane, h in the bending plane.
+    Rect {
+        b: f64,
+        h: f64,
+    },
+    Circle {
+        radius: f64,
+    },
+}
+
+impl Section {
+    pub fn area(&self) -> f64 {
+        match *self {
+            Section::Rect { b, h } => b * h,
+            Section::Circle { radius } => std::f64::consts::PI * radius * radius,
+        }
+    }
+    pub fn inertia(&self) -> f64 {
+        match *self {
+            Section::Rect { b, h } => b * h * h * h / 12.0,
+            Section::Circle { radius } => std::f64::consts::PI * radius.powi(4) / 4.0,
+        }
+    }
+    /// Distance from the neutral axis to the outer fibre in the bending plane.
+    pub fn half_height(&self) -> f64 {
+        match *self {
+            Section::Rect { h, .. } => h / 2.0,
+            Section::Circle { radius } => radius,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MassSpec {
+    Density(f64),
+    NodeMass(f64),
+}
+
+/// Prescribed motion of the clamped nodes.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Drive {
+    Fixed,
+    /// From rest, x(t) = x0 + ½ a t², until it stops (then it holds its position).
+    ConstantAcceleration {
+        acceleration: [f64; 2],
+        stop_time: Option<f64>,
+        stop_travel: Option<f64>,
+    },
+    /// x(t) = x0 + v t, until it stops.
+    ConstantVelocity {
+        velocity: [f64; 2],
+        stop_time: Option<f64>,
+        stop_travel: Option<f64>,
+    },
+}
+
+impl Drive {
+    /// Displacement of a driven node from its initial position at time t, and its velocity.
+    pub fn motion(&self, t: f64) -> ([f64; 2], [f64; 2]) {
+        match *self {
+            Drive::Fixed => ([0.0; 2], [0.0; 2]),
+            Drive::ConstantAcceleration {
+                acceleration: a,
+                stop_time,
+                stop_travel,
+            } => {
+                let amag = (a[0] * a[0] + a[1] * a[1]).sqrt();
+                let mut t_stop = stop_time.unwrap_or(f64::INFINITY);
+                if let Some(d) = stop_travel {
+                    if amag > 0.0 {
+                        t_stop = t_stop.min((2.0 * d / amag).sqrt());
+                    }
+                }
+                let te = t.min(t_stop);
+                let moving = t < t_stop;
+                let d = [0.5 * a[0] * te * te, 0.5 * a[1] * te * te];
+                let v = if moving {
+                    [a[0] * te, a[1] * te]
+                } else {
+                    [0.0; 2]
+                };
+                (d, v)
+            }
+            Drive::ConstantVelocity {
+                velocity: v,
+                stop_time,
+                stop_travel,
+            } => {
+                let vmag = (v[0] * v[0] + v[1] * v[1]).sqrt();
+                let mut t_stop = stop_time.unwrap_or(f64::INFINITY);
+                if let Some(d) = stop_travel {
+                    if vmag > 0.0 {
+                        t_stop = t_stop.min(d / vmag);
+                    }
+                }
+                let te = t.min(t_stop);
+                let moving = t < t_stop;
+                ([v[0] * te, v[1] * te], if moving { v } else { [0.0; 2] })
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Load {
+    pub node: usize,
+    pub force: [f64; 2],
+}
+
+/// One `[[rod]]`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RodSpec {
+    pub name: String,
+    pub nodes: usize,
+    pub shape: Shape,
+    #[serde(rename = "E")]
+    pub youngs_modulus: f64,
+    pub section: Section,
+    pub mass: MassSpec,
+    pub clamped: Vec<usize>,
+    pub drive: Drive,
+    pub loads: Vec<Load>,
+    /// Initial velocity of every node (m/s).
+    pub velocity: [f64; 2],
+    /// A `[[particle]]`: one node, no elasticity.
+    pub particle: bool,
+}
+
+/// A whole scenario.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Scenario {
+    pub name: String,
+    pub description: String,
+    pub solve: Solve,
+    pub rods: Vec<RodSpec>,
+    pub obstacles: Vec<Obstacle>,
+    /// Flush recordings every this many steps.
+    pub flush_every: u64,
+    /// The scenario as TOML text, with overrides applied (stored in recordings).
+    #[serde(skip)]
+    pub text: String,
+    /// Where it was read from (for messages).
+    #[serde(skip)]
+    pub file: String,
+}
+
+const TOP_KEYS: &[&str] = &[
+    "name",
+    "description",
+    "solve",
+    "rod",
+    "particle",
+    "obstacle",
+    "output",
+];
+const SOLVE_KEYS: &[&str] = &[
+    "mode",
+    "t_end",
+    "dt",
+    "stepping",
+    "dt_near",
+    "near_distance",
+    "gravity",
+    "force_tol",
+    "step_tol",
+    "max_newton_iterations",
+    "max_contact_passes",
+    "max_backoff",
+    "load_step",
+];
+const ROD_KEYS: &[&str] = &[
+    "name",
+    "nodes",
+    "shape",
+    "E",
+    "section",
+    "density",
+    "node_mass",
+    "clamped",
+    "drive",
+    "loads",
+    "velocity",
+];
+const PARTICLE_KEYS: &[&str] = &["name", "position", "velocity", "mass", "force"];
+const OUTPUT_KEYS: &[&str] = &["flush_every"];
+
+impl Scenario {
+    /// Read a scenario file, apply `--set` overrides, validate.
+    pub fn load(path: &std::path::Path, sets: &[String]) -> Result<Scenario, ScenarioError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|e| ScenarioError {
+            file: file.clone(),
+            key: String::new(),
+            value: String::new(),
+            message: format!("cannot read the file: {e}"),
+            hint: Some(
+                "check the path; shipped scenarios are listed by `gripsim scenarios`".into(),
+            ),
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| ScenarioError {
+            file: file.clone(),
+            key: String::new(),
+            value: String::new(),
+            message: format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+            hint: Some("scenario files are TOML text in UTF-8".into()),
+        })?;
+        Self::from_str(&text, &file, sets)
+    }
+
+    pub fn from_str(text: &str, file: &str, sets: &[String]) -> Result<Scenario, ScenarioError> {
+        let fail = |key: &str, value: &str, message: String, hint: Option<String>| ScenarioError {
+            file: file.to_string(),
+            key: key.to_string(),
+            value: value.to_string(),
+            message,
+            hint,
+        };
+        if text.trim().is_empty() {
+            return Err(fail(
+                "",
+                "",
+                "the file is empty".into(),
+                Some("a scenario needs at least `name`, a [solve] table and one [[rod]]".into()),
+            ));
+        }
+        let mut root: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            let msg = e.message().to_string();
+            let (line, col) = e
+                .span()
+                .map(|s| {
+                    let before = &text[..s.start.min(text.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let col = before
+                        .rsplit('\n')
+                        .next()
+                        .map(|l| l.chars().count() + 1)
+                        .unwrap_or(1);
+                    (line, col)
+                })
+                .unwrap_or((0, 0));
+            fail(
+                "",
+                "",
+                format!("TOML syntax error at line {line}, column {col}: {msg}"),
+                None,
+            )
+        })?;
+        for s in sets {
+            overrides::apply(&mut root, s).map_err(|(key, value, message, hint)| {
+                ScenarioError {
+                    file: format!("{file} (--set {s})"),
+                    key,
+                    value,
+                    message,
+                    hint,
+                }
+            })?;
+        }
+        let text = toml::to_string(&root).unwrap_or_else(|_| text.to_string());
+        let mut sc = parse_root(&root, file)?;
+        sc.text = text;
+        sc.file = file.to_string();
+        crate::model::validate_geometry(&sc)?;
+        Ok(sc)
+    }
+}
+
+fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError> {
+    let top = TableReader::new(file, String::new(), root, TOP_KEYS);
+    let name = top.str("name")?.to_string();
+    if name.trim().is_empty() {
+        return Err(top.err("name", top.get("name"), "must not be empty"));
+    }
+    if !name
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
+    {
+        return Err(top.err_hint(
+            "name",
+            top.get("name"),
+            "may only hold letters, digits, '-', '_' and '.' (it names the recording files)",
+            "use e.g. \"seed-grasp-r5\"",
+        ));
+    }
+    let description = top.opt_str("description")?.unwrap_or("").to_string();
+    let solve = parse_solve(&top.table("solve", SOLVE_KEYS)?)?;
+
+    let empty = Vec::new();
+    let rods_v = match top.get("rod") {
+        None => &empty,
+        Some(Value::Array(a)) => a,
+        Some(other) => {
+            return Err(top.err("rod", Some(other), "expected an array of [[rod]] tables"))
+        }
+    };
+    let particles_v = match top.get("particle") {
+        None => &empty,
+        Some(Value::Array(a)) => a,
+        Some(other) => {
+            return Err(top.err(
+                "particle",
+                Some(other),
+                "expected an array of [[particle]] tables",
+            ))
+        }
+    };
+    if rods_v.is_empty() && particles_v.is_empty() {
+        return Err(top.err_hint(
+            "rod",
+            None,
+            "missing required key",
+            "add at least one [[rod]] (or [[particle]]) table",
+        ));
+    }
+    let mut rods: Vec<RodSpec> = Vec::new();
+    let tables = rods_v
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (format!("rod.{i}"), v, false));
+    let tables = tables.chain(
+        particles_v
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (format!("particle.{i}"), v, true)),
+    );
+    for (path, v, is_particle) in tables {
+        let (rod, r) = if is_particle {
+            let r = top.table_value(&path, v, PARTICLE_KEYS)?;
+            (parse_particle(&r, solve.mode)?, r)
+        } else {
+            let r = top.table_value(&path, v, ROD_KEYS)?;
+            (parse_rod(&r, solve.mode)?, r)
+        };
+        if let Some(j) = rods.iter().position(|o: &RodSpec| o.name == rod.name) {
+            return Err(r.err_hint(
+                "name",
+                r.get("name"),
+                format!(
+                    "duplicate name (the {} before it has it already)",
+                    if j < rods_v.len() {
+                        format!("rod.{j}")
+                    } else {
+                        format!("particle.{}", j - rods_v.len())
+                    }
+                ),
+                "give every rod and particle its own name",
+            ));
+        }
+        rods.push(rod);
+    }
+
+    let mut obstacles = Vec::new();
+    match top.get("obstacle") {
+        None => {}
+        Some(Value::Array(a)) => {
+            for (i, v) in a.iter().enumerate() {
+                let r = top.table_value(&format!("obstacle.{i}"), v, &[])?;
+                obstacles.push(crate::obstacle::parse(&r)?);
+            }
+        }
+        Some(other) => {
+            return Err(top.err(
+                "obstacle",
+                Some(other),
+                "expected an array of [[obstacle]] tables",
+            ))
+        }
+    }
+
+    let mut flush_every = 100;
+    if let Some(o) = top.opt_table("output", OUTPUT_KEYS)? {
+        if let Some(n) = o.opt_usize("flush_every")? {
+            if n == 0 {
+                return Err(o.err("flush_every", o.get("flush_every"), "must be at least 1"));
+            }
+            flush_every = n as u64;
+        }
+        o.finish()?;
+    }
+    top.finish()?;
+    Ok(Scenario {
+        name,
+        description,
+        solve,
+        rods,
+        obstacles,
+        flush_every,
+        text: String::new(),
+        file: file.into(),
+    })
+}
+
+fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
+    let mode = match s.opt_str("mode")?.unwrap_or("dynamic") {
+        "dynamic" => Mode::Dynamic,
+        "static" => Mode::Static,
+        other => {
+            return Err(s.err_hint(
+                "mode",
+                s.get("mode"),
+                format!("unknown mode {other:?}"),
+                "use \"dynamic\" or \"static\"",
+            ))
+        }
+    };
+    let t_end = match mode {
+        Mode::Dynamic => s.positive("t_end")?,
+        Mode::Static => s.opt_positive("t_end")?.unwrap_or(0.0),
+    };
+    let dt = match mode {
+        Mode::Dynamic => s.positive("dt")?,
+        Mode::Static => s.opt_positive("dt")?.unwrap_or(1.0),
+    };
+    if mode == Mode::Dynamic && dt > t_end {
+        return Err(s.err_hint(
+            "dt",
+            s.get("dt"),
+            format!("is larger than t_end = {t_end}"),
+            "make dt smaller than t_end",
+        ));
+    }
+    let stepping = match s.opt_str("stepping")?.unwrap_or("fixed") {
+        "fixed" => Stepping::Fixed,
+        "proximity" => Stepping::Proximity,
+        other => {
+            let hint = match reader::did_you_mean(other, &["fixed", "proximity"]) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"fixed\" or \"proximity\"".into(),
+            };
+            return Err(s.err_hint(
+                "stepping",
+                s.get("stepping"),
+                format!("unknown stepping {other:?}"),
+                hint,
+            ));
+        }
+    };
+    let (dt_near, near_distance) = if stepping == Stepping::Proximity {
+        let dn = s.positive("dt_near")?;
+        if dn > dt {
+            return Err(s.err_hint(
+                "dt_near",
+                s.get("dt_near"),
+                format!("is larger than dt = {dt}"),
+                "dt_near is the smaller step used near contact",
+            ));
+        }
+        (dn, s.positive("near_distance")?)
+    } else {
+        // Accepted and ignored when stepping is fixed, so a --set can switch stepping.
+        (
+            s.opt_positive("dt_near")?.unwrap_or(dt),
+            s.opt_positive("near_distance")?.unwrap_or(0.0),
+        )
+    };
+    let gravity = s.opt_vec2("gravity")?.unwrap_or([0.0, -9.81]);
+    let force_tol = s.opt_positive("force_tol")?.unwrap_or(1e-9);
+    let step_tol = s.opt_positive("step_tol")?.unwrap_or(1e-12);
+    let max_newton_iterations = positive_int(s, "max_newton_iterations", 50)?;
+    let max_contact_passes = positive_int(s, "max_contact_passes", 25)?;
+    let max_backoff = s.opt_usize("max_backoff")?.unwrap_or(8) as u32;
+    let load_step = s.opt_positive("load_step")?.unwrap_or(0.25);
+    if load_step > 1.0 {
+        return Err(s.err("load_step", s.get("load_step"), "must be in (0, 1]"));
+    }
+    s.finish()?;
+    Ok(Solve {
+        mode,
+        t_end,
+        dt,
+        stepping,
+        dt_near,
+        near_distance,
+        gravity,
+        force_tol,
+        step_tol,
+        max_newton_iterations,
+        max_contact_passes,
+        max_backoff,
+        load_step,
+    })
+}
+
+fn positive_int(s: &TableReader, key: &'static str, default: u32) -> Result<u32, ScenarioError> {
+    match s.opt_usize(key)? {
+        None => Ok(default),
+        Some(0) => Err(s.err(key, s.get(key), "must be at least 1")),
+        Some(n) if n > 100_000 => {
+            Err(s.err(key, s.get(key), "is unreasonably large (at most 100000)"))
+        }
+        Some(n) => Ok(n as u32),
+    }
+}
+
+const SHAPE_KEYS: &[&str] = &["kind", "start", "end", "points", "x0", "y0", "a", "length"];
+const SECTION_KEYS: &[&str] = &["kind", "b", "h", "radius"];
+const DRIVE_KEYS: &[&str] = &[
+    "kind",
+    "acceleration",
+    "velocity",
+    "stop_time",
+    "stop_travel",
+];
+
+fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
+    let name = r.str("name")?.to_string();
+    if name.trim().is_empty() {
+        return Err(r.err("name", r.get("name"), "must not be empty"));
+    }
+    let nodes = r.usize("nodes")?;
+    if nodes < 3 {
+        return Err(r.err_hint(
+            "nodes",
+            r.get("nodes"),
+            "a rod needs at least 3 nodes (one bending spring)",
+            "use nodes = 3 or more",
+        ));
+    }
+    if nodes > 1_000_000 {
+        return Err(r.err("nodes", r.get("nodes"), "is too large (at most 1000000)"));
+    }
+
+    let sh = r.table("shape", SHAPE_KEYS)?;
+    let shape = match sh.str("kind")? {
+        "straight" => Shape::Straight {
+            start: sh.vec2("start")?,
+            end: sh.vec2("end")?,
+        },
+        "points" => {
+            let arr = sh
+                .array("points")?
+                .ok_or_else(|| sh.err("points", None, "missing required key"))?;
+            if arr.len() != nodes {
+                return Err(sh.err_hint(
+                    "points",
+                    sh.get("points"),
+                    format!("has {} points but the rod has nodes = {nodes}", arr.len()),
+                    "give exactly one [x, y] per node",
+                ));
+            }
+            let mut pts = Vec::with_capacity(arr.len());
+            for (i, p) in arr.iter().enumerate() {
+                pts.push(sh.vec2_value(&format!("points.{i}"), p)?);
+            }
+            Shape::Points { points: pts }
+        }
+        "parabola" => {
+            let length = sh.positive("length")?;
+            Shape::Parabola {
+                x0: sh.f64("x0")?,
+                y0: sh.f64("y0")?,
+                a: sh.f64("a")?,
+                length,
+            }
+        }
+        other => {
+            let hint = match reader::did_you_mean(other, &["straight", "points", "parabola"]) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"straight\", \"points\" or \"parabola\"".into(),
+            };
+            return Err(sh.err_hint(
+                "kind",
+                sh.get("kind"),
+                format!("unknown shape kind {other:?}"),
+                hint,
+            ));
+        }
+    };
+    sh.finish()?;
+
+    let e = r.positive("E")?;
+    let se = r.table("section", SECTION_KEYS)?;
+    let section = match se.str("kind")? {
+        "rect" => Section::Rect {
+            b: se.positive("b")?,
+            h: se.positive("h")?,
+        },
+        "circle" => Section::Circle {
+            radius: se.positive("radius")?,
+        },
+        other => {
+            return Err(se.err_hint(
+                "kind",
+                se.get("kind"),
+                format!("unknown section kind {other:?}"),
+                "use \"rect\" (b, h) or \"circle\" (radius)",
+            ))
+        }
+    };
+    se.finish()?;
+
+    let mass =
+        match (r.has("density"), r.has("node_mass")) {
+            (true, true) => return Err(r.err_hint(
+                "node_mass",
+                r.get("node_mass"),
+                "both density and node_mass are given",
+                "keep one: density (kg/m³, lumped by Voronoi length) or node_mass (kg per node)",
+            )),
+            (true, false) => MassSpec::Density(r.positive("density")?),
+            (false, true) => MassSpec::NodeMass(r.positive("node_mass")?),
+            (false, false) => {
+                return Err(r.err_hint(
+                    "density",
+                    None,
+                    "missing required key",
+                    "give density = ... (kg/m³) or node_mass = ... (kg)",
+                ))
+            }
+        };
+
+    let mut clamped = Vec::new();
+    if let Some(arr) = r.array("clamped")? {
+        for (i, v) in arr.iter().enumerate() {
+            let n = r.usize_value(&format!("clamped.{i}"), v)?;
+            if n >= nodes {
+                return Err(r.err_hint(
+                    &format!("clamped.{i}"),
+                    Some(v),
+                    format!(
+                        "node index out of range (the rod has nodes 0..{})",
+                        nodes - 1
+                    ),
+                    "node indices are 0-based",
+                ));
+            }
+            if clamped.contains(&n) {
+                return Err(r.err(&format!("clamped.{i}"), Some(v), "node listed twice"));
+            }
+            clamped.push(n);
+        }
+    }
+    clamped.sort_unstable();
+    if clamped.len() == nodes {
+        return Err(r.err(
+            "clamped",
+            r.get("clamped"),
+            "every node is clamped: nothing is left to simulate",
+        ));
+    }
+    if mode == Mode::Static && clamped.len() < 2 {
+        return Err(r.err_hint(
+            "clamped",
+            r.get("clamped"),
+            "a static solve needs at least two clamped nodes per rod (a free rod has no equilibrium)",
+            "clamp e.g. nodes [0, 1]",
+        ));
+    }
+
+    let drive = match r.opt_table("drive", DRIVE_KEYS)? {
+        None => Drive::Fixed,
+        Some(d) => {
+            let stop_time = d.opt_positive("stop_time")?;
+            let stop_travel = d.opt_positive("stop_travel")?;
+            let dr = match d.str("kind")? {
+                "fixed" => Drive::Fixed,
+                "constant_acceleration" => Drive::ConstantAcceleration {
+                    acceleration: d.vec2("acceleration")?,
+                    stop_time,
+                    stop_travel,
+                },
+                "constant_velocity" => Drive::ConstantVelocity {
+                    velocity: d.vec2("velocity")?,
+                    stop_time,
+                    stop_travel,
+                },
+                other => {
+                    let hint = match reader::did_you_mean(
+                        other,
+                        &["fixed", "constant_acceleration", "constant_velocity"],
+                    ) {
+                        Some(m) => format!("did you mean \"{m}\"?"),
+                        None => "use \"fixed\", \"constant_acceleration\" or \"constant_velocity\""
+                            .into(),
+                    };
+                    return Err(d.err_hint(
+                        "kind",
+                        d.get("kind"),
+                        format!("unknown drive kind {other:?}"),
+                        hint,
+                    ));
+                }
+            };
+            d.finish()?;
+            if dr != Drive::Fixed && clamped.is_empty() {
+                return Err(r.err_hint(
+                    "drive",
+                    r.get("drive"),
+                    "a drive moves the clamped nodes, but this rod has none",
+                    "list the driven nodes in `clamped`",
+                ));
+            }
+            dr
+        }
+    };
+
+    let mut loads = Vec::new();
+    if let Some(arr) = r.array("loads")? {
+        for (i, v) in arr.iter().enumerate() {
+            let l = r.table_value(&format!("loads.{i}"), v, &["node", "force"])?;
+            let node = l.usize("node")?;
+            if node >= nodes {
+                return Err(l.err_hint(
+                    "node",
+                    l.get("node"),
+                    format!(
+                        "node index out of range (the rod has nodes 0..{})",
+                        nodes - 1
+                    ),
+                    "node indices are 0-based",
+                ));
+            }
+            if clamped.contains(&node) {
+                return Err(l.err(
+                    "node",
+                    l.get("node"),
+                    "a load on a clamped node does nothing",
+                ));
+            }
+            let force = l.vec2("force")?;
+            l.finish()?;
+            loads.push(Load { node, force });
+        }
+    }
+    let velocity = r.opt_vec2("velocity")?.unwrap_or([0.0; 2]);
+    r.finish()?;
+    Ok(RodSpec {
+        name,
+        nodes,
+        shape,
+        youngs_modulus: e,
+        section,
+        mass,
+        clamped,
+        drive,
+        loads,
+        velocity,
+        particle: false,
+    })
+}
+
+/// A `[[particle]]`: a single free node (the seed's bouncing point mass).
+fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
+    let name = r.str("name")?.to_string();
+    if name.trim().is_empty() {
+        return Err(r.err("name", r.get("name"), "must not be empty"));
+    }
+    if mode == Mode::Static {
+        return Err(r.err_hint(
+            "name",
+            r.get("name"),
+            "a particle has no static equilibrium",
+            "use mode = \"dynamic\"",
+        ));
+    }
+    let position = r.vec2("position")?;
+    let velocity = r.opt_vec2("velocity")?.unwrap_or([0.0; 2]);
+    let mass = r.positive("mass")?;
+    let force = r.opt_vec2("force")?.unwrap_or([0.0; 2]);
+    r.finish()?;
+    Ok(RodSpec {
+        name,
+        nodes: 1,
+        shape: Shape::Points {
+            points: vec![position],
+        },
+        youngs_modulus: 0.0,
+        section: Section::Circle { radius: 0.0 },
+        mass: MassSpec::NodeMass(mass),
+        clamped: vec![],
+        drive: Drive::Fixed,
+        loads: if force != [0.0; 2] {
+            vec![Load { node: 0, force }]
+        } else {
+            vec![]
+        },
+        velocity,
+        particle: true,
+    })
+}

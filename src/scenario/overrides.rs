@@ -1,0 +1,135 @@
+//! `--set KEY=VALUE`: override any scenario value by a dotted path (`obstacle.0.radius=0.04`,
+//! `rod.0.E=1e9`, `solve.stepping=proximity`, `rod.1.drive.acceleration=[9.8,0]`).
+//!
+//! Every table or array on the path must exist; the last key may be new (the scenario reader
+//! then checks that it is a known key). The value is read as a TOML value, or as a string when
+//! it is not one (so `solve.mode=static` needs no quotes).
+
+use toml::{Table, Value};
+
+/// (key, value, message, hint)
+pub type OverrideError = (String, String, String, Option<String>);
+
+/// Parse a `--set` value: a TOML value if it is one, else a bare string.
+pub fn parse_value(s: &str) -> Value {
+    let doc = format!("v = {s}");
+    match doc.parse::<Table>() {
+        Ok(mut t) => t
+            .remove("v")
+            .unwrap_or_else(|| Value::String(s.to_string())),
+        Err(_) => Value::String(s.to_string()),
+    }
+}
+
+pub fn apply(root: &mut Table, assignment: &str) -> Result<(), OverrideError> {
+    let Some((path, raw)) = assignment.split_once('=') else {
+        return Err((
+            assignment.to_string(),
+            String::new(),
+            "expected KEY=VALUE".into(),
+            Some("e.g. --set obstacle.0.radius=0.04".into()),
+        ));
+    };
+    let path = path.trim();
+    let raw = raw.trim();
+    if path.is_empty() {
+        return Err((
+            String::new(),
+            raw.into(),
+            "empty key".into(),
+            Some("e.g. --set rod.0.E=1e9".into()),
+        ));
+    }
+    let value = parse_value(raw);
+    let parts: Vec<&str> = path.split('.').collect();
+    let mut wrapped = Value::Table(std::mem::take(root));
+    let result = set_path(&mut wrapped, &parts, value, raw);
+    if let Value::Table(t) = wrapped {
+        *root = t;
+    }
+    result
+}
+
+fn set_path(
+    root: &mut Value,
+    parts: &[&str],
+    value: Value,
+    raw: &str,
+) -> Result<(), OverrideError> {
+    let mut value = Some(value);
+    let mut cur: &mut Value = root;
+    let mut walked = String::new();
+    for (i, part) in parts.iter().enumerate() {
+        let last = i + 1 == parts.len();
+        let here = if walked.is_empty() {
+            part.to_string()
+        } else {
+            format!("{walked}.{part}")
+        };
+        match cur {
+            Value::Table(t) => {
+                if last {
+                    t.insert(part.to_string(), value.take().unwrap());
+                    return Ok(());
+                }
+                if !t.contains_key(*part) {
+                    let known: Vec<&str> = t.keys().map(|k| k.as_str()).collect();
+                    let hint = match super::reader::did_you_mean(part, &known) {
+                        Some(m) => format!(
+                            "did you mean `{}`?",
+                            if walked.is_empty() {
+                                m.to_string()
+                            } else {
+                                format!("{walked}.{m}")
+                            }
+                        ),
+                        None => format!("keys here: {}", known.join(", ")),
+                    };
+                    return Err((
+                        here,
+                        raw.into(),
+                        "this key does not exist in the scenario".into(),
+                        Some(hint),
+                    ));
+                }
+                cur = t.get_mut(*part).unwrap();
+            }
+            Value::Array(a) => {
+                let Ok(idx) = part.parse::<usize>() else {
+                    return Err((
+                        here,
+                        raw.into(),
+                        format!(
+                            "`{walked}` is an array: expected an index 0..{}",
+                            a.len().saturating_sub(1)
+                        ),
+                        None,
+                    ));
+                };
+                if idx >= a.len() {
+                    return Err((
+                        here,
+                        raw.into(),
+                        format!("index out of range: `{walked}` has {} entries", a.len()),
+                        Some("indices are 0-based".into()),
+                    ));
+                }
+                if last {
+                    a[idx] = value.take().unwrap();
+                    return Ok(());
+                }
+                cur = &mut a[idx];
+            }
+            _ => {
+                return Err((
+                    here,
+                    raw.into(),
+                    format!("`{walked}` is a value, not a table or array"),
+                    None,
+                ));
+            }
+        }
+        walked = here;
+    }
+    Ok(())
+}

@@ -1,0 +1,405 @@
+//! Implicit Euler + Newton for one rod, with the modified-mass filter on constrained nodes.
+//!
+//! Unknown: the step's displacement Δq = q_{k+1} − q_k on the free nodes (driven nodes have it
+//! prescribed). Residual per free node i:
+//!   r_i = c m_i (Δq_i − dt u_i) + ∇_i E(q_k + Δq) − λ F_i
+//! with c = 1/dt² (dynamic) or 0 (static, load factor λ). By eq. 2 this residual *is* the
+//! reaction R_i = m_i/dt [Δq_i/dt − u_i] − f_i, so at a converged step it is zero on free nodes
+//! and the contact force on constrained ones.
+//!
+//! A constrained node (outward normal n, target normal coordinate h) has n·(q_k + Δq) = h fixed:
+//! its normal velocity change is prescribed (the z of eq. 1) and its mass is filtered with
+//! S = I − n nᵀ. Newton then solves (P J P + s (I − P)) δ = −P r, so δ has no normal part at
+//! constrained nodes and the tangential residual goes to zero.
+
+use super::banded::BandLu;
+use crate::energy::{bend::bend, stretch::stretch};
+use crate::model::Rod;
+
+/// An active contact constraint on one node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraint {
+    pub obstacle: usize,
+    pub normal: [f64; 2],
+    /// Target normal coordinate n·q_{k+1}.
+    pub target: f64,
+    /// Released once in this step and re-added: may not be released again in this step.
+    pub locked: bool,
+}
+
+/// Per-rod solver state and scratch space, allocated once.
+#[derive(Debug, Clone)]
+pub struct RodWork {
+    /// State at the start of the step (t_k).
+    pub q: Vec<f64>,
+    pub u: Vec<f64>,
+    /// Acceleration estimate of the last accepted step, for the Newton initial guess.
+    pub a: Vec<f64>,
+    /// Newton unknown Δq (all DOFs; driven ones prescribed).
+    pub dq: Vec<f64>,
+    /// Iterate q_k + Δq.
+    pub qn: Vec<f64>,
+    pub grad: Vec<f64>,
+    /// Residual r (all DOFs).
+    pub r: Vec<f64>,
+    /// External force at full load: m g on free nodes + dead loads.
+    pub fext: Vec<f64>,
+    /// Free index of each node (`usize::MAX` for driven nodes).
+    pub free_index: Vec<usize>,
+    pub nfree: usize,
+    pub band: BandLu,
+    pub rhs: Vec<f64>,
+    pub contact: Vec<Option<Constraint>>,
+    pub contact_saved: Vec<Option<Constraint>>,
+    /// Nodes released in the current step (a re-penetration then locks them).
+    pub released: Vec<usize>,
+    /// Force scale (N) for the residual test, and length scale (m) for the update test.
+    pub force_scale: f64,
+    pub length_scale: f64,
+    /// Mass-matrix diagonal scale used for the filtered rows.
+    pub filter_scale: f64,
+}
+
+/// Why Newton gave up.
+#[derive(Debug, Clone, Copy)]
+pub struct NewtonFailure {
+    pub node: usize,
+    pub residual: f64,
+    pub reason: &'static str,
+    pub iterations: u32,
+}
+
+/// One Newton iteration, for observers.
+pub struct IterationReport<'a> {
+    pub iteration: u32,
+    pub residual: f64,
+    pub update: f64,
+    pub q: &'a [f64],
+}
+
+impl RodWork {
+    pub fn new(rod: &Rod, gravity: [f64; 2]) -> Self {
+        let n = rod.n;
+        let mut free_index = vec![usize::MAX; n];
+        let mut nfree = 0;
+        for i in 0..n {
+            if !rod.clamped[i] {
+                free_index[i] = nfree;
+                nfree += 1;
+            }
+        }
+        let mut fext = rod.load.clone();
+        for i in 0..n {
+            if !rod.clamped[i] {
+                fext[2 * i] += rod.mass[i] * gravity[0];
+                fext[2 * i + 1] += rod.mass[i] * gravity[1];
+            } else {
+                fext[2 * i] = 0.0;
+                fext[2 * i + 1] = 0.0;
+            }
+        }
+        let g = (gravity[0].powi(2) + gravity[1].powi(2)).sqrt();
+        let mut force_scale = if n > 1 {
+            rod.ei / (rod.length * rod.length)
+        } else {
+            0.0
+        };
+        for i in 0..n {
+            if !rod.clamped[i] {
+                force_scale = force_scale.max(rod.mass[i] * g);
+                force_scale =
+                    force_scale.max((rod.load[2 * i].powi(2) + rod.load[2 * i + 1].powi(2)).sqrt());
+            }
+        }
+        let force_scale = force_scale.max(f64::MIN_POSITIVE);
+        let mean_mass = rod.mass.iter().sum::<f64>() / n as f64;
+        let dim = 2 * nfree;
+        Self {
+            q: rod.q0.clone(),
+            u: (0..2 * n)
+                .map(|k| {
+                    if rod.clamped[k / 2] {
+                        0.0
+                    } else {
+                        rod.velocity[k % 2]
+                    }
+                })
+                .collect(),
+            a: vec![0.0; 2 * n],
+            dq: vec![0.0; 2 * n],
+            qn: rod.q0.clone(),
+            grad: vec![0.0; 2 * n],
+            r: vec![0.0; 2 * n],
+            fext,
+            free_index,
+            nfree,
+            band: BandLu::new(dim, 5, 5),
+            rhs: vec![0.0; dim],
+            contact: vec![None; n],
+            contact_saved: vec![None; n],
+            released: Vec::with_capacity(n),
+            force_scale,
+            length_scale: rod.length,
+            filter_scale: mean_mass,
+        }
+    }
+}
+
+/// Energy gradient at `q` into `grad`; Hessian on the free DOFs into `band` when given.
+pub fn assemble(
+    rod: &Rod,
+    free_index: &[usize],
+    q: &[f64],
+    grad: &mut [f64],
+    mut band: Option<&mut BandLu>,
+) -> f64 {
+    grad.fill(0.0);
+    if let Some(b) = band.as_deref_mut() {
+        b.clear();
+    }
+    let mut energy = 0.0;
+    let n = rod.n;
+    let mut g4 = [0.0; 4];
+    let mut h4 = [[0.0; 4]; 4];
+    for e in 0..n - 1 {
+        let x = [q[2 * e], q[2 * e + 1], q[2 * e + 2], q[2 * e + 3]];
+        let hess = if band.is_some() { Some(&mut h4) } else { None };
+        energy += stretch(&x, rod.ea, rod.rest_length[e], &mut g4, hess);
+        for a in 0..4 {
+            grad[2 * e + a] += g4[a];
+        }
+        if let Some(b) = band.as_deref_mut() {
+            scatter(b, free_index, e, &h4);
+        }
+    }
+    let mut g6 = [0.0; 6];
+    let mut h6 = [[0.0; 6]; 6];
+    for i in 1..n - 1 {
+        let s = 2 * (i - 1);
+        let x = [q[s], q[s + 1], q[s + 2], q[s + 3], q[s + 4], q[s + 5]];
+        let eil = rod.ei / rod.bend_length(i);
+        let hess = if band.is_some() { Some(&mut h6) } else { None };
+        energy += bend(&x, eil, rod.rest_curvature[i], &mut g6, hess);
+        for a in 0..6 {
+            grad[s + a] += g6[a];
+        }
+        if let Some(b) = band.as_deref_mut() {
+            scatter(b, free_index, i - 1, &h6);
+        }
+    }
+    energy
+}
+
+#[inline(always)]
+fn scatter<const N: usize>(
+    b: &mut BandLu,
+    free_index: &[usize],
+    first_node: usize,
+    h: &[[f64; N]; N],
+) {
+    let nodes = N / 2;
+    for ni in 0..nodes {
+        let fi = free_index[first_node + ni];
+        if fi == usize::MAX {
+            continue;
+        }
+        for nj in 0..nodes {
+            let fj = free_index[first_node + nj];
+            if fj == usize::MAX {
+                continue;
+            }
+            for a in 0..2 {
+                for c in 0..2 {
+                    b.add(2 * fi + a, 2 * fj + c, h[2 * ni + a][2 * nj + c]);
+                }
+            }
+        }
+    }
+}
+
+pub struct NewtonOptions {
+    /// 1/dt² for dynamics, 0 for statics.
+    pub c: f64,
+    pub dt: f64,
+    /// Load factor.
+    pub lambda: f64,
+    pub force_tol: f64,
+    pub step_tol: f64,
+    pub max_iterations: u32,
+}
+
+/// Solve one rod's step with its current constraint set, starting from `w.dq`.
+/// `on_iter` is called after every update when `Some`.
+pub fn solve(
+    rod: &Rod,
+    w: &mut RodWork,
+    opt: &NewtonOptions,
+    mut on_iter: Option<&mut dyn FnMut(IterationReport<'_>)>,
+) -> Result<u32, NewtonFailure> {
+    let n = rod.n;
+    // Put constrained nodes exactly on their targets.
+    for i in 0..n {
+        if let Some(c) = w.contact[i] {
+            let d = c.normal[0] * (w.q[2 * i] + w.dq[2 * i])
+                + c.normal[1] * (w.q[2 * i + 1] + w.dq[2 * i + 1])
+                - c.target;
+            w.dq[2 * i] -= d * c.normal[0];
+            w.dq[2 * i + 1] -= d * c.normal[1];
+        }
+    }
+    let ftol = opt.force_tol * w.force_scale;
+    let stol = opt.step_tol * w.length_scale;
+    let mut iterations = 0u32;
+    loop {
+        for k in 0..2 * n {
+            w.qn[k] = w.q[k] + w.dq[k];
+        }
+        let want_hessian = iterations < opt.max_iterations;
+        assemble(
+            rod,
+            &w.free_index,
+            &w.qn,
+            &mut w.grad,
+            if want_hessian {
+                Some(&mut w.band)
+            } else {
+                None
+            },
+        );
+        // Residual on every DOF (on driven nodes it is the drive force).
+        let mut res = 0.0f64;
+        let mut worst = 0usize;
+        for i in 0..n {
+            let m = rod.mass[i];
+            for a in 0..2 {
+                let k = 2 * i + a;
+                w.r[k] =
+                    opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
+            }
+            if w.free_index[i] == usize::MAX {
+                continue;
+            }
+            let (mut rx, mut ry) = (w.r[2 * i], w.r[2 * i + 1]);
+            if let Some(c) = w.contact[i] {
+                let d = c.normal[0] * rx + c.normal[1] * ry;
+                rx -= d * c.normal[0];
+                ry -= d * c.normal[1];
+            }
+            let v = rx.abs().max(ry.abs());
+            if !v.is_finite() {
+                return Err(NewtonFailure {
+                    node: i,
+                    residual: f64::NAN,
+                    reason: "non-finite residual",
+                    iterations,
+                });
+            }
+            if v > res {
+                res = v;
+                worst = i;
+            }
+            let fi = w.free_index[i];
+            w.rhs[2 * fi] = -rx;
+            w.rhs[2 * fi + 1] = -ry;
+        }
+        if res <= ftol {
+            return Ok(iterations);
+        }
+        if iterations >= opt.max_iterations {
+            return Err(NewtonFailure {
+                node: worst,
+                residual: res,
+                reason: "Newton did not converge",
+                iterations,
+            });
+        }
+        // Jacobian: c M + ∇²E, filtered at constrained nodes.
+        for i in 0..n {
+            let fi = w.free_index[i];
+            if fi == usize::MAX {
+                continue;
+            }
+            let cm = opt.c * rod.mass[i];
+            w.band.add(2 * fi, 2 * fi, cm);
+            w.band.add(2 * fi + 1, 2 * fi + 1, cm);
+        }
+        let s = (opt.c * w.filter_scale).max(rod.ea / rod.length);
+        for i in 0..n {
+            if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
+                if fi != usize::MAX {
+                    w.band.filter_rows(2 * fi, c.normal);
+                }
+            }
+        }
+        for i in 0..n {
+            if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
+                if fi != usize::MAX {
+                    w.band.filter_cols(2 * fi, c.normal, s);
+                }
+            }
+        }
+        if let Err(col) = w.band.factor() {
+            let node = free_node(&w.free_index, col / 2);
+            return Err(NewtonFailure {
+                node,
+                residual: res,
+                reason: "singular Jacobian",
+                iterations,
+            });
+        }
+        w.band.solve(&mut w.rhs);
+        iterations += 1;
+        let mut upd = 0.0f64;
+        for i in 0..n {
+            let fi = w.free_index[i];
+            if fi == usize::MAX {
+                continue;
+            }
+            let (mut dx, mut dy) = (w.rhs[2 * fi], w.rhs[2 * fi + 1]);
+            if let Some(c) = w.contact[i] {
+                let d = c.normal[0] * dx + c.normal[1] * dy;
+                dx -= d * c.normal[0];
+                dy -= d * c.normal[1];
+            }
+            if !(dx.is_finite() && dy.is_finite()) {
+                return Err(NewtonFailure {
+                    node: i,
+                    residual: res,
+                    reason: "non-finite Newton update",
+                    iterations,
+                });
+            }
+            w.dq[2 * i] += dx;
+            w.dq[2 * i + 1] += dy;
+            upd = upd.max(dx.abs()).max(dy.abs());
+        }
+        if let Some(cb) = on_iter.as_deref_mut() {
+            for k in 0..2 * n {
+                w.qn[k] = w.q[k] + w.dq[k];
+            }
+            cb(IterationReport {
+                iteration: iterations,
+                residual: res,
+                update: upd,
+                q: &w.qn,
+            });
+        }
+        if upd <= stol {
+            // The update is at the round-off floor: accept, with the residual of the final iterate.
+            for k in 0..2 * n {
+                w.qn[k] = w.q[k] + w.dq[k];
+            }
+            assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
+            for k in 0..2 * n {
+                let m = rod.mass[k / 2];
+                w.r[k] =
+                    opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
+            }
+            return Ok(iterations);
+        }
+    }
+}
+
+fn free_node(free_index: &[usize], f: usize) -> usize {
+    free_index.iter().position(|&x| x == f).unwrap_or(0)
+}
