@@ -269,27 +269,17 @@ pub fn solve(
         // Residual on every DOF (on driven nodes it is the drive force).
         let mut res = 0.0f64;
         let mut worst = 0usize;
+        eq2_residual(rod, w, opt);
         for i in 0..n {
-            let m = rod.mass[i];
-            for a in 0..2 {
-                let k = 2 * i + a;
-                w.r[k] =
-                    opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
-            }
             if w.free_index[i] == usize::MAX {
                 continue;
             }
-            let (mut rx, mut ry) = (w.r[2 * i], w.r[2 * i + 1]);
-            if let Some(c) = w.contact[i] {
-                let d = c.normal[0] * rx + c.normal[1] * ry;
-                rx -= d * c.normal[0];
-                ry -= d * c.normal[1];
-            }
+            let (rx, ry) = tangential(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
             let v = rx.abs().max(ry.abs());
             if !v.is_finite() {
                 return Err(NewtonFailure {
                     node: i,
-                    residual: f64::NAN,
+                    residual: res,
                     reason: "non-finite residual",
                     iterations,
                 });
@@ -355,12 +345,7 @@ pub fn solve(
             if fi == usize::MAX {
                 continue;
             }
-            let (mut dx, mut dy) = (w.rhs[2 * fi], w.rhs[2 * fi + 1]);
-            if let Some(c) = w.contact[i] {
-                let d = c.normal[0] * dx + c.normal[1] * dy;
-                dx -= d * c.normal[0];
-                dy -= d * c.normal[1];
-            }
+            let (dx, dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], w.contact[i]);
             if !(dx.is_finite() && dy.is_finite()) {
                 return Err(NewtonFailure {
                     node: i,
@@ -390,13 +375,31 @@ pub fn solve(
                 w.qn[k] = w.q[k] + w.dq[k];
             }
             assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
-            for k in 0..2 * n {
-                let m = rod.mass[k / 2];
-                w.r[k] =
-                    opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
-            }
+            eq2_residual(rod, w, opt);
             return Ok(iterations);
         }
+    }
+}
+
+/// r = c M (Δq − dt u) + ∇E − λ F on every DOF: eq. 2's reaction (the drive force on driven
+/// nodes, the contact force on constrained ones, zero on free ones at convergence).
+#[inline]
+fn eq2_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
+    for k in 0..2 * rod.n {
+        let m = rod.mass[k / 2];
+        w.r[k] = opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
+    }
+}
+
+/// The part of (x, y) along the surface of a constrained node: S v with S = I − n nᵀ.
+#[inline(always)]
+fn tangential(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
+    match c {
+        Some(c) => {
+            let d = c.normal[0] * x + c.normal[1] * y;
+            (x - d * c.normal[0], y - d * c.normal[1])
+        }
+        None => (x, y),
     }
 }
 
