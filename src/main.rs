@@ -1,11 +1,16 @@
 //! The `gripsim` command line: thin commands over the library.
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
 use gripsim::events::{Fanout, Observer};
+use gripsim::record::csv::CsvSink;
+use gripsim::record::mcap::McapSink;
+use gripsim::record::rerun::RerunSink;
 use gripsim::record::summary::SummaryCollector;
+use gripsim::record::{Detail, Finished, RecordOptions, Recording};
 use gripsim::{Scenario, Simulation};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 #[derive(Parser)]
 #[command(
@@ -21,13 +26,37 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a scenario and print a short summary.
+    /// Run a scenario, record it and print a short summary.
+    ///
+    /// With no --rrd/--mcap/--csv the run is recorded to recordings/<scenario-name>.rrd and
+    /// .mcap (--no-record skips that). Files are written as NAME.partial.EXT and renamed when
+    /// the run completes; Ctrl-C (SIGINT) or SIGTERM stops the run after the current step and
+    /// closes the files properly (exit status 130 or 143).
     #[command(
-        after_help = "Examples:\n  gripsim run scenarios/seed-grasp-r5.toml\n  gripsim run scenarios/seed-grasp-r5.toml --set rod.0.E=1e9 --summary out/e1gpa.json"
+        after_help = "Examples:\n  gripsim run scenarios/seed-grasp-r5.toml\n  gripsim run scenarios/seed-grasp-r5.toml --detail iteration --rrd out/r5.rrd --mcap out/r5.mcap\n  gripsim run scenarios/seed-grasp-r5.toml --csv out/r5.csv --no-record\n  gripsim run scenarios/seed-grasp-r5.toml --set rod.0.E=1e9 --summary out/e1gpa.json --no-record\n\nOpen a .rrd with `rerun FILE.rrd`; open a .mcap in Foxglove (see recordings/README.md)."
     )]
     Run {
         /// Scenario file (TOML).
         scenario: PathBuf,
+        /// Write a Rerun recording to this file.
+        #[arg(long, value_name = "FILE.rrd")]
+        rrd: Option<PathBuf>,
+        /// Write an MCAP recording (JSON messages, Foxglove scene) to this file.
+        #[arg(long, value_name = "FILE.mcap")]
+        mcap: Option<PathBuf>,
+        /// Write one CSV row per step, rod and node to this file.
+        #[arg(long, value_name = "FILE.csv")]
+        csv: Option<PathBuf>,
+        /// What the recordings hold: every step, or also every Newton iteration.
+        #[arg(long, value_enum, default_value_t = DetailArg::Step)]
+        detail: DetailArg,
+        /// Make the recordings readable up to here every N steps [default: the scenario's
+        /// [output] flush_every, else 100].
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        flush_every: Option<u64>,
+        /// Do not write the default recordings (recordings/<name>.rrd and .mcap).
+        #[arg(long, conflicts_with_all = ["rrd", "mcap", "csv"])]
+        no_record: bool,
         /// Write the run summary as JSON to this file.
         #[arg(long, value_name = "FILE.json")]
         summary: Option<PathBuf>,
@@ -55,15 +84,52 @@ enum Command {
     },
 }
 
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum DetailArg {
+    /// Every step's state, contact changes and solver events.
+    Step,
+    /// Also every Newton iteration of every predictor and corrector pass.
+    Iteration,
+}
+
+/// What `run` writes.
+struct Outputs {
+    rrd: Option<PathBuf>,
+    mcap: Option<PathBuf>,
+    csv: Option<PathBuf>,
+    summary: Option<PathBuf>,
+    detail: Detail,
+    flush_every: Option<u64>,
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Run {
             scenario,
+            rrd,
+            mcap,
+            csv,
+            detail,
+            flush_every,
+            no_record,
             summary,
             sets,
             quiet,
-        } => run(&scenario, summary.as_deref(), &sets, quiet),
+        } => {
+            let out = Outputs {
+                rrd,
+                mcap,
+                csv,
+                summary,
+                detail: match detail {
+                    DetailArg::Step => Detail::Step,
+                    DetailArg::Iteration => Detail::Iteration,
+                },
+                flush_every,
+            };
+            run(&scenario, out, no_record, &sets, quiet)
+        }
         Command::Validate { scenario, sets } => match Scenario::load(&scenario, &sets) {
             Ok(sc) => {
                 let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
@@ -86,7 +152,40 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(path: &Path, summary_path: Option<&Path>, sets: &[String], quiet: bool) -> ExitCode {
+/// Exit status asked for by a signal (128 + signal number), 0 while none arrived.
+static STOP: AtomicUsize = AtomicUsize::new(0);
+/// Set by the first signal; a second one then ends the process at once.
+static STOPPING: AtomicBool = AtomicBool::new(false);
+
+/// SIGINT and SIGTERM stop the run after the current step (the recordings are then closed
+/// properly); a second signal exits at once.
+fn install_signal_handlers() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    use signal_hook::flag;
+    for sig in [SIGINT, SIGTERM] {
+        let code = 128 + sig;
+        let ok = flag::register_conditional_shutdown(sig, code, &STOPPING).is_ok()
+            && flag::register_usize(sig, &STOP, code as usize).is_ok()
+            && flag::register(sig, &STOPPING).is_ok();
+        if !ok {
+            eprintln!("warning: cannot handle signal {sig}; stopping the run may leave partial recordings");
+        }
+    }
+}
+
+fn file_name(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || "._-".contains(c) {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
     let sc = match Scenario::load(path, sets) {
         Ok(s) => s,
         Err(e) => {
@@ -94,33 +193,115 @@ fn run(path: &Path, summary_path: Option<&Path>, sets: &[String], quiet: bool) -
             return ExitCode::from(2);
         }
     };
+    if !no_record && out.rrd.is_none() && out.mcap.is_none() && out.csv.is_none() {
+        let base = Path::new("recordings").join(file_name(&sc.name));
+        out.rrd = Some(base.with_extension("rrd"));
+        out.mcap = Some(base.with_extension("mcap"));
+    }
+    let opts = RecordOptions {
+        detail: out.detail,
+        flush_every: out.flush_every.unwrap_or(sc.flush_every),
+    };
+    let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
+    let created = (|| {
+        if let Some(p) = &out.rrd {
+            sinks.push(Box::new(RerunSink::create(p, opts, &sc)?));
+        }
+        if let Some(p) = &out.mcap {
+            sinks.push(Box::new(McapSink::create(p, opts)?));
+        }
+        if let Some(p) = &out.csv {
+            sinks.push(Box::new(CsvSink::create(p, opts)?));
+        }
+        Ok::<_, gripsim::record::RecordError>(())
+    })();
+    if let Err(e) = created {
+        eprintln!("error: cannot create a recording: {e}");
+        return ExitCode::from(2);
+    }
+
+    install_signal_handlers();
     let mut sim = Simulation::new(&sc);
+    sim.interrupt = Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0));
     let mut collector = SummaryCollector::new();
     let start = std::time::Instant::now();
     let result = {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);
+        for s in sinks.iter_mut() {
+            fan.push(s.as_mut() as &mut dyn Observer);
+        }
         sim.run(&mut fan)
     };
+    let mut failed = false;
+    let mut files = Vec::new();
+    for s in sinks.iter_mut() {
+        match s.finish() {
+            Ok(f) => files.push((s.format(), f)),
+            Err(e) => {
+                eprintln!("error: the {} recording failed: {e}", s.format());
+                failed = true;
+            }
+        }
+    }
     let wall = start.elapsed().as_secs_f64();
     let summary = collector.finish(&sim.stats, wall);
-    if let Some(p) = summary_path {
+    if let Some(p) = &out.summary {
         let mut text = serde_json::to_string_pretty(&summary).expect("summary serialises");
         text.push('\n');
         if let Err(e) = gripsim::record::write_atomic(p, text.as_bytes()) {
             eprintln!("error: cannot write the summary to {}: {e}", p.display());
-            return ExitCode::from(2);
+            failed = true;
         }
     }
     if !quiet {
         print_summary(&summary);
+        print_recordings(&files, opts);
     }
+    let stop = STOP.load(Ordering::Relaxed);
     match result {
-        Ok(_) => ExitCode::SUCCESS,
+        Err(e @ gripsim::solver::SimError::Interrupted { .. }) if stop != 0 => {
+            let signal = if stop == 143 { "SIGTERM" } else { "SIGINT" };
+            eprintln!("{e} by {signal}; the recordings are closed and keep their .partial names");
+            ExitCode::from(stop as u8)
+        }
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(2)
         }
+        Ok(_) if failed => ExitCode::from(2),
+        Ok(_) => ExitCode::SUCCESS,
+    }
+}
+
+/// Where the recordings are and how to open them.
+fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions) {
+    if files.is_empty() {
+        return;
+    }
+    println!(
+        "recordings      ({} detail, readable up to the last multiple of {} steps if the run dies)",
+        opts.detail.as_str(),
+        opts.flush_every
+    );
+    for (format, f) in files {
+        let size = std::fs::metadata(&f.path).map(|m| m.len()).unwrap_or(0);
+        let how = match *format {
+            "rerun" => format!("open: rerun {}", f.path.display()),
+            "mcap" => "open in Foxglove: Open local file; 3D panel on /scene, Plot panel on /sim/step.rods[0].reaction_norm[i]".to_string(),
+            _ => "tidy table: one row per step, rod and node".to_string(),
+        };
+        println!(
+            "  {:<5} {} ({:.1} MB{})  {how}",
+            format,
+            f.path.display(),
+            size as f64 / 1e6,
+            if f.complete {
+                ""
+            } else {
+                ", INCOMPLETE: the run stopped early"
+            }
+        );
     }
 }
 

@@ -193,19 +193,23 @@ impl Simulation {
         false
     }
 
+    /// Stop with [`SimError::Interrupted`] when the [`Simulation::interrupt`] hook says so.
+    fn check_interrupt(&self) -> Result<(), SimError> {
+        match &self.interrupt {
+            Some(f) if f() => Err(SimError::Interrupted {
+                step: self.step,
+                t: self.t,
+            }),
+            _ => Ok(()),
+        }
+    }
+
     fn run_dynamic<O: Observer>(&mut self, obs: &mut O) -> Result<(), SimError> {
         let t_end = self.scenario.solve.t_end;
         let max_backoff = self.scenario.solve.max_backoff;
         let mut prev_nominal = f64::NAN;
         while self.t < t_end * (1.0 - 1e-12) {
-            if let Some(f) = &self.interrupt {
-                if f() {
-                    return Err(SimError::Interrupted {
-                        step: self.step,
-                        t: self.t,
-                    });
-                }
-            }
+            self.check_interrupt()?;
             let nominal = self.nominal_dt();
             if prev_nominal.is_finite() && nominal != prev_nominal {
                 let reason = if nominal < prev_nominal {
@@ -277,6 +281,7 @@ impl Simulation {
         let mut inc = self.scenario.solve.load_step;
         let mut backoffs = 0u32;
         while lambda < 1.0 {
+            self.check_interrupt()?;
             let target = (lambda + inc).min(1.0);
             match self.try_step(1.0, target, obs) {
                 Ok(()) => {

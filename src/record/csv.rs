@@ -1,0 +1,134 @@
+//! The CSV sink: the run in tidy long format, one row per (step, rod, node).
+//!
+//! Columns: `step, t, rod, node, x, y, vx, vy, rx, ry, reaction, impulse, in_contact,
+//! bending_stress` (see docs/recording-format.md). Floats are printed as the shortest text
+//! that reads back to the same f64, so the file holds the exact numbers of the run.
+
+use super::{node_norm, Finished, OutputFile, RecordError, RecordOptions, Recording};
+use crate::events::{Event, Observer};
+use std::io::BufWriter;
+use std::path::Path;
+
+#[derive(serde::Serialize)]
+struct Row<'a> {
+    step: u64,
+    t: f64,
+    rod: &'a str,
+    node: usize,
+    x: f64,
+    y: f64,
+    vx: f64,
+    vy: f64,
+    rx: f64,
+    ry: f64,
+    reaction: f64,
+    impulse: f64,
+    in_contact: u8,
+    bending_stress: f64,
+}
+
+/// Writes a CSV file.
+pub struct CsvSink {
+    out: OutputFile,
+    writer: Option<::csv::Writer<BufWriter<std::fs::File>>>,
+    flush_every: u64,
+    rods: Vec<String>,
+    completed: bool,
+    error: Option<RecordError>,
+}
+
+impl CsvSink {
+    /// Create `path` (as its `.partial` sibling until the run completes).
+    pub fn create(path: &Path, opts: RecordOptions) -> Result<Self, RecordError> {
+        let out = OutputFile::new(path);
+        let file = out.create()?;
+        Ok(Self {
+            writer: Some(::csv::Writer::from_writer(BufWriter::new(file))),
+            out,
+            flush_every: opts.flush_every.max(1),
+            rods: Vec::new(),
+            completed: false,
+            error: None,
+        })
+    }
+
+    fn write_step(&mut self, step: u64, t: f64, rods: &[crate::events::RodStepView<'_>]) {
+        let Some(w) = self.writer.as_mut() else {
+            return;
+        };
+        let mut result = Ok(());
+        'rods: for (name, v) in self.rods.iter().zip(rods) {
+            for i in 0..v.in_contact.len() {
+                result = w.serialize(Row {
+                    step,
+                    t,
+                    rod: name,
+                    node: i,
+                    x: v.q[2 * i],
+                    y: v.q[2 * i + 1],
+                    vx: v.u[2 * i],
+                    vy: v.u[2 * i + 1],
+                    rx: v.reaction[2 * i],
+                    ry: v.reaction[2 * i + 1],
+                    reaction: node_norm(v.reaction, i),
+                    impulse: node_norm(v.impulse, i),
+                    in_contact: v.in_contact[i] as u8,
+                    bending_stress: v.bending_stress[i],
+                });
+                if result.is_err() {
+                    break 'rods;
+                }
+            }
+        }
+        if result.is_ok() && step.is_multiple_of(self.flush_every) {
+            result = w.flush().map_err(::csv::Error::from);
+        }
+        if let Err(e) = result {
+            self.fail(e);
+        }
+    }
+
+    fn fail(&mut self, e: impl std::fmt::Display) {
+        if self.error.is_none() {
+            self.error = Some(RecordError::write(&self.out.partial, e));
+        }
+        self.writer = None;
+    }
+}
+
+impl Observer for CsvSink {
+    fn on_event(&mut self, event: &Event<'_>) {
+        match event {
+            Event::RunStart(info) => {
+                self.rods = info.rods.iter().map(|r| r.name.clone()).collect();
+            }
+            Event::StepEnd { step, t, rods, .. } => self.write_step(*step, *t, rods),
+            Event::RunEnd { error, .. } => self.completed = error.is_none(),
+            _ => {}
+        }
+    }
+}
+
+impl Recording for CsvSink {
+    fn format(&self) -> &'static str {
+        "csv"
+    }
+
+    fn finish(&mut self) -> Result<Finished, RecordError> {
+        if let Some(mut w) = self.writer.take() {
+            let closed = w
+                .flush()
+                .map_err(|e| e.to_string())
+                .and_then(|_| w.into_inner().map_err(|e| e.to_string()))
+                .and_then(|b| b.into_inner().map_err(|e| e.to_string()))
+                .and_then(|f| f.sync_all().map_err(|e| e.to_string()));
+            if let Err(e) = closed {
+                self.fail(e);
+            }
+        }
+        if let Some(e) = self.error.take() {
+            return Err(e);
+        }
+        self.out.settle(self.completed)
+    }
+}

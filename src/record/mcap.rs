@@ -1,0 +1,929 @@
+//! The MCAP sink: the archival record of a run, JSON messages with JSON schemas.
+//!
+//! Channels (each documented field by field in docs/recording-format.md, and by the JSON
+//! schemas in `src/record/schemas/`, which the file carries):
+//!
+//! | topic | schema | messages |
+//! |---|---|---|
+//! | `/sim/meta` | `gripsim.Meta` | one, first: scenario text, rods, obstacles, units |
+//! | `/sim/step` | `gripsim.Step` | one per step, from step 0 (the initial state) |
+//! | `/sim/iteration` | `gripsim.Iteration` | one per Newton iteration (`--detail iteration`) |
+//! | `/sim/contact` | `gripsim.Contact` | one per constraint added or released |
+//! | `/sim/event` | `gripsim.Event` | dt changes, Newton failures, warnings, run end |
+//! | `/scene` | `foxglove.SceneUpdate` | one per step: the scene for Foxglove's 3D panel |
+//!
+//! The file is chunked and zstd-compressed with message indexes and a summary (the `mcap`
+//! writer's defaults). Log times are simulated time in ns (static runs: step number in s),
+//! clamped so they never decrease. Nothing depends on the wall clock or the machine (single
+//! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
+
+use super::{
+    node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording, RodStyle,
+    SceneStyle, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
+};
+use crate::events::{
+    ContactChange, Event, Observer, Phase, ReleaseReason, RodInfo, RodStepView, RunInfo,
+};
+use crate::obstacle::Obstacle;
+use crate::scenario::Mode;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::Path;
+
+/// Version of the recording format; bumped when a field changes meaning or is removed.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// The `library` string in the MCAP header.
+pub const LIBRARY: &str = concat!("gripsim ", env!("CARGO_PKG_VERSION"));
+
+/// Every channel: topic, schema name, schema text.
+pub const CHANNELS: [(&str, &str, &str); 6] = [
+    (
+        "/sim/meta",
+        "gripsim.Meta",
+        include_str!("schemas/gripsim.Meta.json"),
+    ),
+    (
+        "/sim/step",
+        "gripsim.Step",
+        include_str!("schemas/gripsim.Step.json"),
+    ),
+    (
+        "/sim/iteration",
+        "gripsim.Iteration",
+        include_str!("schemas/gripsim.Iteration.json"),
+    ),
+    (
+        "/sim/contact",
+        "gripsim.Contact",
+        include_str!("schemas/gripsim.Contact.json"),
+    ),
+    (
+        "/sim/event",
+        "gripsim.Event",
+        include_str!("schemas/gripsim.Event.json"),
+    ),
+    // The published schema of foxglove.SceneUpdate (@foxglove/schemas 2.1.0, MIT).
+    (
+        "/scene",
+        "foxglove.SceneUpdate",
+        include_str!("schemas/foxglove.SceneUpdate.json"),
+    ),
+];
+
+const META: usize = 0;
+const STEP: usize = 1;
+const ITERATION: usize = 2;
+const CONTACT: usize = 3;
+const EVENT: usize = 4;
+const SCENE: usize = 5;
+
+type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
+
+/// Writes an MCAP file.
+pub struct McapSink {
+    out: OutputFile,
+    writer: Option<Writer>,
+    opts: RecordOptions,
+    channels: [u16; 6],
+    sequence: [u32; 6],
+    buf: Vec<u8>,
+    static_mode: bool,
+    last_time: u64,
+    rods: Vec<RodInfo>,
+    obstacles: Vec<Obstacle>,
+    style: Option<SceneStyle>,
+    /// The obstacles' scene entity as JSON (the same in every `/scene` message).
+    obstacle_entity: String,
+    completed: bool,
+    end: BTreeMap<String, String>,
+    error: Option<RecordError>,
+}
+
+impl McapSink {
+    /// Create `path` (as its `.partial` sibling until the run completes) and write the header,
+    /// schemas and channels.
+    pub fn create(path: &Path, opts: RecordOptions) -> Result<Self, RecordError> {
+        let out = OutputFile::new(path);
+        let file = out.create()?;
+        let err = |e: ::mcap::McapError| RecordError::write(&out.partial, e);
+        let mut w = ::mcap::WriteOptions::new()
+            .profile("")
+            .library(LIBRARY)
+            // One thread: zstd's output then depends on nothing but the input.
+            .compression_threads(0)
+            .create(BufWriter::with_capacity(1 << 16, file))
+            .map_err(err)?;
+        let mut channels = [0u16; 6];
+        for (k, (topic, schema, text)) in CHANNELS.iter().enumerate() {
+            let sid = w
+                .add_schema(schema, "jsonschema", text.as_bytes())
+                .map_err(err)?;
+            channels[k] = w
+                .add_channel(sid, topic, "json", &BTreeMap::new())
+                .map_err(err)?;
+        }
+        Ok(Self {
+            out,
+            writer: Some(w),
+            opts: RecordOptions {
+                flush_every: opts.flush_every.max(1),
+                ..opts
+            },
+            channels,
+            sequence: [0; 6],
+            buf: Vec::with_capacity(1 << 14),
+            static_mode: false,
+            last_time: 0,
+            rods: Vec::new(),
+            obstacles: Vec::new(),
+            style: None,
+            obstacle_entity: String::new(),
+            completed: false,
+            end: BTreeMap::new(),
+            error: None,
+        })
+    }
+
+    /// The log time of an event: simulated ns (static runs: the step number in s), never
+    /// smaller than the last one.
+    fn time(&mut self, step: u64, t: f64) -> u64 {
+        let raw = if self.static_mode {
+            step.saturating_mul(1_000_000_000)
+        } else if t > 0.0 {
+            (t * 1e9).round() as u64
+        } else {
+            0
+        };
+        self.last_time = self.last_time.max(raw);
+        self.last_time
+    }
+
+    /// Serialise `msg` as JSON and write it on channel `k` at `log_time`.
+    fn send<T: Serialize>(&mut self, k: usize, log_time: u64, msg: &T) {
+        self.buf.clear();
+        if let Err(e) = serde_json::to_writer(&mut self.buf, msg) {
+            return self.fail(e);
+        }
+        self.write_buf(k, log_time);
+    }
+
+    fn write_buf(&mut self, k: usize, log_time: u64) {
+        let Some(w) = self.writer.as_mut() else {
+            return;
+        };
+        let header = ::mcap::records::MessageHeader {
+            channel_id: self.channels[k],
+            sequence: self.sequence[k],
+            log_time,
+            publish_time: log_time,
+        };
+        self.sequence[k] = self.sequence[k].wrapping_add(1);
+        if let Err(e) = w.write_to_known_channel(&header, &self.buf) {
+            self.fail(e);
+        }
+    }
+
+    fn fail(&mut self, e: impl std::fmt::Display) {
+        if self.error.is_none() {
+            self.error = Some(RecordError::write(&self.out.partial, e));
+        }
+        // Dropping the writer writes what it can of the summary; the file keeps .partial.
+        self.writer = None;
+    }
+
+    fn run_start(&mut self, info: &RunInfo<'_>) {
+        self.static_mode = info.mode == Mode::Static;
+        self.rods = info.rods.to_vec();
+        self.obstacles = info.obstacles.to_vec();
+        let mode = match info.mode {
+            Mode::Dynamic => "dynamic",
+            Mode::Static => "static",
+        };
+        let meta = Meta {
+            format_version: FORMAT_VERSION,
+            gripsim_version: env!("CARGO_PKG_VERSION"),
+            scenario_name: info.scenario_name,
+            scenario_text: info.scenario_text,
+            mode,
+            detail: self.opts.detail.as_str(),
+            flush_every: self.opts.flush_every,
+            clock: if self.static_mode {
+                "load_step"
+            } else {
+                "sim_time"
+            },
+            units: UNITS.iter().copied().collect(),
+            rods: info.rods.iter().map(RodMeta::from).collect(),
+            obstacles: info.obstacles,
+        };
+        let record = ::mcap::records::Metadata {
+            name: "gripsim".into(),
+            metadata: BTreeMap::from([
+                ("format_version".into(), FORMAT_VERSION.to_string()),
+                ("gripsim_version".into(), env!("CARGO_PKG_VERSION").into()),
+                ("scenario_name".into(), info.scenario_name.into()),
+                ("mode".into(), mode.into()),
+                ("detail".into(), self.opts.detail.as_str().into()),
+            ]),
+        };
+        if let Some(w) = self.writer.as_mut() {
+            if let Err(e) = w.write_metadata(&record) {
+                return self.fail(e);
+            }
+        }
+        self.send(META, 0, &meta);
+    }
+
+    fn step_end(&mut self, ev: StepEnd<'_, '_>) {
+        if self.style.is_none() {
+            let style = SceneStyle::new(&self.rods, ev.rods, &self.obstacles);
+            self.obstacle_entity = obstacle_entity(&self.obstacles, &style);
+            self.style = Some(style);
+        }
+        let time = self.time(ev.step, ev.t);
+        let msg = StepMsg {
+            step: ev.step,
+            t: ev.t,
+            dt: ev.dt,
+            newton_iterations: ev.newton_iterations,
+            passes: ev.passes,
+            rods: ev.rods.iter().map(RodMsg::from).collect(),
+        };
+        self.send(STEP, time, &msg);
+        self.scene(time, ev.rods);
+        if ev.step.is_multiple_of(self.opts.flush_every) {
+            if let Some(w) = self.writer.as_mut() {
+                if let Err(e) = w.flush() {
+                    self.fail(e);
+                }
+            }
+        }
+    }
+
+    /// The `/scene` message: the obstacles (cached) and one entity per rod.
+    fn scene(&mut self, time: u64, rods: &[RodStepView<'_>]) {
+        let Some(style) = self.style.as_ref() else {
+            return;
+        };
+        let stamp = Stamp::of(time);
+        self.buf.clear();
+        self.buf
+            .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
+        self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
+        for (r, v) in rods.iter().enumerate() {
+            let entity = rod_entity(&self.rods[r], &style.rods[r], v, stamp);
+            self.buf.push(b',');
+            if let Err(e) = serde_json::to_writer(&mut self.buf, &entity) {
+                return self.fail(e);
+            }
+        }
+        self.buf.extend_from_slice(b"]}");
+        self.write_buf(SCENE, time);
+    }
+
+    fn contact(&mut self, c: &ContactChange, released: Option<ReleaseReason>) {
+        let time = self.time(c.step, c.t);
+        let msg = ContactMsg {
+            change: if released.is_some() {
+                "released"
+            } else {
+                "added"
+            },
+            reason: released.map(|r| match r {
+                ReleaseReason::Adhesive => "adhesive",
+            }),
+            step: c.step,
+            t: c.t,
+            pass: c.pass,
+            rod: c.rod,
+            node: c.node,
+            obstacle: c.obstacle,
+            normal: c.normal,
+            gap: c.gap,
+            reaction: c.reaction,
+            z: c.z,
+        };
+        self.send(CONTACT, time, &msg);
+    }
+
+    fn event(&mut self, msg: EventMsg<'_>) {
+        let time = self.time(msg.step, msg.t);
+        self.send(EVENT, time, &msg);
+    }
+}
+
+/// The fields of [`Event::StepEnd`].
+struct StepEnd<'e, 'a> {
+    step: u64,
+    t: f64,
+    dt: f64,
+    newton_iterations: u32,
+    passes: u32,
+    rods: &'e [RodStepView<'a>],
+}
+
+impl Observer for McapSink {
+    fn wants_iterations(&self) -> bool {
+        self.opts.detail == Detail::Iteration
+    }
+
+    fn on_event(&mut self, event: &Event<'_>) {
+        if self.writer.is_none() {
+            return;
+        }
+        match *event {
+            Event::RunStart(info) => self.run_start(info),
+            Event::StepBegin { .. } => {}
+            Event::Iteration {
+                step,
+                t,
+                phase,
+                pass,
+                iteration,
+                rod,
+                residual,
+                update,
+                q,
+            } => {
+                if self.opts.detail == Detail::Iteration {
+                    let time = self.time(step, t);
+                    let msg = IterationMsg {
+                        step,
+                        t,
+                        phase,
+                        pass,
+                        iteration,
+                        rod,
+                        residual,
+                        update,
+                        q,
+                    };
+                    self.send(ITERATION, time, &msg);
+                }
+            }
+            Event::ConstraintAdded(c) => self.contact(&c, None),
+            Event::ConstraintReleased(c, why) => self.contact(&c, Some(why)),
+            Event::DtChanged {
+                step,
+                t,
+                old,
+                new,
+                reason,
+            } => self.event(EventMsg {
+                kind: "dt_changed",
+                step,
+                t,
+                message: format!("step {step}: dt {old:e} s -> {new:e} s ({reason})"),
+                old_dt: Some(old),
+                new_dt: Some(new),
+                reason: Some(reason),
+                ..EventMsg::default()
+            }),
+            Event::NewtonFailed {
+                step,
+                t,
+                dt,
+                rod,
+                node,
+                residual,
+                reason,
+            } => self.event(EventMsg {
+                kind: "newton_failed",
+                step,
+                t,
+                message: format!(
+                    "step {step}: Newton failed on rod {:?} node {node} with dt = {dt:e}: {reason} (residual {residual:e} N)",
+                    self.rods.get(rod).map(|r| r.name.as_str()).unwrap_or("?")
+                ),
+                reason: Some(reason),
+                dt: Some(dt),
+                rod: Some(rod),
+                node: Some(node),
+                residual: Some(residual),
+                ..EventMsg::default()
+            }),
+            Event::Warning { step, t, message } => self.event(EventMsg {
+                kind: "warning",
+                step,
+                t,
+                message: message.to_string(),
+                ..EventMsg::default()
+            }),
+            Event::StepEnd {
+                step,
+                t,
+                dt,
+                newton_iterations,
+                passes,
+                rods,
+            } => self.step_end(StepEnd {
+                step,
+                t,
+                dt,
+                newton_iterations,
+                passes,
+                rods,
+            }),
+            Event::RunEnd { steps, t, error } => {
+                self.completed = error.is_none();
+                self.end = BTreeMap::from([
+                    ("completed".into(), self.completed.to_string()),
+                    ("steps".into(), steps.to_string()),
+                    ("t".into(), t.to_string()),
+                    ("error".into(), error.unwrap_or("").to_string()),
+                ]);
+                let message = match error {
+                    None => format!("run completed: {steps} steps, t = {t} s"),
+                    Some(e) => format!("run stopped after {steps} steps: {e}"),
+                };
+                self.event(EventMsg {
+                    kind: "run_end",
+                    step: steps,
+                    t,
+                    message,
+                    completed: Some(error.is_none()),
+                    error: Some(error),
+                    ..EventMsg::default()
+                });
+            }
+        }
+    }
+}
+
+impl Recording for McapSink {
+    fn format(&self) -> &'static str {
+        "mcap"
+    }
+
+    fn finish(&mut self) -> Result<Finished, RecordError> {
+        if let Some(mut w) = self.writer.take() {
+            let record = ::mcap::records::Metadata {
+                name: "gripsim.run_end".into(),
+                metadata: std::mem::take(&mut self.end),
+            };
+            let closed = w
+                .write_metadata(&record)
+                .and_then(|_| w.finish())
+                .map_err(|e| e.to_string())
+                .and_then(|_| w.into_inner().into_inner().map_err(|e| e.to_string()))
+                .and_then(|f| f.sync_all().map_err(|e| e.to_string()));
+            if let Err(e) = closed {
+                self.fail(e);
+            }
+        }
+        if let Some(e) = self.error.take() {
+            return Err(e);
+        }
+        self.out.settle(self.completed)
+    }
+}
+
+const UNITS: [(&str, &str); 9] = [
+    ("length", "m"),
+    ("time", "s"),
+    ("velocity", "m/s"),
+    ("mass", "kg"),
+    ("force", "N"),
+    ("impulse", "N s"),
+    ("stress", "Pa"),
+    ("log_time", "ns"),
+    ("angle", "rad"),
+];
+
+#[derive(Serialize)]
+struct Meta<'a> {
+    format_version: u32,
+    gripsim_version: &'a str,
+    scenario_name: &'a str,
+    scenario_text: &'a str,
+    mode: &'a str,
+    detail: &'a str,
+    flush_every: u64,
+    clock: &'a str,
+    units: BTreeMap<&'a str, &'a str>,
+    rods: Vec<RodMeta<'a>>,
+    obstacles: &'a [Obstacle],
+}
+
+#[derive(Serialize)]
+struct RodMeta<'a> {
+    name: &'a str,
+    nodes: usize,
+    mass: &'a [f64],
+    clamped: &'a [bool],
+    rest_length: &'a [f64],
+    rest_curvature: &'a [f64],
+    youngs_modulus: f64,
+    area: f64,
+    inertia: f64,
+    half_height: f64,
+    particle: bool,
+}
+
+impl<'a> From<&'a RodInfo> for RodMeta<'a> {
+    fn from(r: &'a RodInfo) -> Self {
+        Self {
+            name: &r.name,
+            nodes: r.nodes,
+            mass: &r.mass,
+            clamped: &r.clamped,
+            rest_length: &r.rest_length,
+            rest_curvature: &r.rest_curvature,
+            youngs_modulus: r.youngs_modulus,
+            area: r.area,
+            inertia: r.inertia,
+            half_height: r.half_height,
+            particle: r.particle,
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct StepMsg<'a> {
+    step: u64,
+    t: f64,
+    dt: f64,
+    newton_iterations: u32,
+    passes: u32,
+    rods: Vec<RodMsg<'a>>,
+}
+
+#[derive(Serialize)]
+struct RodMsg<'a> {
+    q: &'a [f64],
+    u: &'a [f64],
+    reaction: &'a [f64],
+    reaction_norm: Norms<'a>,
+    impulse: &'a [f64],
+    drive_force: &'a [f64],
+    normal: &'a [f64],
+    in_contact: &'a [bool],
+    contact_obstacle: Obstacles<'a>,
+    bending_stress: &'a [f64],
+    gap: &'a [f64],
+    q_predictor: &'a [f64],
+}
+
+impl<'a> From<&RodStepView<'a>> for RodMsg<'a> {
+    fn from(v: &RodStepView<'a>) -> Self {
+        Self {
+            q: v.q,
+            u: v.u,
+            reaction: v.reaction,
+            reaction_norm: Norms(v.reaction),
+            impulse: v.impulse,
+            drive_force: v.drive_force,
+            normal: v.normal,
+            in_contact: v.in_contact,
+            contact_obstacle: Obstacles(v.contact_obstacle),
+            bending_stress: v.bending_stress,
+            gap: v.gap,
+            q_predictor: v.q_predictor,
+        }
+    }
+}
+
+/// Serialises the per-node magnitudes of an interleaved vector array.
+struct Norms<'a>(&'a [f64]);
+
+impl Serialize for Norms<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq((0..self.0.len() / 2).map(|i| node_norm(self.0, i)))
+    }
+}
+
+/// Serialises obstacle indices with `usize::MAX` (free) as null.
+struct Obstacles<'a>(&'a [usize]);
+
+impl Serialize for Obstacles<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.0.iter().map(|&k| (k != usize::MAX).then_some(k)))
+    }
+}
+
+#[derive(Serialize)]
+struct IterationMsg<'a> {
+    step: u64,
+    t: f64,
+    phase: Phase,
+    pass: u32,
+    iteration: u32,
+    rod: usize,
+    residual: f64,
+    update: f64,
+    q: &'a [f64],
+}
+
+#[derive(Serialize)]
+struct ContactMsg {
+    change: &'static str,
+    reason: Option<&'static str>,
+    step: u64,
+    t: f64,
+    pass: u32,
+    rod: usize,
+    node: usize,
+    obstacle: usize,
+    normal: [f64; 2],
+    gap: f64,
+    reaction: [f64; 2],
+    z: f64,
+}
+
+#[derive(Serialize, Default)]
+struct EventMsg<'a> {
+    kind: &'static str,
+    step: u64,
+    t: f64,
+    message: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    old_dt: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    new_dt: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reason: Option<&'a str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dt: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rod: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    node: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    residual: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    completed: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    error: Option<Option<&'a str>>,
+}
+
+// ---- foxglove.SceneUpdate ------------------------------------------------------------------
+// Field names and required fields follow the published JSON schema. The scene is the xy plane
+// (z = 0) in frame "world".
+
+const FRAME: &str = "world";
+
+#[derive(Serialize, Clone, Copy)]
+struct Stamp {
+    sec: u64,
+    nsec: u32,
+}
+
+impl Stamp {
+    fn of(ns: u64) -> Self {
+        Self {
+            sec: ns / 1_000_000_000,
+            nsec: (ns % 1_000_000_000) as u32,
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Vec3 {
+    x: f64,
+    y: f64,
+    z: f64,
+}
+
+impl Vec3 {
+    fn xy(x: f64, y: f64) -> Self {
+        Self { x, y, z: 0.0 }
+    }
+}
+
+#[derive(Serialize)]
+struct Quat {
+    x: f64,
+    y: f64,
+    z: f64,
+    w: f64,
+}
+
+#[derive(Serialize)]
+struct Pose {
+    position: Vec3,
+    orientation: Quat,
+}
+
+impl Pose {
+    /// At (x, y), turned by `angle` about z (identity points along +x).
+    fn at(x: f64, y: f64, angle: f64) -> Self {
+        let (s, c) = (0.5 * angle).sin_cos();
+        Self {
+            position: Vec3::xy(x, y),
+            orientation: Quat {
+                x: 0.0,
+                y: 0.0,
+                z: s,
+                w: c,
+            },
+        }
+    }
+}
+
+#[derive(Serialize, Clone, Copy)]
+struct Color {
+    r: f64,
+    g: f64,
+    b: f64,
+    a: f64,
+}
+
+impl Color {
+    fn rgb(c: [u8; 3]) -> Self {
+        Self {
+            r: c[0] as f64 / 255.0,
+            g: c[1] as f64 / 255.0,
+            b: c[2] as f64 / 255.0,
+            a: 1.0,
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Arrow {
+    pose: Pose,
+    shaft_length: f64,
+    shaft_diameter: f64,
+    head_length: f64,
+    head_diameter: f64,
+    color: Color,
+}
+
+impl Arrow {
+    /// An arrow from (x, y) along `v`, drawn `length` long, with a head sized by `r`.
+    fn new(x: f64, y: f64, v: [f64; 2], length: f64, r: f64, color: Color) -> Self {
+        let head = (2.5 * r).min(0.4 * length);
+        Self {
+            pose: Pose::at(x, y, v[1].atan2(v[0])),
+            shaft_length: length - head,
+            shaft_diameter: 0.6 * r,
+            head_length: head,
+            head_diameter: 1.8 * r,
+            color,
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Sphere {
+    pose: Pose,
+    size: Vec3,
+    color: Color,
+}
+
+#[derive(Serialize)]
+struct Line {
+    /// 0 = LINE_STRIP.
+    #[serde(rename = "type")]
+    kind: u8,
+    pose: Pose,
+    thickness: f64,
+    scale_invariant: bool,
+    points: Vec<Vec3>,
+    color: Color,
+    colors: [Color; 0],
+    indices: [u32; 0],
+}
+
+impl Line {
+    fn strip(points: impl Iterator<Item = [f64; 2]>, thickness_px: f64, color: Color) -> Self {
+        Self {
+            kind: 0,
+            pose: Pose::at(0.0, 0.0, 0.0),
+            thickness: thickness_px,
+            scale_invariant: true,
+            points: points.map(|p| Vec3::xy(p[0], p[1])).collect(),
+            color,
+            colors: [],
+            indices: [],
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Text {
+    pose: Pose,
+    billboard: bool,
+    font_size: f64,
+    scale_invariant: bool,
+    color: Color,
+    text: String,
+}
+
+#[derive(Serialize)]
+struct Entity {
+    timestamp: Stamp,
+    frame_id: &'static str,
+    id: String,
+    lifetime: Stamp,
+    frame_locked: bool,
+    metadata: [(); 0],
+    arrows: Vec<Arrow>,
+    cubes: [(); 0],
+    spheres: Vec<Sphere>,
+    cylinders: [(); 0],
+    lines: Vec<Line>,
+    triangles: [(); 0],
+    texts: Vec<Text>,
+    models: [(); 0],
+}
+
+impl Entity {
+    fn new(id: String, timestamp: Stamp) -> Self {
+        Self {
+            timestamp,
+            frame_id: FRAME,
+            id,
+            lifetime: Stamp { sec: 0, nsec: 0 },
+            frame_locked: false,
+            metadata: [],
+            arrows: Vec::new(),
+            cubes: [],
+            spheres: Vec::new(),
+            cylinders: [],
+            lines: Vec::new(),
+            triangles: [],
+            texts: Vec::new(),
+            models: [],
+        }
+    }
+}
+
+/// The obstacles as one entity of outlines, serialised once.
+fn obstacle_entity(obstacles: &[Obstacle], style: &SceneStyle) -> String {
+    let mut e = Entity::new("obstacles".into(), Stamp { sec: 0, nsec: 0 });
+    for o in obstacles {
+        let outline = o.outline(style.lo, style.hi);
+        e.lines.push(Line::strip(
+            outline.into_iter(),
+            2.0,
+            Color::rgb(OBSTACLE_COLOR),
+        ));
+    }
+    serde_json::to_string(&e).expect("a scene entity serialises")
+}
+
+/// One rod: centre line, nodes coloured by reaction, normals and reactions at contacts, and
+/// the reaction magnitudes as text.
+fn rod_entity(info: &RodInfo, style: &RodStyle, v: &RodStepView<'_>, stamp: Stamp) -> Entity {
+    let mut e = Entity::new(format!("rod/{}", info.name), stamp);
+    let n = v.in_contact.len();
+    let p = |i: usize| [v.q[2 * i], v.q[2 * i + 1]];
+    e.lines
+        .push(Line::strip((0..n).map(p), 2.0, Color::rgb(ROD_COLOR)));
+    let r = style.node_radius;
+    for i in 0..n {
+        let [x, y] = p(i);
+        let f = node_norm(v.reaction, i);
+        let level = style.level(f);
+        let color = if info.clamped.get(i).copied().unwrap_or(false) {
+            DRIVEN_COLOR
+        } else {
+            RodStyle::heat(level)
+        };
+        e.spheres.push(Sphere {
+            pose: Pose::at(x, y, 0.0),
+            size: Vec3 {
+                x: 2.0 * r,
+                y: 2.0 * r,
+                z: 2.0 * r,
+            },
+            color: Color::rgb(color),
+        });
+        if v.in_contact[i] {
+            let nrm = [v.normal[2 * i], v.normal[2 * i + 1]];
+            e.arrows.push(Arrow::new(
+                x,
+                y,
+                nrm,
+                style.normal_length,
+                0.5 * r,
+                Color::rgb(NORMAL_COLOR),
+            ));
+        }
+        if f > 0.0 {
+            let rv = [v.reaction[2 * i], v.reaction[2 * i + 1]];
+            let len = style.reaction_length * level;
+            e.arrows.push(Arrow::new(
+                x,
+                y,
+                rv,
+                len,
+                r,
+                Color::rgb(RodStyle::heat(1.0)),
+            ));
+            let tip = [x + len * rv[0] / f, y + len * rv[1] / f];
+            e.texts.push(Text {
+                pose: Pose::at(tip[0], tip[1], 0.0),
+                billboard: true,
+                font_size: 14.0,
+                scale_invariant: true,
+                color: Color::rgb([255, 255, 255]),
+                text: format!("{f:.3} N"),
+            });
+        }
+    }
+    e
+}

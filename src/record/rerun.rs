@@ -1,0 +1,686 @@
+//! The Rerun sink: a `.rrd` recording that opens laid out (`rerun FILE.rrd`).
+//!
+//! Timelines: `step` (sequence), `sim_time` (simulated seconds; the load factor in static
+//! runs) and `iteration` (a sequence advanced once per logged Newton iteration and once per
+//! step, so every predictor and corrector iteration is its own point in time). There is no
+//! wall-clock timeline, and the recording id is derived from the scenario, so two runs of one
+//! scenario hold the same data.
+//!
+//! Entities (one per kind of thing, many instances each):
+//!
+//! | entity | archetype | what |
+//! |---|---|---|
+//! | `scene` | Transform3D (static) | flips y so the scene is drawn y-up |
+//! | `scene/obstacles` | LineStrips2D (static) | obstacle outlines |
+//! | `scene/<rod>/nodes` | Points2D | nodes, blue (free) to red (large reaction); grey = driven |
+//! | `scene/<rod>/centerline` | LineStrips2D | the rod |
+//! | `scene/<rod>/normals` | Arrows2D | outward obstacle normals at constrained nodes |
+//! | `scene/<rod>/reactions` | Arrows2D | eq. 2 reactions, length f/(f+W) (W = rod weight), labels in N |
+//! | `scene/<rod>/predictor` | Points2D | predictor positions, on steps with corrector passes |
+//! | `scene/<rod>/iterate` | LineStrips2D | each Newton iterate (`--detail iteration`) |
+//! | `plots/reaction/<rod>/node_<i>` | Scalars | \|reaction\| (N) |
+//! | `plots/impulse/<rod>/node_<i>` | Scalars | \|impulse\| (N s) |
+//! | `plots/bending_stress/<rod>/node_<i>` | Scalars | bending stress (Pa) |
+//! | `solver/residual`, `solver/update` | Scalars | per Newton iteration (`--detail iteration`) |
+//! | `solver/newton_iterations`, `solver/corrector_passes`, `solver/dt` | Scalars | per step |
+//! | `events` | TextLog | contacts added/released, dt changes, Newton failures, warnings, run end |
+//!
+//! Scene entities are logged row by row; the many scalar series are buffered and sent as
+//! columns at every flush (every `flush_every` steps), which is much cheaper.
+
+use super::{
+    node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording, RodStyle,
+    SceneStyle, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
+};
+use crate::events::{ContactChange, Event, Observer, ReleaseReason, RodInfo, RodStepView};
+use crate::obstacle::Obstacle;
+use crate::scenario::Scenario;
+use ::rerun::blueprint::{
+    Blueprint, Horizontal, Spatial2DView, Tabs, TextLogView, TimePanel, TimeSeriesView, Vertical,
+};
+use ::rerun::log::ChunkBatcherConfig;
+use ::rerun::{
+    Arrows2D, AsComponents, Color, EntityPath, EntityPathPart, LineStrips2D, Points2D, Radius,
+    RecordingStream, RecordingStreamBuilder, Scalars, TextLog, TimeColumn, Transform3D,
+};
+use std::path::Path;
+
+/// Application id of the recordings.
+pub const APPLICATION_ID: &str = "gripsim";
+
+/// Writes a Rerun `.rrd` file.
+pub struct RerunSink {
+    out: OutputFile,
+    rec: Option<RecordingStream>,
+    opts: RecordOptions,
+    rods: Vec<RodEntities>,
+    obstacles: Vec<Obstacle>,
+    style: Option<SceneStyle>,
+    /// The `iteration` timeline's next value.
+    iteration: i64,
+    per_step: Series,
+    per_iteration: Series,
+    completed: bool,
+    error: Option<RecordError>,
+}
+
+/// Entity paths of one rod, and what its transient entities showed at the last step.
+struct RodEntities {
+    info: RodInfo,
+    nodes: EntityPath,
+    centerline: EntityPath,
+    normals: EntityPath,
+    reactions: EntityPath,
+    predictor: EntityPath,
+    iterate: EntityPath,
+    had_contacts: bool,
+    had_predictor: bool,
+}
+
+/// Scalar time series that share their time points, buffered until the next flush.
+#[derive(Default)]
+struct Series {
+    step: Vec<i64>,
+    sim_time: Vec<f64>,
+    iteration: Vec<i64>,
+    paths: Vec<EntityPath>,
+    values: Vec<Vec<f64>>,
+}
+
+impl Series {
+    fn add(&mut self, path: EntityPath) -> usize {
+        self.paths.push(path);
+        self.values.push(Vec::new());
+        self.paths.len() - 1
+    }
+
+    fn at(&mut self, step: u64, t: f64, iteration: i64) {
+        self.step.push(step as i64);
+        self.sim_time.push(t);
+        self.iteration.push(iteration);
+    }
+
+    fn send(&mut self, rec: &RecordingStream) -> ::rerun::RecordingStreamResult<()> {
+        if self.step.is_empty() {
+            return Ok(());
+        }
+        for (path, values) in self.paths.iter().zip(&mut self.values) {
+            let times = [
+                TimeColumn::new_sequence("step", self.step.iter().copied()),
+                TimeColumn::new_duration_secs("sim_time", self.sim_time.iter().copied()),
+                TimeColumn::new_sequence("iteration", self.iteration.iter().copied()),
+            ];
+            let columns = Scalars::new(values.drain(..)).columns_of_unit_batches()?;
+            rec.send_columns(path.clone(), times, columns)?;
+        }
+        self.step.clear();
+        self.sim_time.clear();
+        self.iteration.clear();
+        Ok(())
+    }
+}
+
+fn path(parts: &[&str]) -> EntityPath {
+    EntityPath::new(parts.iter().map(|p| EntityPathPart::new(*p)).collect())
+}
+
+/// The layout the file opens with: the scene on the left; reaction forces, solver plots and
+/// the event log on the right.
+pub fn blueprint() -> Blueprint {
+    let scene = Spatial2DView::new("Scene")
+        .with_origin("/")
+        .with_contents(["+ /scene/**"]);
+    let reactions = TimeSeriesView::new("Reaction force |R| (N)").with_origin("/plots/reaction");
+    let solver = Tabs::new([
+        TimeSeriesView::new("Solver: residual (N) and Newton iterations")
+            .with_origin("/solver")
+            .with_contents(["+ /solver/**", "- /solver/dt", "- /solver/update"])
+            .into(),
+        TimeSeriesView::new("Step size dt (s)")
+            .with_origin("/solver/dt")
+            .into(),
+        TimeSeriesView::new("Contact impulse (N s)")
+            .with_origin("/plots/impulse")
+            .into(),
+        TimeSeriesView::new("Bending stress (Pa)")
+            .with_origin("/plots/bending_stress")
+            .into(),
+    ]);
+    let events = TextLogView::new("Events").with_origin("/events");
+    Blueprint::new(
+        Horizontal::new([
+            scene.into(),
+            Vertical::new([reactions.into(), solver.into(), events.into()])
+                .with_row_shares([0.4, 0.35, 0.25])
+                .into(),
+        ])
+        .with_column_shares([0.55, 0.45]),
+    )
+    .with_time_panel(TimePanel::new().with_timeline("sim_time"))
+}
+
+impl RerunSink {
+    /// Create `path` (as its `.partial` sibling until the run completes) for a run of
+    /// `scenario`.
+    pub fn create(
+        path: &Path,
+        opts: RecordOptions,
+        scenario: &Scenario,
+    ) -> Result<Self, RecordError> {
+        let out = OutputFile::new(path);
+        // Creates the directory and removes an older final file; the SDK opens the file.
+        drop(out.create()?);
+        let id = format!(
+            "{}-{:016x}",
+            scenario.name,
+            super::stable_hash(scenario.text.as_bytes())
+        );
+        // Chunks close only when we flush (or at 2 MiB), never on a timer.
+        let batching = ChunkBatcherConfig {
+            flush_tick: std::time::Duration::MAX,
+            ..ChunkBatcherConfig::DEFAULT
+        };
+        let rec = RecordingStreamBuilder::new(APPLICATION_ID)
+            .recording_id(id)
+            .enabled(true)
+            .batcher_config(batching)
+            .with_blueprint(blueprint())
+            .save(&out.partial)
+            .map_err(|e| RecordError::write(&out.partial, e))?;
+        rec.set_log_time_enabled(false);
+        rec.set_log_tick_enabled(false);
+        // The name only: the builder's recording properties would carry the wall-clock start.
+        rec.send_recording_name(scenario.name.clone())
+            .map_err(|e| RecordError::write(&out.partial, e))?;
+        Ok(Self {
+            out,
+            rec: Some(rec),
+            opts: RecordOptions {
+                flush_every: opts.flush_every.max(1),
+                ..opts
+            },
+            rods: Vec::new(),
+            obstacles: Vec::new(),
+            style: None,
+            iteration: 0,
+            per_step: Series::default(),
+            per_iteration: Series::default(),
+            completed: false,
+            error: None,
+        })
+    }
+
+    fn fail(&mut self, e: impl std::fmt::Display) {
+        if self.error.is_none() {
+            self.error = Some(RecordError::write(&self.out.partial, e));
+        }
+    }
+
+    fn check(&mut self, r: ::rerun::RecordingStreamResult<()>) {
+        if let Err(e) = r {
+            self.fail(e);
+        }
+    }
+
+    fn set_time(&self, rec: &RecordingStream, step: u64, t: f64, iteration: i64) {
+        rec.set_time_sequence("step", step as i64);
+        rec.set_duration_secs("sim_time", t.max(0.0));
+        rec.set_time_sequence("iteration", iteration);
+    }
+
+    fn log(&mut self, path: &EntityPath, what: &dyn AsComponents) {
+        if let Some(rec) = &self.rec {
+            let r = rec.log(path.clone(), what);
+            self.check(r);
+        }
+    }
+
+    fn text(&mut self, step: u64, t: f64, level: &str, text: String) {
+        let Some(rec) = self.rec.clone() else {
+            return;
+        };
+        self.set_time(&rec, step, t, self.iteration);
+        let r = rec.log("events", &TextLog::new(text).with_level(level));
+        self.check(r);
+    }
+
+    fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
+        self.obstacles = info.obstacles.to_vec();
+        for r in info.rods {
+            let rod = |kind: &str| path(&["scene", &r.name, kind]);
+            self.rods.push(RodEntities {
+                info: r.clone(),
+                nodes: rod("nodes"),
+                centerline: rod("centerline"),
+                normals: rod("normals"),
+                reactions: rod("reactions"),
+                predictor: rod("predictor"),
+                iterate: rod("iterate"),
+                had_contacts: true,
+                had_predictor: true,
+            });
+        }
+        for kind in ["reaction", "impulse", "bending_stress"] {
+            for r in info.rods {
+                for i in 0..r.nodes {
+                    self.per_step
+                        .add(path(&["plots", kind, &r.name, &format!("node_{i}")]));
+                }
+            }
+        }
+        for s in ["newton_iterations", "corrector_passes", "dt"] {
+            self.per_step.add(path(&["solver", s]));
+        }
+        for s in ["residual", "update"] {
+            self.per_iteration.add(path(&["solver", s]));
+        }
+        self.text(
+            0,
+            0.0,
+            TextLogLevelName::INFO,
+            format!(
+                "run of {:?}: {} rod(s), {} obstacle(s), {:?} mode, detail {}",
+                info.scenario_name,
+                info.rods.len(),
+                info.obstacles.len(),
+                info.mode,
+                self.opts.detail.as_str()
+            ),
+        );
+    }
+
+    /// Static data once the first state is known: the y-up flip and the obstacle outlines.
+    fn first_step(&mut self, rods: &[RodStepView<'_>]) {
+        let infos: Vec<RodInfo> = self.rods.iter().map(|r| r.info.clone()).collect();
+        let style = SceneStyle::new(&infos, rods, &self.obstacles);
+        if let Some(rec) = &self.rec {
+            let outlines: Vec<Vec<[f32; 2]>> = self
+                .obstacles
+                .iter()
+                .map(|o| {
+                    o.outline(style.lo, style.hi)
+                        .into_iter()
+                        .map(|p| [p[0] as f32, p[1] as f32])
+                        .collect()
+                })
+                .collect();
+            let r = rec
+                .log_static("scene", &Transform3D::from_scale((1.0, -1.0, 1.0)))
+                .and_then(|_| {
+                    rec.log_static(
+                        "scene/obstacles",
+                        &LineStrips2D::new(outlines)
+                            .with_colors([rgb(OBSTACLE_COLOR)])
+                            .with_radii([Radius::new_ui_points(1.5)])
+                            .with_draw_order(DRAW_OBSTACLES),
+                    )
+                });
+            self.check(r);
+        }
+        self.style = Some(style);
+    }
+
+    fn step_end(
+        &mut self,
+        step: u64,
+        t: f64,
+        dt: f64,
+        iterations: u32,
+        passes: u32,
+        rods: &[RodStepView<'_>],
+    ) {
+        if self.style.is_none() {
+            self.first_step(rods);
+        }
+        let Some(rec) = self.rec.clone() else {
+            return;
+        };
+        let it = self.iteration;
+        self.iteration += 1;
+        self.set_time(&rec, step, t, it);
+        let style = self.style.clone().expect("set above");
+        for (r, v) in rods.iter().enumerate() {
+            self.draw_rod(r, &style.rods[r], v, passes > 0);
+        }
+        // Scalars: per rod and node, then the solver's.
+        self.per_step.at(step, t, it);
+        let mut k = 0;
+        for pick in [0, 1, 2] {
+            for v in rods {
+                for i in 0..v.in_contact.len() {
+                    let x = match pick {
+                        0 => node_norm(v.reaction, i),
+                        1 => node_norm(v.impulse, i),
+                        _ => v.bending_stress[i],
+                    };
+                    self.per_step.values[k].push(x);
+                    k += 1;
+                }
+            }
+        }
+        for x in [iterations as f64, passes as f64, dt] {
+            self.per_step.values[k].push(x);
+            k += 1;
+        }
+        if step.is_multiple_of(self.opts.flush_every) {
+            self.flush(&rec);
+        }
+    }
+
+    fn draw_rod(&mut self, r: usize, style: &RodStyle, v: &RodStepView<'_>, corrected: bool) {
+        let n = v.in_contact.len();
+        let p = |i: usize| [v.q[2 * i] as f32, v.q[2 * i + 1] as f32];
+        let radius = style.node_radius as f32;
+        let e = &self.rods[r];
+        let colors: Vec<Color> = (0..n)
+            .map(|i| {
+                if e.info.clamped.get(i).copied().unwrap_or(false) {
+                    rgb(DRIVEN_COLOR)
+                } else {
+                    rgb(RodStyle::heat(style.level(node_norm(v.reaction, i))))
+                }
+            })
+            .collect();
+        let (nodes, centerline) = (e.nodes.clone(), e.centerline.clone());
+        let points: Vec<[f32; 2]> = (0..n).map(p).collect();
+        self.log(
+            &nodes,
+            &Points2D::new(points.iter().copied())
+                .with_radii([radius])
+                .with_colors(colors)
+                .with_draw_order(DRAW_NODES),
+        );
+        self.log(
+            &centerline,
+            &LineStrips2D::new([points])
+                .with_colors([rgb(ROD_COLOR)])
+                .with_radii([Radius::new_ui_points(1.5)])
+                .with_draw_order(DRAW_ROD),
+        );
+
+        // Normals and reactions at constrained nodes; logged empty once when contact ends.
+        let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
+        let e = &self.rods[r];
+        if !contacts.is_empty() || e.had_contacts {
+            let (normals, reactions) = (e.normals.clone(), e.reactions.clone());
+            let origins: Vec<[f32; 2]> = contacts.iter().map(|&i| p(i)).collect();
+            let nl = style.normal_length;
+            let nvec = contacts.iter().map(|&i| {
+                [
+                    (nl * v.normal[2 * i]) as f32,
+                    (nl * v.normal[2 * i + 1]) as f32,
+                ]
+            });
+            self.log(
+                &normals,
+                &Arrows2D::from_vectors(nvec)
+                    .with_origins(origins.iter().copied())
+                    .with_colors([rgb(NORMAL_COLOR)])
+                    .with_radii([0.25 * radius])
+                    .with_draw_order(DRAW_NORMALS),
+            );
+            let mut rvec = Vec::with_capacity(contacts.len());
+            let mut labels = Vec::with_capacity(contacts.len());
+            for &i in &contacts {
+                let f = node_norm(v.reaction, i);
+                let s = if f > 0.0 {
+                    style.reaction_length * style.level(f) / f
+                } else {
+                    0.0
+                };
+                rvec.push([
+                    (s * v.reaction[2 * i]) as f32,
+                    (s * v.reaction[2 * i + 1]) as f32,
+                ]);
+                labels.push(format!("{f:.3} N"));
+            }
+            self.log(
+                &reactions,
+                &Arrows2D::from_vectors(rvec)
+                    .with_origins(origins)
+                    .with_labels(labels)
+                    .with_colors([rgb(RodStyle::heat(1.0))])
+                    .with_radii([0.5 * radius])
+                    .with_draw_order(DRAW_REACTIONS),
+            );
+        }
+        self.rods[r].had_contacts = !contacts.is_empty();
+
+        // The predictor's positions where a corrector pass moved the rod.
+        if corrected || self.rods[r].had_predictor {
+            let ghost: Vec<[f32; 2]> = if corrected {
+                v.q_predictor
+                    .chunks_exact(2)
+                    .map(|c| [c[0] as f32, c[1] as f32])
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            let predictor = self.rods[r].predictor.clone();
+            self.log(
+                &predictor,
+                &Points2D::new(ghost)
+                    .with_radii([0.8 * radius])
+                    .with_colors([Color::from_unmultiplied_rgba(150, 150, 150, 110)])
+                    .with_draw_order(DRAW_GHOSTS),
+            );
+        }
+        self.rods[r].had_predictor = corrected;
+    }
+
+    fn iteration(&mut self, ev: IterationEvent<'_>) {
+        let Some(rec) = self.rec.clone() else {
+            return;
+        };
+        let it = self.iteration;
+        self.iteration += 1;
+        self.set_time(&rec, ev.step, ev.t, it);
+        self.per_iteration.at(ev.step, ev.t, it);
+        self.per_iteration.values[0].push(ev.residual);
+        self.per_iteration.values[1].push(ev.update);
+        if let Some(e) = self.rods.get(ev.rod) {
+            let iterate = e.iterate.clone();
+            let strip: Vec<[f32; 2]> =
+                ev.q.chunks_exact(2)
+                    .map(|c| [c[0] as f32, c[1] as f32])
+                    .collect();
+            let label = format!("{} pass {} iteration {}", ev.phase, ev.pass, ev.iteration);
+            self.log(
+                &iterate,
+                &LineStrips2D::new([strip])
+                    .with_colors([Color::from_unmultiplied_rgba(120, 200, 255, 160)])
+                    .with_radii([Radius::new_ui_points(1.0)])
+                    .with_labels([label])
+                    .with_draw_order(DRAW_GHOSTS),
+            );
+        }
+    }
+
+    fn contact(&mut self, c: &ContactChange, released: Option<ReleaseReason>) {
+        let rod = self.rod_name(c.rod);
+        let text = match released {
+            None => format!(
+                "step {}: constraint added: rod {rod:?} node {} on obstacle {} (pass {}), normal ({:.6}, {:.6}), gap {:.3e} m, z {:.3e} m/s",
+                c.step, c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap, c.z
+            ),
+            Some(ReleaseReason::Adhesive) => format!(
+                "step {}: constraint released (adhesive reaction, R = ({:.4}, {:.4}) N): rod {rod:?} node {} from obstacle {} (pass {}), normal ({:.6}, {:.6}), gap {:.3e} m",
+                c.step, c.reaction[0], c.reaction[1], c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap
+            ),
+        };
+        self.text(c.step, c.t, TextLogLevelName::INFO, text);
+    }
+
+    fn rod_name(&self, r: usize) -> String {
+        self.rods
+            .get(r)
+            .map(|e| e.info.name.clone())
+            .unwrap_or_else(|| r.to_string())
+    }
+
+    /// Send the buffered series and make the file readable up to here.
+    fn flush(&mut self, rec: &RecordingStream) {
+        let r = self
+            .per_step
+            .send(rec)
+            .and_then(|_| self.per_iteration.send(rec));
+        self.check(r);
+        if let Err(e) = rec.flush_blocking() {
+            self.fail(e);
+        }
+    }
+}
+
+// Draw order in the 2D view (higher on top): a normal shares its direction with the
+// node's reaction, so the thin normal is drawn over the thick reaction arrow.
+const DRAW_OBSTACLES: f32 = 5.0;
+const DRAW_GHOSTS: f32 = 10.0;
+const DRAW_ROD: f32 = 20.0;
+const DRAW_REACTIONS: f32 = 30.0;
+const DRAW_NORMALS: f32 = 35.0;
+const DRAW_NODES: f32 = 40.0;
+
+/// Text log levels.
+struct TextLogLevelName;
+
+impl TextLogLevelName {
+    const INFO: &'static str = "INFO";
+    const WARN: &'static str = "WARN";
+    const ERROR: &'static str = "ERROR";
+}
+
+fn rgb(c: [u8; 3]) -> Color {
+    Color::from_rgb(c[0], c[1], c[2])
+}
+
+/// The fields of [`Event::Iteration`].
+struct IterationEvent<'a> {
+    step: u64,
+    t: f64,
+    phase: &'static str,
+    pass: u32,
+    iteration: u32,
+    rod: usize,
+    residual: f64,
+    update: f64,
+    q: &'a [f64],
+}
+
+impl Observer for RerunSink {
+    fn wants_iterations(&self) -> bool {
+        self.opts.detail == Detail::Iteration
+    }
+
+    fn on_event(&mut self, event: &Event<'_>) {
+        if self.rec.is_none() {
+            return;
+        }
+        match *event {
+            Event::RunStart(info) => self.run_start(info),
+            Event::StepBegin { .. } => {}
+            Event::Iteration {
+                step,
+                t,
+                phase,
+                pass,
+                iteration,
+                rod,
+                residual,
+                update,
+                q,
+            } => {
+                if self.opts.detail == Detail::Iteration {
+                    self.iteration(IterationEvent {
+                        step,
+                        t,
+                        phase: phase.as_str(),
+                        pass,
+                        iteration,
+                        rod,
+                        residual,
+                        update,
+                        q,
+                    });
+                }
+            }
+            Event::ConstraintAdded(c) => self.contact(&c, None),
+            Event::ConstraintReleased(c, why) => self.contact(&c, Some(why)),
+            Event::DtChanged {
+                step,
+                t,
+                old,
+                new,
+                reason,
+            } => self.text(
+                step,
+                t,
+                TextLogLevelName::INFO,
+                format!("step {step}: dt {old:e} s -> {new:e} s ({reason})"),
+            ),
+            Event::NewtonFailed {
+                step,
+                t,
+                dt,
+                rod,
+                node,
+                residual,
+                reason,
+            } => {
+                let name = self.rod_name(rod);
+                self.text(
+                    step,
+                    t,
+                    TextLogLevelName::WARN,
+                    format!("step {step}: Newton failed on rod {name:?} node {node} with dt = {dt:e} s: {reason} (residual {residual:.3e} N)"),
+                )
+            }
+            Event::Warning { step, t, message } => {
+                self.text(step, t, TextLogLevelName::WARN, message.to_string())
+            }
+            Event::StepEnd {
+                step,
+                t,
+                dt,
+                newton_iterations,
+                passes,
+                rods,
+            } => self.step_end(step, t, dt, newton_iterations, passes, rods),
+            Event::RunEnd { steps, t, error } => {
+                self.completed = error.is_none();
+                match error {
+                    None => self.text(
+                        steps,
+                        t,
+                        TextLogLevelName::INFO,
+                        format!("run completed: {steps} steps, t = {t} s"),
+                    ),
+                    Some(e) => self.text(
+                        steps,
+                        t,
+                        TextLogLevelName::ERROR,
+                        format!("run stopped after {steps} steps: {e}"),
+                    ),
+                }
+            }
+        }
+    }
+}
+
+impl Recording for RerunSink {
+    fn format(&self) -> &'static str {
+        "rerun"
+    }
+
+    fn finish(&mut self) -> Result<Finished, RecordError> {
+        if let Some(rec) = self.rec.take() {
+            self.flush(&rec);
+            // Dropping the last handle ends the stream: the file writer writes the footer and
+            // closes the file before this returns.
+            drop(rec);
+        }
+        if let Some(e) = self.error.take() {
+            return Err(e);
+        }
+        self.out.settle(self.completed)
+    }
+}

@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""An independent reader of gripsim MCAP recordings (the `mcap` package from PyPI).
+
+Usage: read_mcap.py FILE.mcap
+
+Reads every record in file order with CRC validation (chunk CRCs and, for a finished file,
+the data section CRC), decodes every message as JSON, validates samples of each channel
+against the JSON schema the file carries, and prints a JSON report on stdout:
+
+  topics        {topic: {schema, schema_encoding, message_encoding, messages}}
+  summary       whether the summary section (with statistics) and the footer are there,
+                and the statistics' message count
+  metadata      {name: {key: value}} of the Metadata records
+  steps         step numbers of the /sim/step messages, in order
+  last_event    the last /sim/event message
+  log_time_monotone   whether log times never decrease in file order
+  validated     how many messages were validated against their schema
+  error         null, or why reading stopped early (a file cut short by a crash)
+
+A file cut short (no summary, last chunk half written) is read up to its last complete
+record; `error` then says where reading stopped.
+"""
+
+import json
+import sys
+
+import jsonschema
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema, Statistics
+from mcap.stream_reader import StreamReader
+
+
+def main(path):
+    schemas, channels, validators = {}, {}, {}
+    topics, metadata, steps = {}, {}, []
+    report = {"summary": {"statistics": False, "footer": False, "data_end": False}}
+    last_event, last_time, monotone = None, -1, True
+    seen, validated, error = {}, 0, None
+    with open(path, "rb") as f:
+        try:
+            for record in StreamReader(f, validate_crcs=True).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                    schema = schemas.get(record.schema_id)
+                    topics.setdefault(
+                        record.topic,
+                        {
+                            "schema": schema.name if schema else None,
+                            "schema_encoding": schema.encoding if schema else None,
+                            "message_encoding": record.message_encoding,
+                            "messages": 0,
+                        },
+                    )
+                    if schema and schema.encoding == "jsonschema" and record.id not in validators:
+                        validators[record.id] = jsonschema.Draft202012Validator(json.loads(schema.data))
+                elif isinstance(record, Message):
+                    channel = channels[record.channel_id]
+                    topic = channel.topic
+                    topics[topic]["messages"] += 1
+                    if record.log_time < last_time:
+                        monotone = False
+                    last_time = record.log_time
+                    msg = json.loads(record.data)
+                    n = seen.get(topic, 0)
+                    seen[topic] = n + 1
+                    # Validate the first messages of each channel and a sample after.
+                    if n < 20 or n % 250 == 0:
+                        validators[record.channel_id].validate(msg)
+                        validated += 1
+                    if topic == "/sim/step":
+                        steps.append(msg["step"])
+                    elif topic == "/sim/event":
+                        last_event = msg
+                elif isinstance(record, Metadata):
+                    metadata[record.name] = dict(record.metadata)
+                elif isinstance(record, Statistics):
+                    report["summary"]["statistics"] = True
+                    report["summary"]["message_count"] = record.message_count
+                elif isinstance(record, DataEnd):
+                    report["summary"]["data_end"] = True
+                elif isinstance(record, Footer):
+                    report["summary"]["footer"] = True
+        except Exception as e:  # a file cut short: report where reading stopped
+            error = f"{type(e).__name__}: {e}"
+    if report["summary"]["footer"]:
+        # The indexed path too: the summary must lead to the same messages.
+        with open(path, "rb") as f:
+            reader = make_reader(f, validate_crcs=True)
+            summary = reader.get_summary()
+            report["summary"]["chunk_indexes"] = len(summary.chunk_indexes)
+            report["summary"]["indexed_messages"] = sum(1 for _ in reader.iter_messages())
+    report.update(
+        topics=topics,
+        metadata=metadata,
+        steps=steps,
+        last_event=last_event,
+        log_time_monotone=monotone,
+        validated=validated,
+        error=error,
+    )
+    json.dump(report, sys.stdout)
+    print()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

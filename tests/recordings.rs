@@ -1,0 +1,569 @@
+//! Recordings: the `.rrd`, `.mcap` and `.csv` that `gripsim run` writes, read back by
+//! independent readers (the Rerun CLI and the `mcap` Python package, installed into `.venv`
+//! by tests/py/setup_venv.py) and by the `mcap` crate.
+
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+fn gripsim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gripsim"))
+}
+
+fn scenario(name: &str) -> PathBuf {
+    Path::new(ROOT)
+        .join("scenarios")
+        .join(format!("{name}.toml"))
+}
+
+fn run_ok(cmd: &mut Command) -> Output {
+    let out = cmd.output().expect("gripsim starts");
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed with {}:\n{}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// The test venv (created once per machine; the script takes a lock, so concurrent test
+/// binaries are safe too).
+fn venv() -> &'static Path {
+    static VENV: OnceLock<PathBuf> = OnceLock::new();
+    VENV.get_or_init(|| {
+        let out = Command::new("python3")
+            .arg(Path::new(ROOT).join("tests/py/setup_venv.py"))
+            .stderr(Stdio::inherit())
+            .output()
+            .expect("python3 runs tests/py/setup_venv.py");
+        assert!(out.status.success(), "setting up the test venv failed");
+        PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
+    })
+}
+
+/// `rerun rrd <args>` from the test venv.
+fn rerun_rrd(args: &[&Path], sub: &str) -> Output {
+    Command::new(venv().join("bin/rerun"))
+        .arg("rrd")
+        .arg(sub)
+        .args(args)
+        .env("RERUN_ANALYTICS", "false")
+        .output()
+        .expect("the rerun CLI runs")
+}
+
+fn assert_rrd_verifies(path: &Path) {
+    let out = rerun_rrd(&[path], "verify");
+    assert!(
+        out.status.success(),
+        "rerun rrd verify {} failed:\n{}{}",
+        path.display(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The report of tests/py/read_mcap.py (the `mcap` Python package, CRCs validated).
+fn read_mcap_py(path: &Path) -> Value {
+    let out = Command::new(venv().join("bin/python"))
+        .arg(Path::new(ROOT).join("tests/py/read_mcap.py"))
+        .arg(path)
+        .output()
+        .expect("the venv's python runs");
+    assert!(
+        out.status.success(),
+        "read_mcap.py {} failed:\n{}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("read_mcap.py prints JSON")
+}
+
+/// One decoded message.
+struct Msg {
+    topic: String,
+    log_time: u64,
+    json: Value,
+}
+
+/// Every message the `mcap` crate reads (with chunk CRCs checked) up to the end, or up to
+/// where a file cut short stops; the error is returned alongside.
+fn read_mcap_rust(path: &Path) -> (Vec<Msg>, Option<String>) {
+    let bytes = std::fs::read(path).unwrap();
+    let stream = mcap::MessageStream::new_with_options(
+        &bytes,
+        mcap::read::Options::ValidateChunkCrcs.into(),
+    )
+    .expect("an MCAP header");
+    let mut msgs = Vec::new();
+    for m in stream {
+        match m {
+            Ok(m) => msgs.push(Msg {
+                topic: m.channel.topic.clone(),
+                log_time: m.log_time,
+                json: serde_json::from_slice(&m.data).expect("JSON message"),
+            }),
+            Err(e) => return (msgs, Some(e.to_string())),
+        }
+    }
+    (msgs, None)
+}
+
+const CHANNELS: [(&str, &str); 6] = [
+    ("/sim/meta", "gripsim.Meta"),
+    ("/sim/step", "gripsim.Step"),
+    ("/sim/iteration", "gripsim.Iteration"),
+    ("/sim/contact", "gripsim.Contact"),
+    ("/sim/event", "gripsim.Event"),
+    ("/scene", "foxglove.SceneUpdate"),
+];
+
+fn assert_channels(report: &Value) {
+    for (topic, schema) in CHANNELS {
+        let t = &report["topics"][topic];
+        assert_eq!(t["schema"], schema, "{topic}: {t}");
+        assert_eq!(t["schema_encoding"], "jsonschema", "{topic}");
+        assert_eq!(t["message_encoding"], "json", "{topic}");
+    }
+}
+
+fn f64s(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not an array: {v}"))
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// A scenario that runs as long as we like: a soft cantilever drooping onto a table.
+fn long_scenario(dir: &Path) -> PathBuf {
+    let p = dir.join("long-droop.toml");
+    std::fs::write(
+        &p,
+        r#"name = "long-droop"
+description = "A soft cantilever drooping onto a table, for runs that are stopped"
+
+[solve]
+mode = "dynamic"
+t_end = 1000.0
+dt = 1e-3
+stepping = "fixed"
+gravity = [0.0, -9.81]
+
+[[rod]]
+name = "beam"
+nodes = 12
+shape = { kind = "straight", start = [0.0, 0.0], end = [0.1, 0.0] }
+E = 1e6
+section = { kind = "rect", b = 0.02, h = 0.01 }
+density = 1000.0
+clamped = [0, 1]
+
+[[obstacle]]
+kind = "plane"
+point = [0.0, -0.02]
+normal = [0.0, 1.0]
+"#,
+    )
+    .unwrap();
+    p
+}
+
+/// Wait until `path` holds at least `bytes` bytes.
+fn wait_for_size(path: &Path, bytes: u64, child: &mut std::process::Child) {
+    let start = Instant::now();
+    loop {
+        if std::fs::metadata(path).map(|m| m.len()).unwrap_or(0) >= bytes {
+            return;
+        }
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the run ended ({status}) before {} grew", path.display());
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{} did not grow",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn seed_grasp_recordings_agree_with_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (rrd, mcap, csv, summary) = (
+        d.join("r5.rrd"),
+        d.join("r5.mcap"),
+        d.join("r5.csv"),
+        d.join("r5.json"),
+    );
+    let out = run_ok(
+        gripsim()
+            .arg("run")
+            .arg(scenario("seed-grasp-r5"))
+            .args(["--detail", "iteration", "--rrd"])
+            .arg(&rrd)
+            .arg("--mcap")
+            .arg(&mcap)
+            .arg("--csv")
+            .arg(&csv)
+            .arg("--summary")
+            .arg(&summary),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(&format!("rerun {}", rrd.display())),
+        "the run says how to open the .rrd:\n{stdout}"
+    );
+    assert!(stdout.contains(&mcap.display().to_string()) && stdout.contains("Foxglove"));
+    for p in [&rrd, &mcap, &csv] {
+        assert!(p.exists(), "{} is there", p.display());
+    }
+    let summary: Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    let steps = summary["steps"].as_u64().unwrap();
+    let newton = summary["newton_iterations"].as_u64().unwrap();
+    let peak = f64s(&summary["rods"][0]["peak_reaction_per_node_n"]);
+    assert!(peak.iter().any(|&f| f > 100.0), "the grasp has an impact");
+
+    // Independent readers.
+    assert_rrd_verifies(&rrd);
+    let report = read_mcap_py(&mcap);
+    assert_eq!(report["error"], Value::Null, "{report}");
+    assert_channels(&report);
+    assert_eq!(report["summary"]["footer"], true);
+    assert_eq!(report["summary"]["statistics"], true);
+    assert_eq!(
+        report["summary"]["indexed_messages"],
+        report["summary"]["message_count"]
+    );
+    assert_eq!(report["log_time_monotone"], true);
+    assert!(report["validated"].as_u64().unwrap() > 100);
+    assert_eq!(report["topics"]["/sim/step"]["messages"], steps + 1);
+    assert_eq!(report["topics"]["/scene"]["messages"], steps + 1);
+    assert_eq!(report["topics"]["/sim/iteration"]["messages"], newton);
+    assert_eq!(report["topics"]["/sim/meta"]["messages"], 1);
+    assert_eq!(report["last_event"]["kind"], "run_end");
+    assert_eq!(report["last_event"]["completed"], true);
+    assert_eq!(report["metadata"]["gripsim.run_end"]["completed"], "true");
+
+    // The mcap crate: every message, in order.
+    let (msgs, err) = read_mcap_rust(&mcap);
+    assert_eq!(err, None);
+    let summary_rec = mcap::Summary::read(&std::fs::read(&mcap).unwrap())
+        .unwrap()
+        .expect("a summary section");
+    assert_eq!(summary_rec.stats.unwrap().message_count, msgs.len() as u64);
+    assert!(msgs.windows(2).all(|w| w[0].log_time <= w[1].log_time));
+    let count = |topic: &str| msgs.iter().filter(|m| m.topic == topic).count() as u64;
+    assert_eq!(count("/sim/iteration"), newton);
+
+    let mut mcap_peak = vec![0.0f64; peak.len()];
+    let mut contacts_seen = 0;
+    for m in &msgs {
+        match m.topic.as_str() {
+            "/sim/step" => {
+                let rod = &m.json["rods"][0];
+                let (r, n) = (f64s(&rod["reaction"]), f64s(&rod["normal"]));
+                let norm = f64s(&rod["reaction_norm"]);
+                for (i, c) in rod["in_contact"].as_array().unwrap().iter().enumerate() {
+                    let f = r[2 * i].hypot(r[2 * i + 1]);
+                    assert_eq!(norm[i], f);
+                    mcap_peak[i] = mcap_peak[i].max(f);
+                    if c.as_bool().unwrap() {
+                        contacts_seen += 1;
+                        let len = n[2 * i].hypot(n[2 * i + 1]);
+                        assert!((len - 1.0).abs() < 1e-12, "normal of length {len}");
+                    }
+                }
+            }
+            "/sim/contact" => {
+                let n = f64s(&m.json["normal"]);
+                assert!((n[0].hypot(n[1]) - 1.0).abs() < 1e-12, "{}", m.json);
+            }
+            "/sim/iteration" => {
+                assert!(["predictor", "corrector"].contains(&m.json["phase"].as_str().unwrap()));
+            }
+            _ => {}
+        }
+    }
+    assert!(contacts_seen > 100);
+    assert_eq!(mcap_peak, peak, "peak reaction per node: MCAP vs --summary");
+
+    // The CSV: header, one row per step and node, the same peaks.
+    let mut rdr = csv::Reader::from_path(&csv).unwrap();
+    let header: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(
+        header,
+        [
+            "step",
+            "t",
+            "rod",
+            "node",
+            "x",
+            "y",
+            "vx",
+            "vy",
+            "rx",
+            "ry",
+            "reaction",
+            "impulse",
+            "in_contact",
+            "bending_stress"
+        ]
+    );
+    let mut csv_peak = vec![0.0f64; peak.len()];
+    let mut rows = 0u64;
+    for rec in rdr.records() {
+        let rec = rec.unwrap();
+        let node: usize = rec[3].parse().unwrap();
+        let f: f64 = rec[10].parse().unwrap();
+        let (rx, ry): (f64, f64) = (rec[8].parse().unwrap(), rec[9].parse().unwrap());
+        assert_eq!(f, rx.hypot(ry));
+        csv_peak[node] = csv_peak[node].max(f);
+        rows += 1;
+    }
+    assert_eq!(rows, (steps + 1) * peak.len() as u64);
+    assert_eq!(csv_peak, peak, "peak reaction per node: CSV vs --summary");
+
+    // The MCAP alone rebuilds the run: its scenario text runs to the same summary.
+    let meta = &msgs.iter().find(|m| m.topic == "/sim/meta").unwrap().json;
+    assert_eq!(meta["format_version"], 1);
+    let replay = d.join("replay.toml");
+    std::fs::write(&replay, meta["scenario_text"].as_str().unwrap()).unwrap();
+    let again = d.join("again.json");
+    run_ok(
+        gripsim()
+            .arg("run")
+            .arg(&replay)
+            .args(["--no-record", "-q", "--summary"])
+            .arg(&again),
+    );
+    let again: Value = serde_json::from_slice(&std::fs::read(&again).unwrap()).unwrap();
+    assert_eq!(f64s(&again["rods"][0]["peak_reaction_per_node_n"]), peak);
+    assert_eq!(
+        again["rods"][0]["final_positions"],
+        summary["rods"][0]["final_positions"]
+    );
+}
+
+#[test]
+fn two_runs_give_identical_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |tag: &str| {
+        run_ok(
+            gripsim()
+                .arg("run")
+                .arg(scenario("seed-grasp-r5"))
+                .args(["--set", "solve.t_end=0.045", "--flush-every", "250", "-q"])
+                .arg("--mcap")
+                .arg(d.join(format!("{tag}.mcap")))
+                .arg("--csv")
+                .arg(d.join(format!("{tag}.csv")))
+                .arg("--rrd")
+                .arg(d.join(format!("{tag}.rrd"))),
+        );
+    };
+    run("a");
+    run("b");
+    for ext in ["mcap", "csv"] {
+        let a = std::fs::read(d.join(format!("a.{ext}"))).unwrap();
+        let b = std::fs::read(d.join(format!("b.{ext}"))).unwrap();
+        assert!(a.len() > 10_000);
+        assert!(a == b, "the two .{ext} files differ");
+    }
+    // Rerun row ids and the blueprint's ids are random, but the data are the same.
+    let out = rerun_rrd(&[&d.join("a.rrd"), &d.join("b.rrd")], "compare");
+    assert!(
+        out.status.success(),
+        "rerun rrd compare: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn default_recordings_and_no_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = run_ok(
+        gripsim()
+            .current_dir(d)
+            .arg("run")
+            .arg(scenario("seed-grasp-r5"))
+            .args(["--set", "solve.t_end=0.002"]),
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let rec = d.join("recordings");
+    let mut names: Vec<String> = std::fs::read_dir(&rec)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["seed-grasp-r5.mcap", "seed-grasp-r5.rrd"]);
+    assert!(
+        stdout.contains("rerun recordings/seed-grasp-r5.rrd"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("recordings/seed-grasp-r5.mcap"), "{stdout}");
+
+    // --no-record writes nothing; it cannot be combined with an output.
+    let d2 = d.join("quiet");
+    std::fs::create_dir(&d2).unwrap();
+    run_ok(
+        gripsim()
+            .current_dir(&d2)
+            .arg("run")
+            .arg(scenario("seed-grasp-r5"))
+            .args(["--set", "solve.t_end=0.002", "--no-record"]),
+    );
+    assert_eq!(std::fs::read_dir(&d2).unwrap().count(), 0);
+    let clash = gripsim()
+        .arg("run")
+        .arg(scenario("seed-grasp-r5"))
+        .args(["--no-record", "--csv", "x.csv"])
+        .output()
+        .unwrap();
+    assert!(!clash.status.success());
+}
+
+#[test]
+fn static_runs_log_time_by_load_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("static.mcap");
+    run_ok(
+        gripsim()
+            .arg("run")
+            .arg(scenario("cantilever-tip-load"))
+            .args(["-q", "--detail", "iteration", "--mcap"])
+            .arg(&mcap),
+    );
+    let (msgs, err) = read_mcap_rust(&mcap);
+    assert_eq!(err, None);
+    let meta = &msgs[0].json;
+    assert_eq!(meta["mode"], "static");
+    assert_eq!(meta["clock"], "load_step");
+    assert!(msgs.windows(2).all(|w| w[0].log_time <= w[1].log_time));
+    let steps: Vec<&Msg> = msgs.iter().filter(|m| m.topic == "/sim/step").collect();
+    assert!(steps.len() > 2);
+    for m in &steps {
+        assert_eq!(m.log_time, m.json["step"].as_u64().unwrap() * 1_000_000_000);
+    }
+    let phases: BTreeMap<String, usize> =
+        msgs.iter()
+            .filter(|m| m.topic == "/sim/iteration")
+            .fold(BTreeMap::new(), |mut acc, m| {
+                *acc.entry(m.json["phase"].as_str().unwrap().to_string())
+                    .or_default() += 1;
+                acc
+            });
+    assert!(phases.contains_key("static"), "{phases:?}");
+}
+
+#[test]
+fn sigkill_leaves_files_readable_up_to_the_last_flush() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = long_scenario(d);
+    let (mcap, rrd) = (d.join("long.mcap"), d.join("long.rrd"));
+    let partial = d.join("long.partial.mcap");
+    let mut child = gripsim()
+        .arg("run")
+        .arg(&sc)
+        .args(["-q", "--flush-every", "40", "--mcap"])
+        .arg(&mcap)
+        .arg("--rrd")
+        .arg(&rrd)
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    wait_for_size(&partial, 3_000_000, &mut child);
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    assert!(!mcap.exists() && !rrd.exists(), "no file looks whole");
+
+    // The mcap crate and the Python reader both read up to the last complete chunk.
+    let (msgs, err) = read_mcap_rust(&partial);
+    assert!(err.is_some(), "a killed file has no summary");
+    let steps: Vec<u64> = msgs
+        .iter()
+        .filter(|m| m.topic == "/sim/step")
+        .map(|m| m.json["step"].as_u64().unwrap())
+        .collect();
+    assert!(steps.len() > 200, "{} steps read", steps.len());
+    assert!(steps.iter().enumerate().all(|(i, &s)| s == i as u64));
+    let last = *steps.last().unwrap();
+    let report = read_mcap_py(&partial);
+    assert!(report["error"].is_string(), "{}", report["error"]);
+    assert_eq!(report["summary"]["footer"], false);
+    assert_eq!(report["steps"].as_array().unwrap().len() as u64, last + 1);
+    assert_channels(&report);
+
+    // The .rrd decodes up to its last flush (it has no footer, so `verify` would refuse it).
+    let out = rerun_rrd(&[&d.join("long.partial.rrd")], "stats");
+    assert!(
+        out.status.success(),
+        "rerun rrd stats: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stats = String::from_utf8_lossy(&out.stdout);
+    assert!(stats.contains("/scene/beam/nodes"), "{stats}");
+}
+
+#[test]
+fn sigint_and_sigterm_close_the_recordings() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = long_scenario(d);
+    for (signal, code) in [("INT", 130), ("TERM", 143)] {
+        let (mcap, rrd) = (
+            d.join(format!("{signal}.mcap")),
+            d.join(format!("{signal}.rrd")),
+        );
+        let mut child = gripsim()
+            .arg("run")
+            .arg(&sc)
+            .args(["-q", "--flush-every", "50", "--mcap"])
+            .arg(&mcap)
+            .arg("--rrd")
+            .arg(&rrd)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let partial_mcap = d.join(format!("{signal}.partial.mcap"));
+        wait_for_size(&partial_mcap, 500_000, &mut child);
+        let sent = Command::new("kill")
+            .arg(format!("-{signal}"))
+            .arg(child.id().to_string())
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(code), "SIG{signal}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("interrupted"), "{stderr}");
+
+        assert!(
+            !mcap.exists() && !rrd.exists(),
+            "an interrupted run keeps .partial"
+        );
+        assert_rrd_verifies(&d.join(format!("{signal}.partial.rrd")));
+        let report = read_mcap_py(&partial_mcap);
+        assert_eq!(report["error"], Value::Null, "{report}");
+        assert_eq!(report["summary"]["footer"], true);
+        assert_eq!(report["summary"]["statistics"], true);
+        assert_eq!(report["last_event"]["kind"], "run_end");
+        assert_eq!(report["last_event"]["completed"], false);
+        let why = report["last_event"]["error"].as_str().unwrap();
+        assert!(why.contains("interrupted"), "{why}");
+        assert_eq!(report["metadata"]["gripsim.run_end"]["completed"], "false");
+    }
+}
