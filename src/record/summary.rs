@@ -20,6 +20,9 @@ pub struct RodSummary {
     pub contact_steps_per_node: Vec<u64>,
     /// Σ |R| dt per node (N·s).
     pub total_impulse_per_node_ns: Vec<f64>,
+    /// Peak impulse-consistent force per node (N): the contact impulse over a sliding window
+    /// of `force_window_s` divided by the window, a force that converges under dt refinement.
+    pub peak_impulse_consistent_force_per_node_n: Vec<f64>,
     /// Peak bending stress per node (Pa).
     pub peak_bending_stress_per_node_pa: Vec<f64>,
     /// First time the node was constrained (s), null if never.
@@ -44,6 +47,10 @@ pub struct Summary {
     pub peak_reaction_force_n: f64,
     pub peak_reaction_node: Option<NodeRef>,
     pub peak_reaction_time_s: Option<f64>,
+    /// Window (s) of the impulse-consistent force.
+    pub force_window_s: f64,
+    pub peak_impulse_consistent_force_n: f64,
+    pub peak_impulse_consistent_node: Option<NodeRef>,
     pub contact_onset_time_s: Option<f64>,
     pub max_penetration_m: f64,
     pub max_bending_stress_pa: f64,
@@ -51,9 +58,48 @@ pub struct Summary {
     pub rods: Vec<RodSummary>,
 }
 
+/// Cumulative contact impulse of one node as a piecewise-linear function of time, trimmed
+/// to the last window: the impulse-consistent force is (C(t) − C(t − τ))/τ.
+#[derive(Debug, Default, Clone)]
+struct Window {
+    /// (time, cumulative impulse x, y) breakpoints, oldest first.
+    points: std::collections::VecDeque<(f64, f64, f64)>,
+}
+
+impl Window {
+    fn push(&mut self, t0: f64, t1: f64, jx: f64, jy: f64, tau: f64) -> f64 {
+        let (cx, cy) = self.points.back().map(|p| (p.1, p.2)).unwrap_or((0.0, 0.0));
+        if self.points.is_empty() {
+            self.points.push_back((t0, 0.0, 0.0));
+        }
+        self.points.push_back((t1, cx + jx, cy + jy));
+        let from = t1 - tau;
+        // Keep exactly one breakpoint at or before t − τ.
+        while self.points.len() > 2 && self.points[1].0 <= from {
+            self.points.pop_front();
+        }
+        let (ax, ay) = {
+            let p0 = self.points[0];
+            if p0.0 >= from {
+                (p0.1, p0.2)
+            } else {
+                let p1 = self.points[1];
+                let f = (from - p0.0) / (p1.0 - p0.0);
+                (p0.1 + f * (p1.1 - p0.1), p0.2 + f * (p1.2 - p0.2))
+            }
+        };
+        let (bx, by) = (cx + jx, cy + jy);
+        (bx - ax).hypot(by - ay) / tau
+    }
+}
+
 /// Collects a [`Summary`] from step events.
 #[derive(Debug, Default)]
 pub struct SummaryCollector {
+    windows: Vec<Vec<Window>>,
+    force_window: f64,
+    ic_peak: f64,
+    ic_at: Option<(usize, usize)>,
     names: Vec<String>,
     scenario: String,
     mode: String,
@@ -70,8 +116,16 @@ pub struct SummaryCollector {
 }
 
 impl SummaryCollector {
+    /// With the default impulse-consistent force window of 1 ms.
     pub fn new() -> Self {
-        Self::default()
+        Self::with_force_window(1e-3)
+    }
+
+    pub fn with_force_window(tau: f64) -> Self {
+        Self {
+            force_window: tau,
+            ..Self::default()
+        }
     }
 
     /// Finish with the solver's counters.
@@ -95,6 +149,9 @@ impl SummaryCollector {
             peak_reaction_force_n: self.peak,
             peak_reaction_node: self.peak_at.map(|(r, n, _)| node((r, n))),
             peak_reaction_time_s: self.peak_at.map(|(_, _, t)| t),
+            force_window_s: self.force_window,
+            peak_impulse_consistent_force_n: self.ic_peak,
+            peak_impulse_consistent_node: self.ic_at.map(node),
             contact_onset_time_s: self.onset,
             max_penetration_m: stats.max_penetration,
             max_bending_stress_pa: self.stress,
@@ -121,13 +178,21 @@ impl Observer for SummaryCollector {
                         peak_reaction_per_node_n: vec![0.0; r.nodes],
                         contact_steps_per_node: vec![0; r.nodes],
                         total_impulse_per_node_ns: vec![0.0; r.nodes],
+                        peak_impulse_consistent_force_per_node_n: vec![0.0; r.nodes],
                         peak_bending_stress_per_node_pa: vec![0.0; r.nodes],
                         first_contact_time_s: vec![None; r.nodes],
                         final_drive_force_n: [0.0; 2],
                     })
                     .collect();
+                self.windows = info
+                    .rods
+                    .iter()
+                    .map(|r| vec![Window::default(); r.nodes])
+                    .collect();
             }
-            Event::StepEnd { step, t, rods, .. } => {
+            Event::StepEnd {
+                step, t, dt, rods, ..
+            } => {
                 self.steps = *step;
                 self.t = *t;
                 for (ri, v) in rods.iter().enumerate() {
@@ -148,6 +213,22 @@ impl Observer for SummaryCollector {
                         }
                         s.total_impulse_per_node_ns[i] +=
                             v.impulse[2 * i].hypot(v.impulse[2 * i + 1]);
+                        if *dt > 0.0 {
+                            let f = self.windows[ri][i].push(
+                                *t - *dt,
+                                *t,
+                                v.impulse[2 * i],
+                                v.impulse[2 * i + 1],
+                                self.force_window,
+                            );
+                            if f > s.peak_impulse_consistent_force_per_node_n[i] {
+                                s.peak_impulse_consistent_force_per_node_n[i] = f;
+                            }
+                            if f > self.ic_peak {
+                                self.ic_peak = f;
+                                self.ic_at = Some((ri, i));
+                            }
+                        }
                         if v.in_contact[i] {
                             s.contact_steps_per_node[i] += 1;
                             if s.first_contact_time_s[i].is_none() {

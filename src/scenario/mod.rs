@@ -22,6 +22,9 @@ pub enum Mode {
 pub enum Stepping {
     Fixed,
     Proximity,
+    /// Error-controlled: the step is sized so the embedded (backward Euler vs trapezoidal)
+    /// estimate of the local position error stays within atol + rtol |Δq|.
+    Adaptive,
 }
 
 /// `[solve]`.
@@ -33,6 +36,14 @@ pub struct Solve {
     pub stepping: Stepping,
     pub dt_near: f64,
     pub near_distance: f64,
+    /// Adaptive stepping: relative and absolute (m) local error tolerances, step bounds (s).
+    pub rtol: f64,
+    pub atol: f64,
+    pub dt_min: f64,
+    pub dt_max: f64,
+    /// Split a step at the time a free node would cross an obstacle, so contact starts on
+    /// the surface.
+    pub time_of_impact: bool,
     pub gravity: [f64; 2],
     /// Newton force tolerance relative to the problem's force scale.
     pub force_tol: f64,
@@ -232,6 +243,11 @@ const SOLVE_KEYS: &[&str] = &[
     "stepping",
     "dt_near",
     "near_distance",
+    "rtol",
+    "atol",
+    "dt_min",
+    "dt_max",
+    "time_of_impact",
     "gravity",
     "force_tol",
     "step_tol",
@@ -299,11 +315,22 @@ impl Scenario {
             ));
         }
         let mut root: toml::Table = text.parse().map_err(|e: toml::de::Error| {
-            let msg = e.message().to_string();
+            // One line, so the error stays one line.
+            let msg = e
+                .message()
+                .lines()
+                .map(str::trim)
+                .filter(|l| !l.is_empty())
+                .collect::<Vec<_>>()
+                .join("; ");
             let (line, col) = e
                 .span()
                 .map(|s| {
-                    let before = &text[..s.start.min(text.len())];
+                    let mut start = s.start.min(text.len());
+                    while !text.is_char_boundary(start) {
+                        start -= 1;
+                    }
+                    let before = &text[..start];
                     let line = before.matches('\n').count() + 1;
                     let col = before
                         .rsplit('\n')
@@ -380,6 +407,9 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         }
     };
     if rods_v.is_empty() && particles_v.is_empty() {
+        if let Some(e) = top.typo_error("rod").or_else(|| top.typo_error("particle")) {
+            return Err(e);
+        }
         return Err(top.err_hint(
             "rod",
             None,
@@ -465,17 +495,24 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
     })
 }
 
+/// The most time steps a dynamic run may take (t_end / dt): beyond it a run would not finish.
+const MAX_STEPS: f64 = 1e9;
+
 fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
     let mode = match s.opt_str("mode")?.unwrap_or("dynamic") {
         "dynamic" => Mode::Dynamic,
         "static" => Mode::Static,
         other => {
+            let hint = match reader::did_you_mean(other, &["dynamic", "static"]) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"dynamic\" or \"static\"".into(),
+            };
             return Err(s.err_hint(
                 "mode",
                 s.get("mode"),
                 format!("unknown mode {other:?}"),
-                "use \"dynamic\" or \"static\"",
-            ))
+                hint,
+            ));
         }
     };
     let t_end = match mode {
@@ -494,13 +531,25 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
             "make dt smaller than t_end",
         ));
     }
+    if mode == Mode::Dynamic && t_end / dt > MAX_STEPS {
+        return Err(s.err_hint(
+            "dt",
+            s.get("dt"),
+            format!(
+                "is too small: t_end / dt = {:.3e} steps (at most {MAX_STEPS:e})",
+                t_end / dt
+            ),
+            "use a larger dt or a shorter t_end",
+        ));
+    }
     let stepping = match s.opt_str("stepping")?.unwrap_or("fixed") {
         "fixed" => Stepping::Fixed,
         "proximity" => Stepping::Proximity,
+        "adaptive" => Stepping::Adaptive,
         other => {
-            let hint = match reader::did_you_mean(other, &["fixed", "proximity"]) {
+            let hint = match reader::did_you_mean(other, &["fixed", "proximity", "adaptive"]) {
                 Some(m) => format!("did you mean \"{m}\"?"),
-                None => "use \"fixed\" or \"proximity\"".into(),
+                None => "use \"fixed\", \"proximity\" or \"adaptive\"".into(),
             };
             return Err(s.err_hint(
                 "stepping",
@@ -520,6 +569,17 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
                 "dt_near is the smaller step used near contact",
             ));
         }
+        if mode == Mode::Dynamic && t_end / dn > MAX_STEPS {
+            return Err(s.err_hint(
+                "dt_near",
+                s.get("dt_near"),
+                format!(
+                    "is too small: t_end / dt_near = {:.3e} steps (at most {MAX_STEPS:e})",
+                    t_end / dn
+                ),
+                "use a larger dt_near or a shorter t_end",
+            ));
+        }
         (dn, s.positive("near_distance")?)
     } else {
         // Accepted and ignored when stepping is fixed, so a --set can switch stepping.
@@ -528,12 +588,51 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
             s.opt_positive("near_distance")?.unwrap_or(0.0),
         )
     };
+    // Adaptive stepping: accepted (and ignored) with other steppings, so --set can switch.
+    let rtol = s.opt_positive("rtol")?.unwrap_or(1e-3);
+    let atol = s.opt_positive("atol")?.unwrap_or(1e-9);
+    let dt_max = s
+        .opt_positive("dt_max")?
+        .unwrap_or(if mode == Mode::Dynamic {
+            (t_end / 10.0).max(dt)
+        } else {
+            dt
+        });
+    let dt_min = s.opt_positive("dt_min")?.unwrap_or(dt_max * 1e-6);
+    if dt_min > dt_max {
+        return Err(s.err_hint(
+            "dt_min",
+            s.get("dt_min"),
+            format!("is larger than dt_max = {dt_max}"),
+            "dt_min and dt_max bound the adaptive step",
+        ));
+    }
+    if stepping == Stepping::Adaptive && (dt < dt_min || dt > dt_max) {
+        return Err(s.err_hint(
+            "dt",
+            s.get("dt"),
+            format!("is outside [dt_min, dt_max] = [{dt_min}, {dt_max}]"),
+            "with adaptive stepping dt is the first step; keep it within the bounds",
+        ));
+    }
+    let time_of_impact = s.opt_bool("time_of_impact")?.unwrap_or(false);
     let gravity = s.opt_vec2("gravity")?.unwrap_or([0.0, -9.81]);
     let force_tol = s.opt_positive("force_tol")?.unwrap_or(1e-9);
     let step_tol = s.opt_positive("step_tol")?.unwrap_or(1e-12);
     let max_newton_iterations = positive_int(s, "max_newton_iterations", 50)?;
     let max_contact_passes = positive_int(s, "max_contact_passes", 25)?;
-    let max_backoff = s.opt_usize("max_backoff")?.unwrap_or(8) as u32;
+    let max_backoff = match s.opt_usize("max_backoff")? {
+        None => 8,
+        Some(n) if n > 60 => {
+            return Err(s.err_hint(
+                "max_backoff",
+                s.get("max_backoff"),
+                "is unreasonably large (at most 60)",
+                "each back-off halves dt; 60 halvings already reach 1e-18 dt",
+            ))
+        }
+        Some(n) => n as u32,
+    };
     let load_step = s.opt_positive("load_step")?.unwrap_or(0.25);
     if load_step > 1.0 {
         return Err(s.err("load_step", s.get("load_step"), "must be in (0, 1]"));
@@ -546,6 +645,11 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         stepping,
         dt_near,
         near_distance,
+        rtol,
+        atol,
+        dt_min,
+        dt_max,
+        time_of_impact,
         gravity,
         force_tol,
         step_tol,
@@ -602,9 +706,16 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
             end: sh.vec2("end")?,
         },
         "points" => {
-            let arr = sh
-                .array("points")?
-                .ok_or_else(|| sh.err("points", None, "missing required key"))?;
+            let arr = sh.array("points")?.ok_or_else(|| {
+                sh.typo_error("points").unwrap_or_else(|| {
+                    sh.err_hint(
+                        "points",
+                        None,
+                        "missing required key",
+                        "give points = [[x, y], ...], one per node",
+                    )
+                })
+            })?;
             if arr.len() != nodes {
                 return Err(sh.err_hint(
                     "points",
@@ -654,12 +765,16 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
             radius: se.positive("radius")?,
         },
         other => {
+            let hint = match reader::did_you_mean(other, &["rect", "circle"]) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"rect\" (b, h) or \"circle\" (radius)".into(),
+            };
             return Err(se.err_hint(
                 "kind",
                 se.get("kind"),
                 format!("unknown section kind {other:?}"),
-                "use \"rect\" (b, h) or \"circle\" (radius)",
-            ))
+                hint,
+            ));
         }
     };
     se.finish()?;
@@ -725,19 +840,18 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
     let drive = match r.opt_table("drive", DRIVE_KEYS)? {
         None => Drive::Fixed,
         Some(d) => {
-            let stop_time = d.opt_positive("stop_time")?;
-            let stop_travel = d.opt_positive("stop_travel")?;
+            // stop_time and stop_travel only belong to the moving kinds.
             let dr = match d.str("kind")? {
                 "fixed" => Drive::Fixed,
                 "constant_acceleration" => Drive::ConstantAcceleration {
                     acceleration: d.vec2("acceleration")?,
-                    stop_time,
-                    stop_travel,
+                    stop_time: d.opt_positive("stop_time")?,
+                    stop_travel: d.opt_positive("stop_travel")?,
                 },
                 "constant_velocity" => Drive::ConstantVelocity {
                     velocity: d.vec2("velocity")?,
-                    stop_time,
-                    stop_travel,
+                    stop_time: d.opt_positive("stop_time")?,
+                    stop_travel: d.opt_positive("stop_travel")?,
                 },
                 other => {
                     let hint = match reader::did_you_mean(

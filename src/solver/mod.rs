@@ -42,6 +42,8 @@ pub struct RunStats {
     pub newton_iterations: u64,
     pub contact_passes: u64,
     pub backoffs: u64,
+    /// Adaptive stepping: attempts rejected by the error estimate.
+    pub rejected_steps: u64,
     /// Deepest penetration of any node after the corrector (m, ≥ 0).
     pub max_penetration: f64,
     /// Simulated time reached (s); the load factor in static mode.
@@ -78,9 +80,46 @@ impl RodOut {
     }
 }
 
+impl StepError {
+    /// As a failure report (static mode never splits or rejects; this keeps it total).
+    fn into_failure(self) -> StepFailure {
+        match self {
+            StepError::Newton { rod, fail } => StepFailure { rod, fail },
+            StepError::Split { rod, node, .. } => StepFailure {
+                rod,
+                fail: NewtonFailure {
+                    node,
+                    residual: 0.0,
+                    reason: "time-of-impact split",
+                    iterations: 0,
+                },
+            },
+            StepError::Reject { .. } => StepFailure {
+                rod: 0,
+                fail: NewtonFailure {
+                    node: 0,
+                    residual: 0.0,
+                    reason: "step rejected",
+                    iterations: 0,
+                },
+            },
+        }
+    }
+}
+
 struct StepFailure {
     rod: usize,
     fail: NewtonFailure,
+}
+
+/// Why a step attempt was not accepted.
+enum StepError {
+    /// Newton failed (or the contact set did not settle) on a rod.
+    Newton { rod: usize, fail: NewtonFailure },
+    /// A free node would cross an obstacle at this fraction of the step.
+    Split { theta: f64, rod: usize, node: usize },
+    /// Adaptive stepping: the error estimate exceeds the tolerance; retry with `dt`.
+    Reject { err: f64, dt: f64 },
 }
 
 /// A simulation in progress.
@@ -97,6 +136,8 @@ pub struct Simulation {
     /// The step size used by the last accepted step.
     pub last_dt: f64,
     drive_warned: Vec<bool>,
+    /// Adaptive stepping: the next step size proposed by the error estimate.
+    pub next_dt: f64,
     /// Checked between steps; when it returns true the run stops with [`SimError::Interrupted`].
     pub interrupt: Option<Box<dyn Fn() -> bool + Send>>,
 }
@@ -120,6 +161,7 @@ impl Simulation {
             step: 0,
             stats: RunStats::default(),
             last_dt: scenario.solve.dt,
+            next_dt: scenario.solve.dt,
             interrupt: None,
         }
     }
@@ -171,6 +213,7 @@ impl Simulation {
                     s.dt
                 }
             }
+            Stepping::Adaptive => self.next_dt.clamp(s.dt_min, s.dt_max),
         }
     }
 
@@ -232,28 +275,57 @@ impl Simulation {
                 dt = t_end - self.t;
             }
             let mut attempt = 0u32;
+            let mut allow_split = self.scenario.solve.time_of_impact;
             loop {
-                match self.try_step(dt, 0.0, obs) {
+                match self.try_step(dt, 0.0, allow_split, obs) {
                     Ok(()) => break,
-                    Err(f) => {
-                        let rod = f.rod;
+                    Err(StepError::Split { theta, rod, node }) => {
+                        let msg = format!(
+                            "time of impact: rod {:?} node {node} reaches an obstacle at {:.6} of the step",
+                            self.rods[rod].name, theta
+                        );
+                        obs.on_event(&Event::DtChanged {
+                            step: self.step + 1,
+                            t: self.t,
+                            old: dt,
+                            new: dt * theta,
+                            reason: &msg,
+                        });
+                        dt *= theta;
+                        allow_split = false;
+                        prev_nominal = dt;
+                    }
+                    Err(StepError::Reject { err, dt: retry }) => {
+                        let msg = format!("adaptive: error estimate {err:.3} > 1, step rejected");
+                        obs.on_event(&Event::DtChanged {
+                            step: self.step + 1,
+                            t: self.t,
+                            old: dt,
+                            new: retry,
+                            reason: &msg,
+                        });
+                        self.stats.rejected_steps += 1;
+                        dt = retry;
+                        prev_nominal = dt;
+                    }
+                    Err(StepError::Newton { rod, fail }) => {
                         obs.on_event(&Event::NewtonFailed {
                             step: self.step + 1,
                             t: self.t,
                             dt,
                             rod,
-                            node: f.fail.node,
-                            residual: f.fail.residual,
-                            reason: f.fail.reason,
+                            node: fail.node,
+                            residual: fail.residual,
+                            reason: fail.reason,
                         });
                         if attempt >= max_backoff {
                             return Err(SimError::Diverged {
                                 step: self.step + 1,
                                 t: self.t,
                                 rod: self.rods[rod].name.clone(),
-                                node: f.fail.node,
-                                residual: f.fail.residual,
-                                reason: f.fail.reason.to_string(),
+                                node: fail.node,
+                                residual: fail.residual,
+                                reason: fail.reason.to_string(),
                                 backoffs: attempt,
                                 dt,
                             });
@@ -268,6 +340,7 @@ impl Simulation {
                             reason: "back-off after a Newton failure",
                         });
                         dt *= 0.5;
+                        self.next_dt = dt;
                         prev_nominal = dt;
                     }
                 }
@@ -283,12 +356,13 @@ impl Simulation {
         while lambda < 1.0 {
             self.check_interrupt()?;
             let target = (lambda + inc).min(1.0);
-            match self.try_step(1.0, target, obs) {
+            match self.try_step(1.0, target, false, obs) {
                 Ok(()) => {
                     lambda = target;
                     inc = (inc * 1.5).min(1.0);
                 }
-                Err(f) => {
+                Err(e) => {
+                    let f = e.into_failure();
                     obs.on_event(&Event::NewtonFailed {
                         step: self.step + 1,
                         t: target,
@@ -325,8 +399,9 @@ impl Simulation {
         &mut self,
         dt: f64,
         lambda: f64,
+        allow_split: bool,
         obs: &mut O,
-    ) -> Result<(), StepFailure> {
+    ) -> Result<(), StepError> {
         let solve = &self.scenario.solve;
         let dynamic = solve.mode == Mode::Dynamic;
         let t1 = if dynamic { self.t + dt } else { lambda };
@@ -356,6 +431,7 @@ impl Simulation {
             let rod = &self.rods[r];
             let w = &mut self.work[r];
             w.contact_saved.copy_from_slice(&w.contact);
+            w.step_dt = if dynamic { dt } else { 0.0 };
             // Prescribed displacement of driven nodes; initial guess for the rest.
             let (d1, _) = rod.drive.motion(t1.max(0.0));
             for i in 0..rod.n {
@@ -419,13 +495,25 @@ impl Simulation {
                     Ok(it) => newton_iterations += it,
                     Err(fail) => {
                         self.rollback();
-                        return Err(StepFailure { rod: r, fail });
+                        return Err(StepError::Newton { rod: r, fail });
                     }
                 }
                 if pass == 0 && wants_steps {
                     let w = &self.work[r];
                     let o = &mut self.out[r];
                     o.q_pred.copy_from_slice(&w.qn);
+                }
+                if pass == 0 && allow_split && dynamic {
+                    if let Some((theta, node)) = self.impact_fraction(r) {
+                        if theta * dt >= self.min_split_dt(dt) {
+                            self.rollback();
+                            return Err(StepError::Split {
+                                theta,
+                                rod: r,
+                                node,
+                            });
+                        }
+                    }
                 }
                 // Release adhesive constraints, detect new penetrations, re-linearise.
                 let mut changed = false;
@@ -507,7 +595,7 @@ impl Simulation {
                 passes_total += 1;
                 if pass > max_passes {
                     self.rollback();
-                    return Err(StepFailure {
+                    return Err(StepError::Newton {
                         rod: r,
                         fail: NewtonFailure {
                             node: 0,
@@ -518,6 +606,24 @@ impl Simulation {
                     });
                 }
             }
+        }
+
+        if dynamic && solve.stepping == Stepping::Adaptive {
+            let err = self.error_estimate(dt);
+            let factor = if err > 0.0 {
+                (0.9 / err.sqrt()).clamp(0.2, 2.0)
+            } else {
+                2.0
+            };
+            let (dt_min, dt_max) = (solve.dt_min, solve.dt_max);
+            if err > 1.0 && dt > dt_min * (1.0 + 1e-12) {
+                self.rollback();
+                return Err(StepError::Reject {
+                    err,
+                    dt: (dt * factor).max(dt_min),
+                });
+            }
+            self.next_dt = (dt * factor).clamp(dt_min, dt_max);
         }
 
         // Accept: advance the state.
@@ -568,6 +674,97 @@ impl Simulation {
             self.emit_step_end(obs, dt, newton_iterations, passes_total);
         }
         Ok(())
+    }
+
+    /// Smallest step a time-of-impact split may produce.
+    fn min_split_dt(&self, dt: f64) -> f64 {
+        let s = &self.scenario.solve;
+        if s.stepping == Stepping::Adaptive {
+            s.dt_min
+        } else {
+            1e-6 * dt
+        }
+    }
+
+    /// For rod `r` after its predictor: the earliest fraction θ ∈ (0, 1) of the step at which a
+    /// free node that started outside every obstacle reaches one, along the path a backward
+    /// Euler sub-step would take (root of the signed distance by bracketed false position).
+    fn impact_fraction(&self, r: usize) -> Option<(f64, usize)> {
+        let rod = &self.rods[r];
+        let w = &self.work[r];
+        let mut best: Option<(f64, usize)> = None;
+        for i in 0..rod.n {
+            if rod.clamped[i] || w.contact_saved[i].is_some() {
+                continue;
+            }
+            let p1 = [w.qn[2 * i], w.qn[2 * i + 1]];
+            let Some((k, _)) = contact::deepest(&self.obstacles, p1, 0.0) else {
+                continue;
+            };
+            let o = &self.obstacles[k];
+            // Backward Euler over a sub-step θ dt with the predictor's acceleration:
+            // p(θ) = p₀ + θ (dt u) + θ² (Δq − dt u), which is p₁ at θ = 1.
+            let p0 = [w.q[2 * i], w.q[2 * i + 1]];
+            let v = [w.dt_u(i, 0), w.dt_u(i, 1)];
+            let acc = [p1[0] - p0[0] - v[0], p1[1] - p0[1] - v[1]];
+            let at = |th: f64| {
+                o.query([p0[0] + th * v[0] + th * th * acc[0], p0[1] + th * v[1] + th * th * acc[1]]).distance
+            };
+            let (mut a, mut b) = (0.0, 1.0);
+            let (mut fa, mut fb) = (at(0.0), at(1.0));
+            if !(fa > 0.0 && fb < 0.0) {
+                continue;
+            }
+            // Illinois false position: superlinear and bracketed.
+            for _ in 0..60 {
+                let c = (a * fb - b * fa) / (fb - fa);
+                let fc = at(c);
+                if fc > 0.0 {
+                    a = c;
+                    fa = fc;
+                    fb *= 0.5;
+                } else {
+                    b = c;
+                    fb = fc;
+                    fa *= 0.5;
+                }
+                if (b - a) < 1e-12 || fc == 0.0 {
+                    break;
+                }
+            }
+            // The end of the bracket on or just inside the surface: the step ends at contact.
+            let theta = b;
+            if theta < 1.0 - 1e-9 && best.map_or(true, |(t, _)| theta < t) {
+                best = Some((theta, i));
+            }
+        }
+        best
+    }
+
+    /// Adaptive stepping: the embedded error estimate of the step just solved, as a multiple
+    /// of the tolerance. Backward Euler's position differs from the trapezoidal rule's by
+    /// ½ dt (u_{k+1} − u_k) = ½ dt² a_{k+1}, its leading local error; the tolerance is
+    /// atol + rtol · L (the rod length). Nodes whose contact state changed in this step are
+    /// left out: their velocity jump is the modelled inelastic impact, not truncation error.
+    fn error_estimate(&self, dt: f64) -> f64 {
+        let s = &self.scenario.solve;
+        let mut err: f64 = 0.0;
+        for (rod, w) in self.rods.iter().zip(&self.work) {
+            // A particle's length scale is 1 m (see `Rod::length`).
+            let tol = s.atol + s.rtol * rod.length;
+            for i in 0..rod.n {
+                if rod.clamped[i] || w.contact_saved[i].is_some() != w.contact[i].is_some() {
+                    continue;
+                }
+                let ax = (w.dq[2 * i] / dt - w.u[2 * i]) / dt;
+                let ay = (w.dq[2 * i + 1] / dt - w.u[2 * i + 1]) / dt;
+                let e = 0.5 * dt * dt * ax.hypot(ay) / tol;
+                if e > err {
+                    err = e;
+                }
+            }
+        }
+        err
     }
 
     fn rollback(&mut self) {
@@ -728,6 +925,11 @@ fn obs_wants_steps<O: Observer>(obs: &O) -> bool {
 }
 
 impl RodWork {
+    /// dt·u of DOF (node i, axis a) for the step being solved.
+    fn dt_u(&self, i: usize, a: usize) -> f64 {
+        self.u[2 * i + a] * self.step_dt
+    }
+
     /// Remember that node i was released in this step.
     fn contact_saved_mark(&mut self, i: usize) {
         self.released.push(i);

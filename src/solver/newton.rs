@@ -51,6 +51,8 @@ pub struct RodWork {
     pub rhs: Vec<f64>,
     pub contact: Vec<Option<Constraint>>,
     pub contact_saved: Vec<Option<Constraint>>,
+    /// Size of the step being solved (s), 0 in static mode.
+    pub step_dt: f64,
     /// Nodes released in the current step (a re-penetration then locks them).
     pub released: Vec<usize>,
     /// Force scale (N) for the residual test, and length scale (m) for the update test.
@@ -138,6 +140,7 @@ impl RodWork {
             contact: vec![None; n],
             contact_saved: vec![None; n],
             released: Vec::with_capacity(n),
+            step_dt: 0.0,
             force_scale,
             length_scale: rod.length,
             filter_scale: mean_mass,
