@@ -82,6 +82,25 @@ enum Command {
         #[arg(long, default_value = "scenarios")]
         dir: PathBuf,
     },
+    /// Benchmark run time against error (work-precision), cost per step against nodes, and
+    /// numerical stability (--stress).
+    #[command(
+        after_help = "Examples:\n  gripsim bench --quick                 # a reduced ladder in seconds\n  gripsim bench --out out/bench         # the full work-precision and scaling bench\n  gripsim bench --stress --out out/bench  # the stability stress map"
+    )]
+    Bench {
+        /// A reduced ladder (seconds); used in CI as a smoke test.
+        #[arg(long)]
+        quick: bool,
+        /// Run the stability stress map instead of work-precision and scaling.
+        #[arg(long)]
+        stress: bool,
+        /// Output folder for CSV tables and PNG/SVG figures.
+        #[arg(long, default_value = "out/bench")]
+        out: PathBuf,
+        /// Timed runs per rung; the median is reported (default 5, 1 with --quick).
+        #[arg(long)]
+        repeats: Option<usize>,
+    },
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -149,6 +168,7 @@ fn main() -> ExitCode {
             }
         },
         Command::Scenarios { dir } => list_scenarios(&dir),
+        Command::Bench { quick, stress, out, repeats } => bench(quick, stress, out, repeats),
     }
 }
 
@@ -396,4 +416,29 @@ fn list_scenarios(dir: &Path) -> ExitCode {
         }
     }
     ExitCode::SUCCESS
+}
+
+fn bench(quick: bool, stress: bool, out: PathBuf, repeats: Option<usize>) -> ExitCode {
+    use gripsim::bench;
+    let opt = bench::BenchOptions { quick, out: out.clone(), repeats: repeats.unwrap_or(if quick { 1 } else { 5 }) };
+    let mut log = |s: &str| println!("{s}");
+    let result = if stress {
+        bench::stress(&opt, &mut log).map(|cells| {
+            let bad = cells.iter().filter(|c| c.non_finite).count();
+            let pen = cells.iter().filter(|c| c.status == bench::CellStatus::Ok && c.max_penetration > 1e-9).count();
+            println!("stress map: {} cells, {bad} with a non-finite value, {pen} ok cells with penetration > 1e-9 m", cells.len());
+        })
+    } else {
+        bench::work_precision(&opt, &mut log).and_then(|_| bench::scaling(&opt, &mut log)).map(|_| ())
+    };
+    match result {
+        Ok(()) => {
+            println!("wrote tables and figures to {}", out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
 }

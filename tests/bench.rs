@@ -1,0 +1,66 @@
+//! `gripsim bench --quick` and `--stress --quick` as smoke tests: they run, and write their
+//! tables and figures. No timing is asserted here; speed is measured by the bench itself.
+
+use std::process::Command;
+
+fn bench(args: &[&str]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_gripsim"))
+        .arg("bench")
+        .args(args)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "bench {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    dir
+}
+
+#[test]
+fn quick_work_precision_and_scaling_write_tables_and_figures() {
+    let dir = bench(&["--quick"]);
+    let csv = std::fs::read_to_string(dir.path().join("work-precision.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    // 4 cases × (2 fixed + 2 proximity + 2 adaptive + 2 adaptive+toi) rungs.
+    assert_eq!(lines.len(), 1 + 4 * 8, "{csv}");
+    assert!(lines[0].starts_with("case,strategy,parameter,value,steps"));
+    for l in &lines[1..] {
+        let f: Vec<&str> = l.split(',').collect();
+        let steps: u64 = f[4].parse().unwrap();
+        assert!(steps > 0, "{l}");
+        let pos: f64 = f[7].parse().unwrap();
+        assert!(pos.is_finite() && pos >= 0.0, "{l}");
+    }
+    // Refining the fixed step reduces the seed grasp's position error.
+    let seed: Vec<f64> = lines
+        .iter()
+        .filter(|l| l.starts_with("seed-grasp-r5,fixed,"))
+        .map(|l| l.split(',').nth(7).unwrap().parse().unwrap())
+        .collect();
+    assert!(seed.len() == 2 && seed[1] < seed[0], "{seed:?}");
+    for f in ["work-precision.png", "work-precision.svg", "scaling.csv", "scaling.png", "scaling.svg"] {
+        let m = std::fs::metadata(dir.path().join(f)).unwrap_or_else(|_| panic!("{f} missing"));
+        assert!(m.len() > 1000, "{f} is too small");
+    }
+}
+
+#[test]
+fn quick_stress_map_has_no_non_finite_value_and_no_penetration_in_ok_cells() {
+    let dir = bench(&["--stress", "--quick"]);
+    let csv = std::fs::read_to_string(dir.path().join("stress.csv")).unwrap();
+    let mut rows = csv.lines();
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let mut n = 0;
+    for l in rows {
+        let f: Vec<&str> = l.split(',').collect();
+        n += 1;
+        assert_eq!(f[col("non_finite")], "false", "{l}");
+        if f[col("status")] == "ok" {
+            let pen: f64 = f[col("max_penetration_m")].parse().unwrap();
+            assert!(pen <= 1e-9, "{l}");
+        }
+    }
+    assert_eq!(n, 16);
+    assert!(dir.path().join("stress.png").exists() && dir.path().join("stress.svg").exists());
+}
