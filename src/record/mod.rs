@@ -173,8 +173,16 @@ impl OutputFile {
         std::fs::File::create(&self.partial).map_err(io)
     }
 
-    /// After the file was closed: rename it to its final name when `complete`.
+    /// After the file was closed: make it durable, then rename it to its final name when
+    /// `complete` (so a crash after the rename cannot leave a whole-looking file whose data
+    /// never reached the disk).
     pub fn settle(&self, complete: bool) -> Result<Finished, RecordError> {
+        std::fs::File::open(&self.partial)
+            .and_then(|f| f.sync_all())
+            .map_err(|source| RecordError::Io {
+                path: self.partial.clone(),
+                source,
+            })?;
         if complete {
             std::fs::rename(&self.partial, &self.path).map_err(|source| RecordError::Io {
                 path: self.path.clone(),

@@ -35,8 +35,10 @@ use super::{
 use crate::events::{ContactChange, Event, Observer, ReleaseReason, RodInfo, RodStepView};
 use crate::obstacle::Obstacle;
 use crate::scenario::Scenario;
+use ::rerun::blueprint::components::PanelState;
 use ::rerun::blueprint::{
-    Blueprint, Horizontal, Spatial2DView, Tabs, TextLogView, TimePanel, TimeSeriesView, Vertical,
+    Blueprint, BlueprintPanel, Horizontal, SelectionPanel, Spatial2DView, Tabs, TextLogView,
+    TimePanel, TimeSeriesView, Vertical,
 };
 use ::rerun::log::ChunkBatcherConfig;
 use ::rerun::{
@@ -156,7 +158,15 @@ pub fn blueprint() -> Blueprint {
         ])
         .with_column_shares([0.55, 0.45]),
     )
-    .with_time_panel(TimePanel::new().with_timeline("sim_time"))
+    // Side panels folded away so the views get the window; the time panel shows its
+    // playback bar only.
+    .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Collapsed))
+    .with_selection_panel(SelectionPanel::new().with_state(PanelState::Collapsed))
+    .with_time_panel(
+        TimePanel::new()
+            .with_timeline("sim_time")
+            .with_state(PanelState::Collapsed),
+    )
 }
 
 impl RerunSink {
@@ -279,11 +289,11 @@ impl RerunSink {
             0.0,
             TextLogLevelName::INFO,
             format!(
-                "run of {:?}: {} rod(s), {} obstacle(s), {:?} mode, detail {}",
+                "run of {:?}: {} rod(s), {} obstacle(s), {} mode, detail {}",
                 info.scenario_name,
                 info.rods.len(),
                 info.obstacles.len(),
-                info.mode,
+                format!("{:?}", info.mode).to_lowercase(),
                 self.opts.detail.as_str()
             ),
         );

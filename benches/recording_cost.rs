@@ -1,0 +1,157 @@
+//! What recording costs: seed-grasp-r5 run with no sink, with each sink alone, with the
+//! default .rrd + .mcap at step detail, and at iteration detail.
+//!
+//!     cargo bench --bench recording_cost [-- REPEATS]
+//!
+//! Prints a Markdown table (median wall time of REPEATS runs, default 7, the ratio to the run
+//! without sinks, and the file sizes) for docs/performance.md.
+
+use gripsim::events::{Fanout, NullObserver, Observer};
+use gripsim::record::csv::CsvSink;
+use gripsim::record::mcap::McapSink;
+use gripsim::record::rerun::RerunSink;
+use gripsim::record::{Detail, RecordOptions, Recording};
+use gripsim::{Scenario, Simulation};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Clone, Copy)]
+struct Case {
+    name: &'static str,
+    rrd: bool,
+    mcap: bool,
+    csv: bool,
+    detail: Detail,
+}
+
+/// One run; returns the wall time (s) and the sizes of the files written.
+fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>) {
+    let opts = RecordOptions {
+        detail: case.detail,
+        flush_every: sc.flush_every,
+    };
+    let start = Instant::now();
+    let mut sim = Simulation::new(sc);
+    let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
+    if case.rrd {
+        sinks.push(Box::new(
+            RerunSink::create(&dir.join("bench.rrd"), opts, sc).unwrap(),
+        ));
+    }
+    if case.mcap {
+        sinks.push(Box::new(
+            McapSink::create(&dir.join("bench.mcap"), opts).unwrap(),
+        ));
+    }
+    if case.csv {
+        sinks.push(Box::new(
+            CsvSink::create(&dir.join("bench.csv"), opts).unwrap(),
+        ));
+    }
+    if sinks.is_empty() {
+        sim.run(&mut NullObserver).unwrap();
+    } else {
+        let mut fan = Fanout::new();
+        for s in sinks.iter_mut() {
+            fan.push(s.as_mut() as &mut dyn Observer);
+        }
+        sim.run(&mut fan).unwrap();
+    }
+    let mut sizes = Vec::new();
+    for s in sinks.iter_mut() {
+        let f = s.finish().unwrap();
+        sizes.push((s.format(), std::fs::metadata(&f.path).unwrap().len()));
+    }
+    (start.elapsed().as_secs_f64(), sizes)
+}
+
+fn main() {
+    let repeats: usize = std::env::args()
+        .skip(1)
+        .find_map(|a| a.parse().ok())
+        .unwrap_or(7);
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let sc = Scenario::load(&root.join("scenarios/seed-grasp-r5.toml"), &[]).unwrap();
+    let dir = std::env::temp_dir().join(format!("gripsim-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let step = Detail::Step;
+    let cases = [
+        Case {
+            name: "no sink",
+            rrd: false,
+            mcap: false,
+            csv: false,
+            detail: step,
+        },
+        Case {
+            name: ".rrd only, step detail",
+            rrd: true,
+            mcap: false,
+            csv: false,
+            detail: step,
+        },
+        Case {
+            name: ".mcap only, step detail",
+            rrd: false,
+            mcap: true,
+            csv: false,
+            detail: step,
+        },
+        Case {
+            name: ".csv only",
+            rrd: false,
+            mcap: false,
+            csv: true,
+            detail: step,
+        },
+        Case {
+            name: ".rrd + .mcap, step detail (the default)",
+            rrd: true,
+            mcap: true,
+            csv: false,
+            detail: step,
+        },
+        Case {
+            name: ".rrd + .mcap, iteration detail",
+            rrd: true,
+            mcap: true,
+            csv: false,
+            detail: Detail::Iteration,
+        },
+    ];
+    println!(
+        "seed-grasp-r5 ({} steps), median of {repeats} runs, flush every {} steps\n",
+        (sc.solve.t_end / sc.solve.dt).round(),
+        sc.flush_every
+    );
+    println!("| sinks | wall time (s) | × no sink | files |");
+    println!("|---|---:|---:|---|");
+    let mut base = None;
+    for case in cases {
+        let mut times = Vec::new();
+        let mut sizes = Vec::new();
+        for _ in 0..repeats {
+            let (t, s) = run(&sc, case, &dir);
+            times.push(t);
+            sizes = s;
+        }
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let base = *base.get_or_insert(median);
+        let files: Vec<String> = sizes
+            .iter()
+            .map(|(f, n)| format!("{f} {:.1} MB", *n as f64 / 1e6))
+            .collect();
+        println!(
+            "| {} | {median:.4} | {:.1} | {} |",
+            case.name,
+            median / base,
+            if files.is_empty() {
+                "-".into()
+            } else {
+                files.join(", ")
+            }
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
