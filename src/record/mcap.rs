@@ -660,7 +660,8 @@ struct EventMsg<'a> {
 
 // ---- foxglove.SceneUpdate ------------------------------------------------------------------
 // Field names and required fields follow the published JSON schema. The scene is the xy plane
-// (z = 0) in frame "world".
+// (z = 0) in frame "world". Its numbers are f32 (what the 3D panel draws with): half the text
+// of f64, and the exact values are in /sim/step.
 
 const FRAME: &str = "world";
 
@@ -681,23 +682,27 @@ impl Stamp {
 
 #[derive(Serialize)]
 struct Vec3 {
-    x: f64,
-    y: f64,
-    z: f64,
+    x: f32,
+    y: f32,
+    z: f32,
 }
 
 impl Vec3 {
     fn xy(x: f64, y: f64) -> Self {
-        Self { x, y, z: 0.0 }
+        Self {
+            x: x as f32,
+            y: y as f32,
+            z: 0.0,
+        }
     }
 }
 
 #[derive(Serialize)]
 struct Quat {
-    x: f64,
-    y: f64,
-    z: f64,
-    w: f64,
+    x: f32,
+    y: f32,
+    z: f32,
+    w: f32,
 }
 
 #[derive(Serialize)]
@@ -715,8 +720,8 @@ impl Pose {
             orientation: Quat {
                 x: 0.0,
                 y: 0.0,
-                z: s,
-                w: c,
+                z: s as f32,
+                w: c as f32,
             },
         }
     }
@@ -724,18 +729,18 @@ impl Pose {
 
 #[derive(Serialize, Clone, Copy)]
 struct Color {
-    r: f64,
-    g: f64,
-    b: f64,
-    a: f64,
+    r: f32,
+    g: f32,
+    b: f32,
+    a: f32,
 }
 
 impl Color {
     fn rgb(c: [u8; 3]) -> Self {
         Self {
-            r: c[0] as f64 / 255.0,
-            g: c[1] as f64 / 255.0,
-            b: c[2] as f64 / 255.0,
+            r: c[0] as f32 / 255.0,
+            g: c[1] as f32 / 255.0,
+            b: c[2] as f32 / 255.0,
             a: 1.0,
         }
     }
@@ -744,10 +749,10 @@ impl Color {
 #[derive(Serialize)]
 struct Arrow {
     pose: Pose,
-    shaft_length: f64,
-    shaft_diameter: f64,
-    head_length: f64,
-    head_diameter: f64,
+    shaft_length: f32,
+    shaft_diameter: f32,
+    head_length: f32,
+    head_diameter: f32,
     color: Color,
 }
 
@@ -757,10 +762,10 @@ impl Arrow {
         let head = (2.5 * r).min(0.4 * length);
         Self {
             pose: Pose::at(x, y, v[1].atan2(v[0])),
-            shaft_length: length - head,
-            shaft_diameter: 0.6 * r,
-            head_length: head,
-            head_diameter: 1.8 * r,
+            shaft_length: (length - head) as f32,
+            shaft_diameter: (0.6 * r) as f32,
+            head_length: head as f32,
+            head_diameter: (1.8 * r) as f32,
             color,
         }
     }
@@ -779,7 +784,7 @@ struct Line {
     #[serde(rename = "type")]
     kind: u8,
     pose: Pose,
-    thickness: f64,
+    thickness: f32,
     scale_invariant: bool,
     points: Vec<Vec3>,
     color: Color,
@@ -788,7 +793,7 @@ struct Line {
 }
 
 impl Line {
-    fn strip(points: impl Iterator<Item = [f64; 2]>, thickness_px: f64, color: Color) -> Self {
+    fn strip(points: impl Iterator<Item = [f64; 2]>, thickness_px: f32, color: Color) -> Self {
         Self {
             kind: 0,
             pose: Pose::at(0.0, 0.0, 0.0),
@@ -806,7 +811,7 @@ impl Line {
 struct Text {
     pose: Pose,
     billboard: bool,
-    font_size: f64,
+    font_size: f32,
     scale_invariant: bool,
     color: Color,
     text: String,
@@ -886,9 +891,9 @@ fn rod_entity(info: &RodInfo, style: &RodStyle, v: &RodStepView<'_>, stamp: Stam
         e.spheres.push(Sphere {
             pose: Pose::at(x, y, 0.0),
             size: Vec3 {
-                x: 2.0 * r,
-                y: 2.0 * r,
-                z: 2.0 * r,
+                x: (2.0 * r) as f32,
+                y: (2.0 * r) as f32,
+                z: (2.0 * r) as f32,
             },
             color: Color::rgb(color),
         });
