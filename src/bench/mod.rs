@@ -512,14 +512,15 @@ pub struct Cell {
     pub contact: bool,
 }
 
-/// The seed grasp with the fruit moved 1 mm closer, at most 2000 steps of `dt`.
+/// The seed grasp with the fruit moved 1 mm closer and a drive that stops after 5 mm of
+/// travel (so the clamp never reaches the fruit), at most 2000 steps of `dt` or 0.03 s.
 pub fn stress_cell(e: f64, accel: f64, nodes: usize, dt: f64) -> Cell {
     let t_end = (2000.0 * dt).min(0.03);
     let sets = vec![
         format!("rod.0.E={e:e}"),
         format!("rod.0.nodes={nodes}"),
         format!("rod.0.node_mass={:e}", 0.1 / nodes as f64),
-        format!("rod.0.drive.acceleration=[{:e}, 0.0]", -accel),
+        format!("rod.0.drive={{ kind = \"constant_acceleration\", acceleration = [{:e}, 0.0], stop_travel = 0.005 }}", -accel),
         format!("solve.dt={dt:e}"),
         format!("solve.t_end={t_end:e}"),
         "obstacle.0.center=[-0.049, -0.05]".into(),

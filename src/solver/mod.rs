@@ -251,6 +251,7 @@ impl Simulation {
         let t_end = self.scenario.solve.t_end;
         let max_backoff = self.scenario.solve.max_backoff;
         let mut prev_nominal = f64::NAN;
+        let mut recovery_cap = f64::INFINITY;
         while self.t < t_end * (1.0 - 1e-12) {
             self.check_interrupt()?;
             let nominal = self.nominal_dt();
@@ -269,7 +270,8 @@ impl Simulation {
                 });
             }
             prev_nominal = nominal;
-            let mut dt = nominal.min(t_end - self.t);
+            // After a back-off the step grows back by 2x per accepted step, not at once.
+            let mut dt = nominal.min(recovery_cap).min(t_end - self.t);
             // Avoid a sliver of a last step.
             if t_end - (self.t + dt) < 1e-9 * dt {
                 dt = t_end - self.t;
@@ -278,7 +280,16 @@ impl Simulation {
             let mut allow_split = self.scenario.solve.time_of_impact;
             loop {
                 match self.try_step(dt, 0.0, allow_split, obs) {
-                    Ok(()) => break,
+                    Ok(()) => {
+                        recovery_cap = if attempt > 0 {
+                            2.0 * dt
+                        } else if recovery_cap < nominal {
+                            2.0 * recovery_cap
+                        } else {
+                            f64::INFINITY
+                        };
+                        break;
+                    }
                     Err(StepError::Split { theta, rod, node }) => {
                         let msg = format!(
                             "time of impact: rod {:?} node {node} reaches an obstacle at {:.6} of the step",

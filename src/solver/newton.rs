@@ -51,6 +51,9 @@ pub struct RodWork {
     pub rhs: Vec<f64>,
     pub contact: Vec<Option<Constraint>>,
     pub contact_saved: Vec<Option<Constraint>>,
+    /// Largest Newton update per node per iteration (m): half the shortest rest edge
+    /// (0 = unlimited, for particles).
+    pub max_update: f64,
     /// Size of the step being solved (s), 0 in static mode.
     pub step_dt: f64,
     /// Nodes released in the current step (a re-penetration then locks them).
@@ -141,6 +144,7 @@ impl RodWork {
             contact_saved: vec![None; n],
             released: Vec::with_capacity(n),
             step_dt: 0.0,
+            max_update: if n > 1 { 0.5 * rod.rest_length.iter().copied().fold(f64::INFINITY, f64::min) } else { 0.0 },
             force_scale,
             length_scale: rod.length,
             filter_scale: mean_mass,
@@ -342,7 +346,10 @@ pub fn solve(
         }
         w.band.solve(&mut w.rhs);
         iterations += 1;
-        let mut upd = 0.0f64;
+        // A damped step when the full Newton update would move a node by more than half the
+        // shortest rest edge: large updates are where an undamped Newton step can fold the rod
+        // and diverge. The direction is kept; convergence near the solution is unchanged.
+        let mut full = 0.0f64;
         for i in 0..n {
             let fi = w.free_index[i];
             if fi == usize::MAX {
@@ -350,13 +357,19 @@ pub fn solve(
             }
             let (dx, dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], w.contact[i]);
             if !(dx.is_finite() && dy.is_finite()) {
-                return Err(NewtonFailure {
-                    node: i,
-                    residual: res,
-                    reason: "non-finite Newton update",
-                    iterations,
-                });
+                return Err(NewtonFailure { node: i, residual: res, reason: "non-finite Newton update", iterations });
             }
+            full = full.max(dx.abs()).max(dy.abs());
+        }
+        let scale = if w.max_update > 0.0 && full > w.max_update { w.max_update / full } else { 1.0 };
+        let mut upd = 0.0f64;
+        for i in 0..n {
+            let fi = w.free_index[i];
+            if fi == usize::MAX {
+                continue;
+            }
+            let (dx, dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], w.contact[i]);
+            let (dx, dy) = (dx * scale, dy * scale);
             w.dq[2 * i] += dx;
             w.dq[2 * i + 1] += dy;
             upd = upd.max(dx.abs()).max(dy.abs());
