@@ -222,6 +222,8 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         detail: out.detail,
         flush_every: out.flush_every.unwrap_or(sc.flush_every),
     };
+    // From here a signal stops the run and the files are closed properly.
+    install_signal_handlers();
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
     let created = (|| {
         if let Some(p) = &out.rrd {
@@ -240,7 +242,6 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         return ExitCode::from(2);
     }
 
-    install_signal_handlers();
     let mut sim = Simulation::new(&sc);
     sim.interrupt = Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0));
     let mut collector = SummaryCollector::new();

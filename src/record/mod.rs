@@ -201,8 +201,8 @@ impl OutputFile {
     }
 }
 
-/// A box around the rods' shape and the bounded obstacles, with a margin: where unbounded
-/// obstacles (planes, sines) are drawn.
+/// A box around the rods' shape, the bounded obstacles and the nearest points of the unbounded
+/// ones (planes, sines), with a margin of half its size: where unbounded obstacles are drawn.
 pub fn scene_box(rods: &[RodStepView<'_>], obstacles: &[Obstacle]) -> ([f64; 2], [f64; 2]) {
     let mut lo = [f64::INFINITY; 2];
     let mut hi = [f64::NEG_INFINITY; 2];
@@ -214,16 +214,24 @@ pub fn scene_box(rods: &[RodStepView<'_>], obstacles: &[Obstacle]) -> ([f64; 2],
             }
         }
     };
-    for r in rods {
-        for p in r.q.chunks_exact(2) {
-            add([p[0], p[1]]);
-        }
-    }
     for o in obstacles {
-        if !matches!(o, Obstacle::Plane(_) | Obstacle::Sine(_)) {
+        let unbounded = matches!(o, Obstacle::Plane(_) | Obstacle::Sine(_));
+        if unbounded {
+            // The part of the surface the rods face: the closest point to every node.
+            for r in rods {
+                for p in r.q.chunks_exact(2) {
+                    add(o.query([p[0], p[1]]).closest);
+                }
+            }
+        } else {
             for p in o.outline([0.0; 2], [0.0; 2]) {
                 add(p);
             }
+        }
+    }
+    for r in rods {
+        for p in r.q.chunks_exact(2) {
+            add([p[0], p[1]]);
         }
     }
     if !(lo[0] <= hi[0] && lo[1] <= hi[1]) {
@@ -287,7 +295,11 @@ impl SceneStyle {
             .map(|r| {
                 let length: f64 = r.rest_length.iter().sum();
                 let shortest = r.rest_length.iter().copied().fold(f64::INFINITY, f64::min);
-                let node_radius = (0.25 * shortest).min(0.006 * size);
+                let node_radius = if shortest.is_finite() {
+                    (0.25 * shortest).min(0.01 * size)
+                } else {
+                    0.04 * size // a particle
+                };
                 let reach = if length > 0.0 { length } else { 0.2 * size };
                 RodStyle {
                     node_radius,

@@ -494,13 +494,11 @@ impl RerunSink {
                 ev.q.chunks_exact(2)
                     .map(|c| [c[0] as f32, c[1] as f32])
                     .collect();
-            let label = format!("{} pass {} iteration {}", ev.phase, ev.pass, ev.iteration);
             self.log(
                 &iterate,
                 &LineStrips2D::new([strip])
                     .with_colors([Color::from_unmultiplied_rgba(120, 200, 255, 160)])
                     .with_radii([Radius::new_ui_points(1.0)])
-                    .with_labels([label])
                     .with_draw_order(DRAW_GHOSTS),
             );
         }
@@ -563,13 +561,10 @@ fn rgb(c: [u8; 3]) -> Color {
     Color::from_rgb(c[0], c[1], c[2])
 }
 
-/// The fields of [`Event::Iteration`].
+/// The fields of [`Event::Iteration`] that the recording uses.
 struct IterationEvent<'a> {
     step: u64,
     t: f64,
-    phase: &'static str,
-    pass: u32,
-    iteration: u32,
     rod: usize,
     residual: f64,
     update: f64,
@@ -591,21 +586,16 @@ impl Observer for RerunSink {
             Event::Iteration {
                 step,
                 t,
-                phase,
-                pass,
-                iteration,
                 rod,
                 residual,
                 update,
                 q,
+                ..
             } => {
                 if self.opts.detail == Detail::Iteration {
                     self.iteration(IterationEvent {
                         step,
                         t,
-                        phase: phase.as_str(),
-                        pass,
-                        iteration,
                         rod,
                         residual,
                         update,
