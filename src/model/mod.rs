@@ -186,14 +186,34 @@ pub fn validate_geometry(sc: &Scenario) -> Result<(), ScenarioError> {
         } else {
             format!("rod.{ri}")
         };
+        for (i, p) in pts.iter().enumerate() {
+            if !(p[0].is_finite() && p[1].is_finite()) {
+                return Err(err(
+                    format!("{key}.shape"),
+                    format!("node {i} at [{}, {}]", p[0], p[1]),
+                    format!("node {i} of the shape is not finite (the numbers overflow)"),
+                    "use coordinates of a realistic size (metres)",
+                ));
+            }
+        }
         let size = pts
             .iter()
             .flat_map(|p| p.iter())
             .fold(0.0f64, |m, v| m.max(v.abs()))
             .max(1e-300);
         for i in 0..pts.len() - 1 {
-            let l =
-                ((pts[i + 1][0] - pts[i][0]).powi(2) + (pts[i + 1][1] - pts[i][1]).powi(2)).sqrt();
+            let l = (pts[i + 1][0] - pts[i][0]).hypot(pts[i + 1][1] - pts[i][1]);
+            if !l.is_finite() {
+                return Err(err(
+                    format!("{key}.shape"),
+                    format!("{:?}", pts[i]),
+                    format!(
+                        "the edge from node {i} to {} is too long to represent",
+                        i + 1
+                    ),
+                    "use coordinates of a realistic size (metres)",
+                ));
+            }
             if l <= 1e-12 * size {
                 return Err(err(
                     format!("{key}.shape"),
@@ -218,6 +238,20 @@ pub fn validate_geometry(sc: &Scenario) -> Result<(), ScenarioError> {
         for (oi, o) in sc.obstacles.iter().enumerate() {
             for (i, p) in pts.iter().enumerate() {
                 let d = o.query(*p).distance;
+                if !d.is_finite() {
+                    return Err(err(
+                        format!("obstacle.{oi}"),
+                        String::new(),
+                        format!(
+                            "the distance from {} {:?} node {i} to this {} cannot be computed \
+                             (the obstacle's numbers overflow)",
+                            if spec.particle { "particle" } else { "rod" },
+                            spec.name,
+                            o.kind()
+                        ),
+                        "use obstacle dimensions of a realistic size (metres)",
+                    ));
+                }
                 if d < 0.0 {
                     return Err(err(
                         if spec.particle {

@@ -107,13 +107,42 @@ const KEYS: &[&str] = &[
 pub fn parse(r: &TableReader) -> Result<Obstacle, ScenarioError> {
     let r = TableReader::new(r.file, r.path.clone(), r.table, KEYS);
     let kind = r.str("kind")?;
+    // Only the keys of this kind are allowed; checked first, so a misspelt key is reported
+    // as such rather than as a missing one.
+    let allowed: &[&str] = match kind {
+        "circle" => &["kind", "center", "radius"],
+        "plane" => &["kind", "point", "normal"],
+        "sine" => &["kind", "amplitude", "wavenumber", "offset"],
+        "ellipse" => &["kind", "center", "a", "b", "angle"],
+        "polygon" => &["kind", "vertices"],
+        _ => &[],
+    };
+    if !allowed.is_empty() {
+        let mut keys: Vec<&String> = r.table.keys().collect();
+        keys.sort();
+        for k in keys {
+            if !allowed.contains(&k.as_str()) {
+                let mut e = r.err(
+                    k,
+                    r.table.get(k),
+                    format!("unknown key for a {kind} obstacle"),
+                );
+                e.hint = Some(match did_you_mean(k, allowed) {
+                    Some(m) => format!("did you mean `{m}`?"),
+                    None => format!("a {kind} takes: {}", allowed.join(", ")),
+                });
+                return Err(e);
+            }
+        }
+    }
     let o = match kind {
         "circle" => Obstacle::Circle(Circle::new(r.vec2("center")?, r.positive("radius")?)),
         "plane" => {
             let point = r.vec2("point")?;
             let n = r.vec2("normal")?;
-            let len = (n[0] * n[0] + n[1] * n[1]).sqrt();
-            if len < 1e-12 {
+            // hypot: no overflow for huge components, no underflow for tiny ones.
+            let len = n[0].hypot(n[1]);
+            if len == 0.0 {
                 return Err(r.err_hint(
                     "normal",
                     r.get("normal"),
@@ -138,7 +167,7 @@ pub fn parse(r: &TableReader) -> Result<Obstacle, ScenarioError> {
                     "b",
                     r.get("b"),
                     format!(
-                        "degenerate ellipse: axis ratio {} exceeds 1e6",
+                        "degenerate ellipse: axis ratio {:.3e} exceeds 1e6",
                         a.max(b) / a.min(b)
                     ),
                     "use a polygon or a plane for a flat obstacle",
@@ -187,28 +216,6 @@ pub fn parse(r: &TableReader) -> Result<Obstacle, ScenarioError> {
             ));
         }
     };
-    // Only the keys of this kind are allowed.
-    let allowed: &[&str] = match kind {
-        "circle" => &["kind", "center", "radius"],
-        "plane" => &["kind", "point", "normal"],
-        "sine" => &["kind", "amplitude", "wavenumber", "offset"],
-        "ellipse" => &["kind", "center", "a", "b", "angle"],
-        _ => &["kind", "vertices"],
-    };
-    for k in r.table.keys() {
-        if !allowed.contains(&k.as_str()) {
-            let mut e = r.err(
-                k,
-                r.table.get(k),
-                format!("unknown key for a {kind} obstacle"),
-            );
-            e.hint = Some(match did_you_mean(k, allowed) {
-                Some(m) => format!("did you mean `{m}`?"),
-                None => format!("a {kind} takes: {}", allowed.join(", ")),
-            });
-            return Err(e);
-        }
-    }
     Ok(o)
 }
 
@@ -355,10 +362,8 @@ mod tests {
             .unwrap(),
         );
         for q in &pts {
-            assert_eq!(
-                p.query(*q).distance.to_bits(),
-                cw.query(*q).distance.to_bits()
-            );
+            let (a, b) = (p.query(*q).distance, cw.query(*q).distance);
+            assert!((a - b).abs() < 1e-15, "{a} vs {b}");
         }
     }
 
@@ -367,5 +372,18 @@ mod tests {
         assert!(Polygon::new(vec![[0.0, 0.0], [1.0, 0.0]]).is_err());
         assert!(Polygon::new(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]).is_err());
         assert!(Polygon::new(vec![[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]]).is_err());
+        // An edge doubling back along the previous one.
+        assert!(Polygon::new(vec![[0.0, 0.0], [2.0, 0.0], [1.0, 0.0], [1.0, 1.0]]).is_err());
+        // A vertex touching a non-adjacent edge.
+        assert!(Polygon::new(vec![
+            [0.0, 0.0],
+            [4.0, 0.0],
+            [4.0, 4.0],
+            [2.0, 0.0],
+            [0.0, 4.0]
+        ])
+        .is_err());
+        // A straight angle (collinear neighbours going on) is fine.
+        assert!(Polygon::new(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.0, 1.0]]).is_ok());
     }
 }

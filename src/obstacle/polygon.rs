@@ -3,27 +3,46 @@ use super::{norm, Proximity};
 /// A rigid simple polygon (convex or not), vertices in either orientation.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Polygon {
+    /// As given.
     pub vertices: Vec<[f64; 2]>,
+    /// The same outline in a canonical order: counter-clockwise, starting at the
+    /// lexicographically smallest vertex. Queries use it, so a polygon given clockwise or from
+    /// another starting vertex answers bit for bit the same.
+    #[serde(skip)]
+    ring: Vec<[f64; 2]>,
     #[serde(skip)]
     centroid: [f64; 2],
     #[serde(skip)]
     bound_radius: f64,
-    /// +1 for counter-clockwise input, −1 for clockwise.
-    #[serde(skip)]
-    orientation: f64,
 }
 
 fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[1] - a[1] * b[0]
 }
 
-fn segments_cross(p1: [f64; 2], p2: [f64; 2], q1: [f64; 2], q2: [f64; 2]) -> bool {
+/// Whether two segments cross or touch (an endpoint on the other segment, or a collinear
+/// overlap, counts: either makes the outline non-simple).
+fn segments_meet(p1: [f64; 2], p2: [f64; 2], q1: [f64; 2], q2: [f64; 2]) -> bool {
     let d = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
         cross([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]])
     };
+    // c on segment ab, given that a, b, c are collinear.
+    let on = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        c[0] >= a[0].min(b[0])
+            && c[0] <= a[0].max(b[0])
+            && c[1] >= a[1].min(b[1])
+            && c[1] <= a[1].max(b[1])
+    };
     let (d1, d2, d3, d4) = (d(q1, q2, p1), d(q1, q2, p2), d(p1, p2, q1), d(p1, p2, q2));
-    ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+    if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
         && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+    {
+        return true;
+    }
+    (d1 == 0.0 && on(q1, q2, p1))
+        || (d2 == 0.0 && on(q1, q2, p2))
+        || (d3 == 0.0 && on(p1, p2, q1))
+        || (d4 == 0.0 && on(p1, p2, q2))
 }
 
 impl Polygon {
@@ -47,35 +66,58 @@ impl Polygon {
             return Err("zero area (the vertices are collinear)".into());
         }
         for i in 0..n {
+            // Adjacent edges may only share their common vertex: an edge that doubles back
+            // along the previous one is a zero-width spike.
+            let (a, b, c) = (vertices[i], vertices[(i + 1) % n], vertices[(i + 2) % n]);
+            let (e1, e2) = ([b[0] - a[0], b[1] - a[1]], [c[0] - b[0], c[1] - b[1]]);
+            if cross(e1, e2) == 0.0 && e1[0] * e2[0] + e1[1] * e2[1] < 0.0 {
+                return Err(format!(
+                    "edges {i} and {} fold back onto each other at vertex {}",
+                    (i + 1) % n,
+                    (i + 1) % n
+                ));
+            }
             for j in i + 1..n {
                 if j == i + 1 || (i == 0 && j == n - 1) {
                     continue;
                 }
-                if segments_cross(
+                if segments_meet(
                     vertices[i],
                     vertices[(i + 1) % n],
                     vertices[j],
                     vertices[(j + 1) % n],
                 ) {
                     return Err(format!(
-                        "edges {i} and {j} cross (the outline intersects itself)"
+                        "edges {i} and {j} cross or touch (the outline intersects itself)"
                     ));
                 }
             }
         }
+        let mut ring = vertices.clone();
+        if area2 < 0.0 {
+            ring.reverse();
+        }
+        let first = (0..n)
+            .min_by(|&i, &j| {
+                ring[i][0]
+                    .total_cmp(&ring[j][0])
+                    .then(ring[i][1].total_cmp(&ring[j][1]))
+            })
+            .unwrap_or(0);
+        ring.rotate_left(first);
         let centroid = [
-            vertices.iter().map(|v| v[0]).sum::<f64>() / n as f64,
-            vertices.iter().map(|v| v[1]).sum::<f64>() / n as f64,
+            ring.iter().map(|v| v[0]).sum::<f64>() / n as f64,
+            ring.iter().map(|v| v[1]).sum::<f64>() / n as f64,
         ];
-        let bound_radius = vertices
+        let bound_radius = ring
             .iter()
             .map(|v| norm([v[0] - centroid[0], v[1] - centroid[1]]))
             .fold(0.0, f64::max);
         Ok(Self {
             vertices,
+            ring,
             centroid,
             bound_radius,
-            orientation: area2.signum(),
         })
     }
 
@@ -85,10 +127,10 @@ impl Polygon {
 
     fn contains(&self, p: [f64; 2]) -> bool {
         let mut inside = false;
-        let n = self.vertices.len();
+        let n = self.ring.len();
         let mut j = n - 1;
         for i in 0..n {
-            let (a, b) = (self.vertices[i], self.vertices[j]);
+            let (a, b) = (self.ring[i], self.ring[j]);
             if (a[1] > p[1]) != (b[1] > p[1])
                 && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
             {
@@ -100,10 +142,10 @@ impl Polygon {
     }
 
     pub fn query(&self, p: [f64; 2]) -> Proximity {
-        let n = self.vertices.len();
+        let n = self.ring.len();
         let mut best = (f64::INFINITY, [0.0; 2], 0usize);
         for i in 0..n {
-            let (a, b) = (self.vertices[i], self.vertices[(i + 1) % n]);
+            let (a, b) = (self.ring[i], self.ring[(i + 1) % n]);
             let e = [b[0] - a[0], b[1] - a[1]];
             let t = (((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1]))
                 .clamp(0.0, 1.0);
@@ -116,11 +158,11 @@ impl Polygon {
         let (d2, c, i) = best;
         let dist = d2.sqrt();
         let inside = self.contains(p);
-        let (a, b) = (self.vertices[i], self.vertices[(i + 1) % n]);
+        let (a, b) = (self.ring[i], self.ring[(i + 1) % n]);
         let e = [b[0] - a[0], b[1] - a[1]];
         let el = norm(e);
-        // Outward normal of the closest edge (right of the edge for counter-clockwise outlines).
-        let edge_n = [self.orientation * e[1] / el, -self.orientation * e[0] / el];
+        // Outward normal of the closest edge (right of the edge: the ring is counter-clockwise).
+        let edge_n = [e[1] / el, -e[0] / el];
         let normal = if dist > 1e-12 * (1.0 + el) {
             let s = if inside { -1.0 } else { 1.0 };
             [s * (p[0] - c[0]) / dist, s * (p[1] - c[1]) / dist]

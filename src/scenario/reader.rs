@@ -47,11 +47,22 @@ pub fn show(v: &Value) -> String {
                 } else {
                     "-inf".into()
                 }
+            } else if *x != 0.0 && (x.abs() < 1e-4 || x.abs() >= 1e15) {
+                // Exponent form for the very small and very large: 1e-300 stays "1e-300".
+                format!("{x:e}")
             } else {
-                format!("{x}")
+                // As TOML writes a float: 0.0 stays "0.0", not "0".
+                let plain = format!("{x}");
+                if plain.contains('.') {
+                    plain
+                } else {
+                    format!("{plain}.0")
+                }
             }
         }
-        other => other.to_string(),
+        // Arrays and tables render inline; a multi-line rendering would break the one-line
+        // error format.
+        other => other.to_string().replace('\n', " "),
     };
     if s.chars().count() > 80 {
         let cut: String = s.chars().take(77).collect();
@@ -175,6 +186,10 @@ impl<'a> TableReader<'a> {
 
     pub fn required(&self, key: &'static str) -> Result<&'a Value, ScenarioError> {
         self.get(key).ok_or_else(|| {
+            // A misspelt key is more useful to report than the missing one.
+            if let Some(e) = self.typo_error(key) {
+                return e;
+            }
             self.err_hint(
                 key,
                 None,
@@ -182,6 +197,27 @@ impl<'a> TableReader<'a> {
                 format!("add `{key} = ...` to [{}]", self.section_name()),
             )
         })
+    }
+
+    /// For a required `key` that is missing: the error for an unknown key of this table that
+    /// looks like a misspelling of it, if there is one.
+    pub fn typo_error(&self, key: &str) -> Option<ScenarioError> {
+        if self.known.is_empty() {
+            return None;
+        }
+        let mut keys: Vec<&String> = self.table.keys().collect();
+        keys.sort();
+        let typo = keys
+            .into_iter()
+            .map(|k| k.as_str())
+            .filter(|k| *k != key && !self.known.contains(k))
+            .find(|k| did_you_mean(k, &[key]).is_some())?;
+        Some(self.err_hint(
+            typo,
+            self.table.get(typo),
+            "unknown key",
+            format!("did you mean `{key}`? (`{key}` is required here)"),
+        ))
     }
 
     fn section_name(&self) -> String {
@@ -239,7 +275,9 @@ impl<'a> TableReader<'a> {
 
     pub fn check_positive(&self, key: &str, x: f64) -> Result<f64, ScenarioError> {
         if x <= 0.0 {
-            return Err(self.err(key, Some(&Value::Float(x)), "must be greater than zero"));
+            // Show the value as written when it is in this table.
+            let written = self.table.get(key).cloned().unwrap_or(Value::Float(x));
+            return Err(self.err(key, Some(&written), "must be greater than zero"));
         }
         Ok(x)
     }
@@ -411,6 +449,18 @@ impl<'a> TableReader<'a> {
         for k in keys {
             if !used.iter().any(|u| u == k) {
                 let v = self.table.get(k);
+                if self.known.contains(&k.as_str()) {
+                    // A key of this table, but not of the kind chosen.
+                    return Err(match self.table.get("kind") {
+                        Some(Value::String(kind)) => self.err_hint(
+                            k,
+                            v,
+                            format!("not used when kind = {kind:?}"),
+                            "remove it, or change `kind`",
+                        ),
+                        _ => self.err_hint(k, v, "not used here", "remove it"),
+                    });
+                }
                 let mut e = self.err(k, v, "unknown key");
                 let known = if self.known.is_empty() {
                     &used[..]
