@@ -1102,6 +1102,33 @@ fn dt_near_too_small_for_t_end() {
     );
 }
 
+#[test]
+fn dt_min_larger_than_dt_max() {
+    let err = reject(&edit(
+        "stepping = \"fixed\"",
+        "stepping = \"adaptive\"\ndt_min = 0.0005\ndt_max = 0.0001",
+    ));
+    has(
+        &err,
+        &[
+            &kv("solve.dt_min", "0.0005"),
+            "is larger than dt_max = 0.0001",
+        ],
+    );
+}
+
+#[test]
+fn adaptive_first_step_outside_its_bounds() {
+    let err = reject(&edit(
+        "stepping = \"fixed\"",
+        "stepping = \"adaptive\"\ndt_min = 1e-6\ndt_max = 0.0005",
+    ));
+    has(
+        &err,
+        &[&kv("solve.dt", "0.001"), "is outside [dt_min, dt_max]"],
+    );
+}
+
 // ---------------------------------------------------------------------------------------------
 // Unknown kinds.
 
