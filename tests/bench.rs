@@ -38,10 +38,18 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
         .map(|l| l.split(',').nth(7).unwrap().parse().unwrap())
         .collect();
     assert!(seed.len() == 2 && seed[1] < seed[0], "{seed:?}");
-    for f in ["work-precision.png", "work-precision.svg", "scaling.csv", "scaling.png", "scaling.svg"] {
+    for (f, min) in [
+        ("work-precision.png", 10_000),
+        ("work-precision.svg", 10_000),
+        ("scaling.png", 5_000),
+        ("scaling.svg", 5_000),
+        ("scaling.csv", 60),
+    ] {
         let m = std::fs::metadata(dir.path().join(f)).unwrap_or_else(|_| panic!("{f} missing"));
-        assert!(m.len() > 1000, "{f} is too small");
+        assert!(m.len() > min, "{f} is too small ({} bytes)", m.len());
     }
+    let scaling = std::fs::read_to_string(dir.path().join("scaling.csv")).unwrap();
+    assert_eq!(scaling.lines().count(), 1 + 3, "{scaling}");
 }
 
 #[test]

@@ -424,7 +424,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
 }
 
 /// Cost per step against nodes per prong on the seed grasp geometry (fixed dt = 1e-5, no sink).
-pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(usize, f64)>, String> {
+pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(usize, f64, f64)>, String> {
     let nodes: Vec<usize> = if opt_.quick { vec![10, 100, 1000] } else { (0..11).map(|k| 10usize << k).collect() };
     let mut out = Vec::new();
     for &n in &nodes {
@@ -434,15 +434,26 @@ pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(us
             format!("rod.0.node_mass={:e}", 0.1 / n as f64),
             format!("solve.t_end={:e}", steps as f64 * 1e-5),
         ];
-        let (wall, st, _) = time_run(SEED_R5, &sets, opt_.repeats)?;
+        let (wall, st, iters) = time_run(SEED_R5, &sets, opt_.repeats)?;
         let per_step = wall / st as f64;
-        log(&format!("scaling: {n:>6} nodes: {:.3} µs per step", per_step * 1e6));
-        out.push((n, per_step));
+        let iters_per_step = iters as f64 / st as f64;
+        log(&format!("scaling: {n:>6} nodes: {:.3} µs per step, {iters_per_step:.2} Newton iterations per step", per_step * 1e6));
+        out.push((n, per_step, iters_per_step));
     }
-    let mut csv = String::from("nodes,seconds_per_step,ratio_to_previous\n");
-    for (i, (n, s)) in out.iter().enumerate() {
-        let ratio = if i > 0 { format!("{:.3}", s / out[i - 1].1 * (out[i - 1].0 as f64 * 2.0 / *n as f64)) } else { String::new() };
-        let _ = writeln!(csv, "{n},{s:e},{ratio}");
+    // Ratios are per doubling of the nodes (the ladder doubles; --quick steps by 10x).
+    let mut csv = String::from("nodes,seconds_per_step,newton_iterations_per_step,seconds_per_iteration,ratio_per_doubling,iteration_cost_ratio_per_doubling\n");
+    for (i, (n, s, it)) in out.iter().enumerate() {
+        let (ratio, iratio) = if i > 0 {
+            let (n0, s0, it0) = out[i - 1];
+            let doublings = (*n as f64 / n0 as f64).log2();
+            (
+                format!("{:.3}", (s / s0).powf(1.0 / doublings)),
+                format!("{:.3}", ((s / it) / (s0 / it0)).powf(1.0 / doublings)),
+            )
+        } else {
+            (String::new(), String::new())
+        };
+        let _ = writeln!(csv, "{n},{s:e},{it:.3},{:e},{ratio},{iratio}", s / it.max(1e-300));
     }
     std::fs::create_dir_all(&opt_.out).map_err(|e| e.to_string())?;
     crate::record::write_atomic(&opt_.out.join("scaling.csv"), csv.as_bytes()).map_err(|e| e.to_string())?;
@@ -455,7 +466,13 @@ pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(us
             y_label: "wall time per step (s)".into(),
             log_x: true,
             log_y: true,
-            series: vec![plot::Series { name: "measured".into(), points: out.iter().map(|(n, s)| (*n as f64, *s)).collect() }],
+            series: vec![
+                plot::Series { name: "per step".into(), points: out.iter().map(|(n, s, _)| (*n as f64, *s)).collect() },
+                plot::Series {
+                    name: "per Newton iteration".into(),
+                    points: out.iter().map(|(n, s, it)| (*n as f64, s / it.max(1e-300))).collect(),
+                },
+            ],
         }],
         1,
     )?;

@@ -56,7 +56,7 @@ pub struct Panel {
     pub series: Vec<Series>,
 }
 
-const COLORS: [RGBColor; 8] = [
+const COLORS: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
@@ -65,6 +65,8 @@ const COLORS: [RGBColor; 8] = [
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
     RGBColor(23, 190, 207),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
 ];
 
 pub fn color(i: usize) -> RGBColor {
@@ -94,7 +96,31 @@ fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     }
 }
 
-fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, plotters::coord::Shift>, p: &Panel) -> Result<(), String>
+/// Tick label: scientific on log axes and for very large or small values, else plain decimals;
+/// in both cases with as many digits as the tick spacing (about a tenth of the span) needs.
+fn tick(v: f64, log: bool, span: f64) -> String {
+    if log {
+        return format!("{v:.0e}");
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let a = v.abs();
+    let step = span / 8.0;
+    if !(step > 0.0 && step.is_finite()) {
+        return format!("{v:.2e}");
+    }
+    if !(1e-3..1e5).contains(&a) || step < 1e-4 {
+        let digits = (a.log10().floor() - step.log10().floor()).clamp(0.0, 3.0) as usize;
+        return format!("{v:.digits$e}");
+    }
+    let digits = (-step.log10().floor()).clamp(0.0, 6.0) as usize;
+    format!("{v:.digits$}")
+}
+
+/// Draw one panel into a drawing area (for figures laid out by the caller). Series with an
+/// empty name get no legend entry; with no named series there is no legend box.
+pub fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, plotters::coord::Shift>, p: &Panel) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
@@ -110,10 +136,11 @@ where
             let mut chart = $chart;
             chart
                 .configure_mesh()
+                .light_line_style(TRANSPARENT)
                 .x_desc(p.x_label.as_str())
                 .y_desc(p.y_label.as_str())
-                .x_label_formatter(&|v| format!("{:.0e}", v))
-                .y_label_formatter(&|v| format!("{:.0e}", v))
+                .x_label_formatter(&|v| tick(*v, p.log_x, x1 - x0))
+                .y_label_formatter(&|v| tick(*v, p.log_y, y1 - y0))
                 .label_style(("sans-serif", 12))
                 .draw()
                 .map_err(e)?;
@@ -125,21 +152,27 @@ where
                     .copied()
                     .filter(|(x, y)| x.is_finite() && y.is_finite() && (!p.log_x || *x > 0.0) && (!p.log_y || *y > 0.0))
                     .collect();
-                chart
-                    .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
-                    .map_err(e)?
-                    .label(s.name.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
-                chart.draw_series(pts.iter().map(|&q| Circle::new(q, 4, c.filled()))).map_err(e)?;
+                let drawn = chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2))).map_err(e)?;
+                if !s.name.is_empty() {
+                    drawn
+                        .label(s.name.as_str())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+                }
+                // Markers only where they can be told apart (ladders, not time series).
+                if pts.len() <= 60 {
+                    chart.draw_series(pts.iter().map(|&q| Circle::new(q, 4, c.filled()))).map_err(e)?;
+                }
             }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 12))
-                .draw()
-                .map_err(e)?;
+            if p.series.iter().any(|s| !s.name.is_empty()) {
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .label_font(("sans-serif", 12))
+                    .draw()
+                    .map_err(e)?;
+            }
         }};
     }
     match (p.log_x, p.log_y) {
@@ -153,10 +186,15 @@ where
 
 /// Draw panels in a grid of `cols` columns to `<base>.png` and `<base>.svg`.
 pub fn panels(base: &Path, title: &str, panels: &[Panel], cols: usize) -> Result<(), String> {
+    panels_sized(base, title, panels, cols, (560, 420))
+}
+
+/// [`panels`] with a chosen size (pixels) of each panel.
+pub fn panels_sized(base: &Path, title: &str, panels: &[Panel], cols: usize, panel: (u32, u32)) -> Result<(), String> {
     ensure_font()?;
     let cols = cols.max(1);
     let rows = panels.len().div_ceil(cols).max(1);
-    let size = (560 * cols as u32, 420 * rows as u32 + 40);
+    let size = (panel.0 * cols as u32, panel.1 * rows as u32 + 40);
     let png = base.with_extension("png");
     let svg = base.with_extension("svg");
     if let Some(d) = base.parent() {
@@ -247,17 +285,20 @@ where
             .margin(10)
             .x_label_area_size(36)
             .y_label_area_size(64)
-            .build_cartesian_2d(0..nc, 0..nr)
+            .build_cartesian_2d((0..nc.max(1) - 1).into_segmented(), (0..nr.max(1) - 1).into_segmented())
             .map_err(e)?;
-        let cl = m.col_labels.clone();
-        let rl = m.row_labels.clone();
+        let label = |labels: &[String], v: &SegmentValue<usize>| match v {
+            SegmentValue::CenterOf(i) => labels.get(*i).cloned().unwrap_or_default(),
+            _ => String::new(),
+        };
+        let (cl, rl) = (m.col_labels.clone(), m.row_labels.clone());
         chart
             .configure_mesh()
             .disable_mesh()
             .x_labels(nc)
             .y_labels(nr)
-            .x_label_formatter(&|i| cl.get(*i).cloned().unwrap_or_default())
-            .y_label_formatter(&|i| rl.get(*i).cloned().unwrap_or_default())
+            .x_label_formatter(&|v| label(&cl, v))
+            .y_label_formatter(&|v| label(&rl, v))
             .label_style(("sans-serif", 11))
             .draw()
             .map_err(e)?;
@@ -265,10 +306,12 @@ where
             for c in 0..nc {
                 let k = m.cells[r][c];
                 let col = m.legend.get(k).map(|l| l.1).unwrap_or(RGBColor(200, 200, 200));
-                chart.draw_series(std::iter::once(Rectangle::new([(c, r), (c + 1, r + 1)], col.filled()))).map_err(e)?;
-                chart
-                    .draw_series(std::iter::once(Rectangle::new([(c, r), (c + 1, r + 1)], WHITE.stroke_width(1))))
-                    .map_err(e)?;
+                let corners = [
+                    (SegmentValue::Exact(c), SegmentValue::Exact(r)),
+                    (SegmentValue::Exact(c + 1), SegmentValue::Exact(r + 1)),
+                ];
+                chart.draw_series(std::iter::once(Rectangle::new(corners.clone(), col.filled()))).map_err(e)?;
+                chart.draw_series(std::iter::once(Rectangle::new(corners, WHITE.stroke_width(1)))).map_err(e)?;
             }
         }
     }

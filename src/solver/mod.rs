@@ -901,6 +901,28 @@ impl Simulation {
         });
     }
 
+    /// Take exactly one dynamic step of size `dt` (no time-of-impact split, no error
+    /// control, no back-off): for library users who drive the clock themselves, and for the
+    /// kernel benchmarks.
+    pub fn advance<O: Observer>(&mut self, dt: f64, obs: &mut O) -> Result<(), SimError> {
+        match self.try_step(dt, 0.0, false, obs) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                let f = e.into_failure();
+                Err(SimError::Diverged {
+                    step: self.step + 1,
+                    t: self.t,
+                    rod: self.rods[f.rod].name.clone(),
+                    node: f.fail.node,
+                    residual: f.fail.residual,
+                    reason: f.fail.reason.to_string(),
+                    backoffs: 0,
+                    dt,
+                })
+            }
+        }
+    }
+
     /// Current positions of rod `r` (interleaved).
     pub fn positions(&self, r: usize) -> &[f64] {
         &self.work[r].q
