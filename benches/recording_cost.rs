@@ -3,8 +3,10 @@
 //!
 //!     cargo bench --bench recording_cost [-- REPEATS]
 //!
-//! Prints a Markdown table (median wall time of REPEATS runs, default 7, the ratio to the run
-//! without sinks, and the file sizes) for docs/performance.md.
+//! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
+//! (default 7), the mean CPU time of the process per run (all threads, from /proc/self/stat;
+//! steadier than wall time on a busy machine), their ratios to the run without sinks, and the
+//! file sizes.
 
 use gripsim::events::{Fanout, NullObserver, Observer};
 use gripsim::record::csv::CsvSink;
@@ -63,6 +65,16 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>)
         sizes.push((s.format(), std::fs::metadata(&f.path).unwrap().len()));
     }
     (start.elapsed().as_secs_f64(), sizes)
+}
+
+/// CPU time of this process so far (user + system, all threads, s); Linux only.
+fn cpu_time() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) start at ") ".
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0) // USER_HZ
 }
 
 fn main() {
@@ -124,26 +136,36 @@ fn main() {
         (sc.solve.t_end / sc.solve.dt).round(),
         sc.flush_every
     );
-    println!("| sinks | wall time (s) | × no sink | files |");
-    println!("|---|---:|---:|---|");
+    println!("| sinks | wall time (s) | × no sink | CPU time (s) | × no sink | files |");
+    println!("|---|---:|---:|---:|---:|---|");
     let mut base = None;
+    let mut cpu_base = None;
     for case in cases {
         let mut times = Vec::new();
         let mut sizes = Vec::new();
+        let cpu0 = cpu_time();
         for _ in 0..repeats {
             let (t, s) = run(&sc, case, &dir);
             times.push(t);
             sizes = s;
         }
+        let cpu = cpu_time().zip(cpu0).map(|(b, a)| (b - a) / repeats as f64);
         times.sort_by(f64::total_cmp);
         let median = times[times.len() / 2];
         let base = *base.get_or_insert(median);
+        let cpu_text = match cpu {
+            Some(c) => {
+                let b = *cpu_base.get_or_insert(c.max(0.001));
+                format!("{c:.3} | {:.0}", c / b)
+            }
+            None => "n/a | n/a".to_string(),
+        };
         let files: Vec<String> = sizes
             .iter()
             .map(|(f, n)| format!("{f} {:.1} MB", *n as f64 / 1e6))
             .collect();
         println!(
-            "| {} | {median:.4} | {:.1} | {} |",
+            "| {} | {median:.4} | {:.1} | {cpu_text} | {} |",
             case.name,
             median / base,
             if files.is_empty() {
