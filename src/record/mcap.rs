@@ -249,7 +249,7 @@ impl McapSink {
             dt: ev.dt,
             newton_iterations: ev.newton_iterations,
             passes: ev.passes,
-            rods: ev.rods.iter().map(RodMsg::from).collect(),
+            rods: Rods(ev.rods),
         };
         self.send(STEP, time, &msg);
         self.scene(time, ev.rods);
@@ -547,7 +547,16 @@ struct StepMsg<'a> {
     dt: f64,
     newton_iterations: u32,
     passes: u32,
-    rods: Vec<RodMsg<'a>>,
+    rods: Rods<'a, 'a>,
+}
+
+/// Serialises the rods' step views as [`RodMsg`]s.
+struct Rods<'e, 'a>(&'e [RodStepView<'a>]);
+
+impl Serialize for Rods<'_, '_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.0.iter().map(RodMsg::from))
+    }
 }
 
 #[derive(Serialize)]

@@ -348,9 +348,9 @@ impl RerunSink {
         let it = self.iteration;
         self.iteration += 1;
         self.set_time(&rec, step, t, it);
-        let style = self.style.clone().expect("set above");
         for (r, v) in rods.iter().enumerate() {
-            self.draw_rod(r, &style.rods[r], v, passes > 0);
+            let style = self.style.as_ref().expect("set above").rods[r];
+            self.draw_rod(r, &style, v, passes > 0);
         }
         // Scalars: per rod and node, then the solver's.
         self.per_step.at(step, t, it);
