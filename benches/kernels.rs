@@ -21,7 +21,10 @@ fn in_contact(nodes: usize) -> Simulation {
     let sc = Scenario::from_str(SEED_R5, "seed-grasp-r5", &sets).unwrap();
     let mut sim = Simulation::new(&sc);
     sim.run(&mut NullObserver).unwrap();
-    assert!(sim.work[0].contact.iter().any(|c| c.is_some()), "the prong must be in contact");
+    assert!(
+        sim.work[0].contact.iter().any(|c| c.is_some()),
+        "the prong must be in contact"
+    );
     sim
 }
 
@@ -32,7 +35,15 @@ fn kernels(c: &mut Criterion) {
         let q = sim.positions(0).to_vec();
         let mut w = sim.work[0].clone();
         c.bench_function(&format!("assemble gradient+hessian, {nodes} nodes"), |b| {
-            b.iter(|| black_box(assemble(&rod, &w.free_index, black_box(&q), &mut w.grad, Some(&mut w.band))))
+            b.iter(|| {
+                black_box(assemble(
+                    &rod,
+                    &w.free_index,
+                    black_box(&q),
+                    &mut w.grad,
+                    Some(&mut w.band),
+                ))
+            })
         });
         let mut band = w.band.clone();
         let mut rhs = vec![1.0; band.dim()];
@@ -61,12 +72,15 @@ fn kernels(c: &mut Criterion) {
             })
         });
         let (q0, u0) = (sim.positions(0).to_vec(), sim.velocities(0).to_vec());
-        c.bench_function(&format!("one step in contact (dt = 1e-5), {nodes} nodes"), |b| {
-            b.iter(|| {
-                sim.set_state(0, &q0, &u0);
-                black_box(sim.advance(1e-5, &mut NullObserver).is_ok());
-            })
-        });
+        c.bench_function(
+            &format!("one step in contact (dt = 1e-5), {nodes} nodes"),
+            |b| {
+                b.iter(|| {
+                    sim.set_state(0, &q0, &u0);
+                    black_box(sim.advance(1e-5, &mut NullObserver).is_ok());
+                })
+            },
+        );
     }
 }
 

@@ -12,7 +12,11 @@ fn bench(args: &[&str]) -> tempfile::TempDir {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(out.status.success(), "bench {args:?} failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "bench {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     dir
 }
 

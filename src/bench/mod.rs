@@ -89,8 +89,15 @@ pub struct Sampler {
 
 impl Sampler {
     pub fn new(t_end: f64, count: usize) -> Self {
-        let times = (1..=count).map(|k| t_end * k as f64 / count as f64).collect();
-        Self { times, samples: Vec::new(), prev: None, next: 0 }
+        let times = (1..=count)
+            .map(|k| t_end * k as f64 / count as f64)
+            .collect();
+        Self {
+            times,
+            samples: Vec::new(),
+            prev: None,
+            next: 0,
+        }
     }
 }
 
@@ -101,9 +108,16 @@ impl Observer for Sampler {
             if let Some((t0, q0)) = &self.prev {
                 while self.next < self.times.len() && self.times[self.next] <= *t + 1e-15 {
                     let ts = self.times[self.next];
-                    let f = if *t > *t0 { ((ts - t0) / (t - t0)).clamp(0.0, 1.0) } else { 1.0 };
+                    let f = if *t > *t0 {
+                        ((ts - t0) / (t - t0)).clamp(0.0, 1.0)
+                    } else {
+                        1.0
+                    };
                     self.samples.push(
-                        q0.iter().zip(&cur).map(|(a, b)| a.iter().zip(b).map(|(x, y)| x + f * (y - x)).collect()).collect(),
+                        q0.iter()
+                            .zip(&cur)
+                            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x + f * (y - x)).collect())
+                            .collect(),
                     );
                     self.next += 1;
                 }
@@ -136,7 +150,10 @@ pub fn measure(text: &str, sets: &[String], samples: usize) -> Result<Measured, 
         fan.push(&mut smp);
         sim.run(&mut fan).map_err(|e| e.to_string())?;
     }
-    Ok(Measured { summary: col.finish(&sim.stats, 0.0), samples: smp.samples })
+    Ok(Measured {
+        summary: col.finish(&sim.stats, 0.0),
+        samples: smp.samples,
+    })
 }
 
 /// Median wall time (s) of `repeats` runs with no observer at all.
@@ -180,7 +197,12 @@ impl Reference {
     pub fn from_run(m: &Measured) -> Self {
         Self {
             samples: m.samples.clone(),
-            impulse: m.summary.rods.iter().map(|r| r.total_impulse_per_node_ns.clone()).collect(),
+            impulse: m
+                .summary
+                .rods
+                .iter()
+                .map(|r| r.total_impulse_per_node_ns.clone())
+                .collect(),
             onset: m.summary.contact_onset_time_s,
             peak_eq2: m.summary.peak_reaction_force_n,
             peak_ic: m.summary.peak_impulse_consistent_force_n,
@@ -205,13 +227,22 @@ pub fn errors(m: &Measured, r: &Reference) -> Errors {
             .rods
             .iter()
             .zip(&r.impulse)
-            .flat_map(|(a, b)| a.total_impulse_per_node_ns.iter().zip(b).map(|(x, y)| (x - y).abs()))
+            .flat_map(|(a, b)| {
+                a.total_impulse_per_node_ns
+                    .iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).abs())
+            })
             .fold(0.0f64, f64::max)
             / jmax
     });
     let rel = |a: f64, b: f64| (b > 0.0).then(|| (a - b).abs() / b);
     Errors {
-        pos_rms_m: if count > 0 { (sum / count as f64).sqrt() } else { f64::NAN },
+        pos_rms_m: if count > 0 {
+            (sum / count as f64).sqrt()
+        } else {
+            f64::NAN
+        },
         impulse_rel,
         onset_s: match (m.summary.contact_onset_time_s, r.onset) {
             (Some(a), Some(b)) => Some((a - b).abs()),
@@ -237,15 +268,30 @@ fn cases(quick: bool) -> Vec<Case> {
     let (dts, rtols, ref_dt) = if quick {
         (vec![1e-4, 1e-5], vec![1e-4, 1e-6], 1e-6)
     } else {
-        (vec![1e-4, 3e-5, 1e-5, 3e-6, 1e-6], vec![1e-3, 1e-4, 1e-5, 1e-6, 1e-7], 1e-7)
+        (
+            vec![1e-4, 3e-5, 1e-5, 3e-6, 1e-6],
+            vec![1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
+            1e-7,
+        )
     };
     vec![
-        Case { name: "seed-grasp-r5", text: SEED_R5, sets: vec![], dts: dts.clone(), rtols: rtols.clone(), ref_dt: Some(ref_dt) },
+        Case {
+            name: "seed-grasp-r5",
+            text: SEED_R5,
+            sets: vec![],
+            dts: dts.clone(),
+            rtols: rtols.clone(),
+            ref_dt: Some(ref_dt),
+        },
         Case {
             name: "point-mass-plane",
             text: DROP,
             sets: vec![],
-            dts: if quick { vec![1e-3, 1e-4] } else { vec![1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6] },
+            dts: if quick {
+                vec![1e-3, 1e-4]
+            } else {
+                vec![1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 1e-6]
+            },
             rtols: rtols.clone(),
             ref_dt: None,
         },
@@ -261,7 +307,11 @@ fn cases(quick: bool) -> Vec<Case> {
             name: "cantilever-gravity",
             text: CANTILEVER,
             sets: vec!["solve.t_end=0.2".into()],
-            dts: if quick { vec![1e-3, 1e-4] } else { vec![1e-3, 3e-4, 1e-4, 3e-5, 1e-5] },
+            dts: if quick {
+                vec![1e-3, 1e-4]
+            } else {
+                vec![1e-3, 3e-4, 1e-4, 3e-5, 1e-5]
+            },
             rtols: rtols.clone(),
             ref_dt: Some(if quick { 1e-5 } else { 1e-6 }),
         },
@@ -275,7 +325,11 @@ fn drop_reference(samples: usize, summary_window: f64) -> Reference {
     let t_hit = (2.0 * h / g).sqrt();
     let v = g * t_hit;
     let s = Sampler::new(t_end, samples);
-    let samples = s.times.iter().map(|&t| vec![vec![0.0, if t < t_hit { h - 0.5 * g * t * t } else { 0.0 }]]).collect();
+    let samples = s
+        .times
+        .iter()
+        .map(|&t| vec![vec![0.0, if t < t_hit { h - 0.5 * g * t * t } else { 0.0 }]])
+        .collect();
     Reference {
         samples,
         impulse: vec![vec![m * v + m * g * (t_end - t_hit)]],
@@ -320,7 +374,12 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             }
             None => drop_reference(samples, 1e-3),
         };
-        for strategy in [Strategy::Fixed, Strategy::Proximity, Strategy::Adaptive, Strategy::AdaptiveToi] {
+        for strategy in [
+            Strategy::Fixed,
+            Strategy::Proximity,
+            Strategy::Adaptive,
+            Strategy::AdaptiveToi,
+        ] {
             let ladder = match strategy {
                 Strategy::Fixed | Strategy::Proximity => &case.dts,
                 _ => &case.rtols,
@@ -380,14 +439,18 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             opt(r.err.peak_ic_rel)
         );
     }
-    crate::record::write_atomic(&opt_.out.join("work-precision.csv"), csv.as_bytes()).map_err(|e| e.to_string())?;
+    crate::record::write_atomic(&opt_.out.join("work-precision.csv"), csv.as_bytes())
+        .map_err(|e| e.to_string())?;
     let mut panels = Vec::new();
     let case_names: Vec<String> = {
         let mut v: Vec<String> = rows.iter().map(|r| r.case.clone()).collect();
         v.dedup();
         v
     };
-    for (metric, label) in [("impulse", "max node impulse error (relative)"), ("pos", "position RMS error (m)")] {
+    for (metric, label) in [
+        ("impulse", "max node impulse error (relative)"),
+        ("pos", "position RMS error (m)"),
+    ] {
         for c in &case_names {
             let mut series = Vec::new();
             for s in ["fixed", "proximity", "adaptive", "adaptive+toi"] {
@@ -395,17 +458,27 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
                     .iter()
                     .filter(|r| &r.case == c && r.strategy == s)
                     .filter_map(|r| {
-                        let x = if metric == "impulse" { r.err.impulse_rel? } else { r.err.pos_rms_m };
+                        let x = if metric == "impulse" {
+                            r.err.impulse_rel?
+                        } else {
+                            r.err.pos_rms_m
+                        };
                         Some((x, r.wall_s))
                     })
                     .collect();
                 if !pts.is_empty() {
-                    series.push(plot::Series { name: s.into(), points: pts });
+                    series.push(plot::Series {
+                        name: s.into(),
+                        points: pts,
+                    });
                 }
             }
             // A case whose impulse error is at round-off (the point mass: the modified mass
             // method conserves its impulse exactly) has nothing to plot against.
-            let noise = series.iter().flat_map(|s| s.points.iter()).all(|p| p.0 < 1e-10);
+            let noise = series
+                .iter()
+                .flat_map(|s| s.points.iter())
+                .all(|p| p.0 < 1e-10);
             if series.is_empty() || (metric == "impulse" && noise) {
                 continue;
             }
@@ -419,13 +492,25 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             });
         }
     }
-    plot::panels(&opt_.out.join("work-precision"), "gripsim work-precision: wall time against error", &panels, 4)?;
+    plot::panels(
+        &opt_.out.join("work-precision"),
+        "gripsim work-precision: wall time against error",
+        &panels,
+        4,
+    )?;
     Ok(rows)
 }
 
 /// Cost per step against nodes per prong on the seed grasp geometry (fixed dt = 1e-5, no sink).
-pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(usize, f64, f64)>, String> {
-    let nodes: Vec<usize> = if opt_.quick { vec![10, 100, 1000] } else { (0..11).map(|k| 10usize << k).collect() };
+pub fn scaling(
+    opt_: &BenchOptions,
+    log: &mut dyn FnMut(&str),
+) -> Result<Vec<(usize, f64, f64)>, String> {
+    let nodes: Vec<usize> = if opt_.quick {
+        vec![10, 100, 1000]
+    } else {
+        (0..11).map(|k| 10usize << k).collect()
+    };
     let mut out = Vec::new();
     for &n in &nodes {
         let steps = 400usize;
@@ -453,10 +538,15 @@ pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(us
         } else {
             (String::new(), String::new())
         };
-        let _ = writeln!(csv, "{n},{s:e},{it:.3},{:e},{ratio},{iratio}", s / it.max(1e-300));
+        let _ = writeln!(
+            csv,
+            "{n},{s:e},{it:.3},{:e},{ratio},{iratio}",
+            s / it.max(1e-300)
+        );
     }
     std::fs::create_dir_all(&opt_.out).map_err(|e| e.to_string())?;
-    crate::record::write_atomic(&opt_.out.join("scaling.csv"), csv.as_bytes()).map_err(|e| e.to_string())?;
+    crate::record::write_atomic(&opt_.out.join("scaling.csv"), csv.as_bytes())
+        .map_err(|e| e.to_string())?;
     plot::panels(
         &opt_.out.join("scaling"),
         "gripsim: cost per step against nodes per prong",
@@ -467,10 +557,16 @@ pub fn scaling(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<(us
             log_x: true,
             log_y: true,
             series: vec![
-                plot::Series { name: "per step".into(), points: out.iter().map(|(n, s, _)| (*n as f64, *s)).collect() },
+                plot::Series {
+                    name: "per step".into(),
+                    points: out.iter().map(|(n, s, _)| (*n as f64, *s)).collect(),
+                },
                 plot::Series {
                     name: "per Newton iteration".into(),
-                    points: out.iter().map(|(n, s, it)| (*n as f64, s / it.max(1e-300))).collect(),
+                    points: out
+                        .iter()
+                        .map(|(n, s, it)| (*n as f64, s / it.max(1e-300)))
+                        .collect(),
                 },
             ],
         }],
@@ -499,7 +595,12 @@ impl Observer for Watch {
     fn on_event(&mut self, e: &Event<'_>) {
         if let Event::StepEnd { rods, .. } = e {
             for (r, v) in rods.iter().enumerate() {
-                let all = v.q.iter().chain(v.u).chain(v.reaction).chain(v.impulse).chain(v.bending_stress);
+                let all =
+                    v.q.iter()
+                        .chain(v.u)
+                        .chain(v.reaction)
+                        .chain(v.impulse)
+                        .chain(v.bending_stress);
                 if all.clone().any(|x| !x.is_finite()) {
                     self.non_finite = true;
                 }
@@ -561,7 +662,12 @@ pub fn stress_cell(e: f64, accel: f64, nodes: usize, dt: f64) -> Cell {
         }
     };
     let mut sim = Simulation::new(&sc);
-    let mut w = Watch { clamped: sim.rods.iter().map(|r| r.clamped.clone()).collect(), non_finite: false, max_pen: 0.0, contact: false };
+    let mut w = Watch {
+        clamped: sim.rods.iter().map(|r| r.clamped.clone()).collect(),
+        non_finite: false,
+        max_pen: 0.0,
+        contact: false,
+    };
     let res = sim.run(&mut w);
     cell.steps = sim.stats.steps;
     cell.max_penetration = w.max_pen;
@@ -579,7 +685,12 @@ pub fn stress_cell(e: f64, accel: f64, nodes: usize, dt: f64) -> Cell {
 /// `stress.{png,svg}`.
 pub fn stress(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Cell>, String> {
     let (es, accs, nodes, dts): (Vec<f64>, Vec<f64>, Vec<usize>, Vec<f64>) = if opt_.quick {
-        (vec![1e4, 1e11], vec![1.0, 100.0], vec![3, 100], vec![1e-6, 1e-3])
+        (
+            vec![1e4, 1e11],
+            vec![1.0, 100.0],
+            vec![3, 100],
+            vec![1e-6, 1e-3],
+        )
     } else {
         (
             vec![1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11],
@@ -620,7 +731,8 @@ pub fn stress(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Cell
         );
     }
     std::fs::create_dir_all(&opt_.out).map_err(|e| e.to_string())?;
-    crate::record::write_atomic(&opt_.out.join("stress.csv"), csv.as_bytes()).map_err(|e| e.to_string())?;
+    crate::record::write_atomic(&opt_.out.join("stress.csv"), csv.as_bytes())
+        .map_err(|e| e.to_string())?;
     // One map per node count: rows E, columns dt, colour = worst outcome over accelerations.
     let rank = |c: &Cell| -> usize {
         if c.non_finite {
@@ -645,21 +757,40 @@ pub fn stress(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Cell
                 .map(|&e| {
                     dts.iter()
                         .map(|&dt| {
-                            cells.iter().filter(|c| c.nodes == n && c.e == e && c.dt == dt).map(rank).max().unwrap_or(0)
+                            cells
+                                .iter()
+                                .filter(|c| c.nodes == n && c.e == e && c.dt == dt)
+                                .map(rank)
+                                .max()
+                                .unwrap_or(0)
                         })
                         .collect()
                 })
                 .collect(),
             legend: vec![
                 ("ok".into(), plotters::style::RGBColor(120, 190, 120)),
-                ("recovered (dt back-off)".into(), plotters::style::RGBColor(240, 200, 90)),
-                ("refused with an error".into(), plotters::style::RGBColor(150, 150, 200)),
-                ("penetration > 1e-9 m".into(), plotters::style::RGBColor(230, 120, 60)),
+                (
+                    "recovered (dt back-off)".into(),
+                    plotters::style::RGBColor(240, 200, 90),
+                ),
+                (
+                    "refused with an error".into(),
+                    plotters::style::RGBColor(150, 150, 200),
+                ),
+                (
+                    "penetration > 1e-9 m".into(),
+                    plotters::style::RGBColor(230, 120, 60),
+                ),
                 ("non-finite".into(), plotters::style::RGBColor(200, 30, 30)),
             ],
         })
         .collect::<Vec<_>>();
-    plot::heat_maps(&opt_.out.join("stress"), "gripsim stress map: worst outcome over drive accelerations (columns: dt in s)", &maps, 2)?;
+    plot::heat_maps(
+        &opt_.out.join("stress"),
+        "gripsim stress map: worst outcome over drive accelerations (columns: dt in s)",
+        &maps,
+        2,
+    )?;
     Ok(cells)
 }
 

@@ -89,29 +89,31 @@ fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     if log {
         let (a, b) = (lo.log10().floor(), hi.log10().ceil());
         let b = if b <= a { a + 1.0 } else { b };
-        (10f64.powf(a), 10f64.powf(b))
+        // A hair wider than the decades, so both end decades get their tick label.
+        (10f64.powf(a) * (1.0 - 1e-9), 10f64.powf(b) * (1.0 + 1e-9))
     } else {
         let pad = ((hi - lo) * 0.05).max(1e-12 * hi.abs().max(1.0));
         (lo - pad, hi + pad)
     }
 }
 
-/// Tick label: scientific on log axes and for very large or small values, else plain decimals;
-/// in both cases with as many digits as the tick spacing (about a tenth of the span) needs.
-fn tick(v: f64, log: bool, span: f64) -> String {
+/// Tick label on an axis from `lo` to `hi`: scientific on log axes and on axes whose values
+/// are very large or small, else plain decimals; in both cases with as many digits as the tick
+/// spacing (about an eighth of the span) needs.
+fn tick(v: f64, log: bool, lo: f64, hi: f64) -> String {
     if log {
         return format!("{v:.0e}");
     }
     if v == 0.0 {
         return "0".into();
     }
-    let a = v.abs();
-    let step = span / 8.0;
+    let step = (hi - lo) / 8.0;
     if !(step > 0.0 && step.is_finite()) {
         return format!("{v:.2e}");
     }
-    if !(1e-3..1e5).contains(&a) || step < 1e-4 {
-        let digits = (a.log10().floor() - step.log10().floor()).clamp(0.0, 3.0) as usize;
+    let big = lo.abs().max(hi.abs());
+    if !(1e-3..1e5).contains(&big) || step < 1e-4 {
+        let digits = (v.abs().log10().floor() - step.log10().floor()).clamp(0.0, 3.0) as usize;
         return format!("{v:.digits$e}");
     }
     let digits = (-step.log10().floor()).clamp(0.0, 6.0) as usize;
@@ -120,7 +122,10 @@ fn tick(v: f64, log: bool, span: f64) -> String {
 
 /// Draw one panel into a drawing area (for figures laid out by the caller). Series with an
 /// empty name get no legend entry; with no named series there is no legend box.
-pub fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, plotters::coord::Shift>, p: &Panel) -> Result<(), String>
+pub fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    p: &Panel,
+) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
@@ -130,17 +135,23 @@ where
     let (y0, y1) = range(ys, p.log_y);
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let mut builder = ChartBuilder::on(area);
-    builder.caption(&p.title, ("sans-serif", 18)).margin(12).x_label_area_size(40).y_label_area_size(64);
+    builder
+        .caption(&p.title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(64);
     macro_rules! body {
         ($chart:expr) => {{
             let mut chart = $chart;
             chart
                 .configure_mesh()
                 .light_line_style(TRANSPARENT)
+                .x_labels(if p.log_x { 4 } else { 10 })
+                .y_labels(if p.log_y { 4 } else { 10 })
                 .x_desc(p.x_label.as_str())
                 .y_desc(p.y_label.as_str())
-                .x_label_formatter(&|v| tick(*v, p.log_x, x1 - x0))
-                .y_label_formatter(&|v| tick(*v, p.log_y, y1 - y0))
+                .x_label_formatter(&|v| tick(*v, p.log_x, x0, x1))
+                .y_label_formatter(&|v| tick(*v, p.log_y, y0, y1))
                 .label_style(("sans-serif", 12))
                 .draw()
                 .map_err(e)?;
@@ -150,17 +161,29 @@ where
                     .points
                     .iter()
                     .copied()
-                    .filter(|(x, y)| x.is_finite() && y.is_finite() && (!p.log_x || *x > 0.0) && (!p.log_y || *y > 0.0))
+                    .filter(|(x, y)| {
+                        x.is_finite()
+                            && y.is_finite()
+                            && (!p.log_x || *x > 0.0)
+                            && (!p.log_y || *y > 0.0)
+                    })
                     .collect();
-                let drawn = chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2))).map_err(e)?;
+                // Long series (time histories) get 1 px lines: a wider line is drawn as a polygon
+                // with mitred joins, which turn a one-sample spike into a spear past the panel.
+                let width = if pts.len() <= 60 { 2 } else { 1 };
+                let drawn = chart
+                    .draw_series(LineSeries::new(pts.clone(), c.stroke_width(width)))
+                    .map_err(e)?;
                 if !s.name.is_empty() {
-                    drawn
-                        .label(s.name.as_str())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+                    drawn.label(s.name.as_str()).legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(width))
+                    });
                 }
                 // Markers only where they can be told apart (ladders, not time series).
                 if pts.len() <= 60 {
-                    chart.draw_series(pts.iter().map(|&q| Circle::new(q, 4, c.filled()))).map_err(e)?;
+                    chart
+                        .draw_series(pts.iter().map(|&q| Circle::new(q, 4, c.filled())))
+                        .map_err(e)?;
                 }
             }
             if p.series.iter().any(|s| !s.name.is_empty()) {
@@ -176,9 +199,15 @@ where
         }};
     }
     match (p.log_x, p.log_y) {
-        (true, true) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(e)?),
-        (true, false) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(e)?),
-        (false, true) => body!(builder.build_cartesian_2d(x0..x1, (y0..y1).log_scale()).map_err(e)?),
+        (true, true) => body!(builder
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(e)?),
+        (true, false) => body!(builder
+            .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
+            .map_err(e)?),
+        (false, true) => body!(builder
+            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+            .map_err(e)?),
         (false, false) => body!(builder.build_cartesian_2d(x0..x1, y0..y1).map_err(e)?),
     }
     Ok(())
@@ -190,7 +219,13 @@ pub fn panels(base: &Path, title: &str, panels: &[Panel], cols: usize) -> Result
 }
 
 /// [`panels`] with a chosen size (pixels) of each panel.
-pub fn panels_sized(base: &Path, title: &str, panels: &[Panel], cols: usize, panel: (u32, u32)) -> Result<(), String> {
+pub fn panels_sized(
+    base: &Path,
+    title: &str,
+    panels: &[Panel],
+    cols: usize,
+    panel: (u32, u32),
+) -> Result<(), String> {
     ensure_font()?;
     let cols = cols.max(1);
     let rows = panels.len().div_ceil(cols).max(1);
@@ -203,12 +238,14 @@ pub fn panels_sized(base: &Path, title: &str, panels: &[Panel], cols: usize, pan
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
         draw_grid(&root, title, panels, rows, cols)?;
-        root.present().map_err(|e| format!("{}: {e}", png.display()))?;
+        root.present()
+            .map_err(|e| format!("{}: {e}", png.display()))?;
     }
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
         draw_grid(&root, title, panels, rows, cols)?;
-        root.present().map_err(|e| format!("{}: {e}", svg.display()))?;
+        root.present()
+            .map_err(|e| format!("{}: {e}", svg.display()))?;
     }
     Ok(())
 }
@@ -224,7 +261,9 @@ where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(|e| e.to_string())?;
+    let root = root
+        .titled(title, ("sans-serif", 22))
+        .map_err(|e| e.to_string())?;
     let areas = root.split_evenly((rows, cols));
     for (a, p) in areas.iter().zip(panels) {
         draw_panel(a, p)?;
@@ -252,12 +291,14 @@ pub fn heat_maps(base: &Path, title: &str, maps: &[HeatMap], cols: usize) -> Res
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
         draw_maps(&root, title, maps, rows, cols)?;
-        root.present().map_err(|e| format!("{}: {e}", png.display()))?;
+        root.present()
+            .map_err(|e| format!("{}: {e}", png.display()))?;
     }
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
         draw_maps(&root, title, maps, rows, cols)?;
-        root.present().map_err(|e| format!("{}: {e}", svg.display()))?;
+        root.present()
+            .map_err(|e| format!("{}: {e}", svg.display()))?;
     }
     Ok(())
 }
@@ -285,7 +326,10 @@ where
             .margin(10)
             .x_label_area_size(36)
             .y_label_area_size(64)
-            .build_cartesian_2d((0..nc.max(1) - 1).into_segmented(), (0..nr.max(1) - 1).into_segmented())
+            .build_cartesian_2d(
+                (0..nc.max(1) - 1).into_segmented(),
+                (0..nr.max(1) - 1).into_segmented(),
+            )
             .map_err(e)?;
         let label = |labels: &[String], v: &SegmentValue<usize>| match v {
             SegmentValue::CenterOf(i) => labels.get(*i).cloned().unwrap_or_default(),
@@ -305,21 +349,39 @@ where
         for r in 0..nr {
             for c in 0..nc {
                 let k = m.cells[r][c];
-                let col = m.legend.get(k).map(|l| l.1).unwrap_or(RGBColor(200, 200, 200));
+                let col = m
+                    .legend
+                    .get(k)
+                    .map(|l| l.1)
+                    .unwrap_or(RGBColor(200, 200, 200));
                 let corners = [
                     (SegmentValue::Exact(c), SegmentValue::Exact(r)),
                     (SegmentValue::Exact(c + 1), SegmentValue::Exact(r + 1)),
                 ];
-                chart.draw_series(std::iter::once(Rectangle::new(corners.clone(), col.filled()))).map_err(e)?;
-                chart.draw_series(std::iter::once(Rectangle::new(corners, WHITE.stroke_width(1)))).map_err(e)?;
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        corners.clone(),
+                        col.filled(),
+                    )))
+                    .map_err(e)?;
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        corners,
+                        WHITE.stroke_width(1),
+                    )))
+                    .map_err(e)?;
             }
         }
     }
     // Legend along the bottom.
     let mut x = 20;
     for (name, col) in maps.first().map(|m| m.legend.clone()).unwrap_or_default() {
-        legend_area.draw(&Rectangle::new([(x, 10), (x + 18, 28)], col.filled())).map_err(e)?;
-        legend_area.draw(&Text::new(name.clone(), (x + 24, 12), ("sans-serif", 14))).map_err(e)?;
+        legend_area
+            .draw(&Rectangle::new([(x, 10), (x + 18, 28)], col.filled()))
+            .map_err(e)?;
+        legend_area
+            .draw(&Text::new(name.clone(), (x + 24, 12), ("sans-serif", 14)))
+            .map_err(e)?;
         x += 40 + 9 * name.len() as i32;
     }
     Ok(())

@@ -119,7 +119,7 @@ enum StepError {
     /// A free node would cross an obstacle at this fraction of the step.
     Split { theta: f64, rod: usize, node: usize },
     /// Adaptive stepping: the error estimate exceeds the tolerance; retry with `dt`.
-    Reject { err: f64, dt: f64 },
+    Reject { dt: f64 },
 }
 
 /// A simulation in progress.
@@ -290,30 +290,28 @@ impl Simulation {
                         };
                         break;
                     }
-                    Err(StepError::Split { theta, rod, node }) => {
-                        let msg = format!(
-                            "time of impact: rod {:?} node {node} reaches an obstacle at {:.6} of the step",
-                            self.rods[rod].name, theta
-                        );
+                    Err(StepError::Split { theta, .. }) => {
+                        // Static texts: no allocation in the step loop when nobody listens.
                         obs.on_event(&Event::DtChanged {
                             step: self.step + 1,
                             t: self.t,
                             old: dt,
                             new: dt * theta,
-                            reason: &msg,
+                            reason:
+                                "time of impact: a free node reaches an obstacle inside the step",
                         });
                         dt *= theta;
                         allow_split = false;
                         prev_nominal = dt;
                     }
-                    Err(StepError::Reject { err, dt: retry }) => {
-                        let msg = format!("adaptive: error estimate {err:.3} > 1, step rejected");
+                    Err(StepError::Reject { dt: retry, .. }) => {
                         obs.on_event(&Event::DtChanged {
                             step: self.step + 1,
                             t: self.t,
                             old: dt,
                             new: retry,
-                            reason: &msg,
+                            reason:
+                                "adaptive: the error estimate exceeds the tolerance, step rejected",
                         });
                         self.stats.rejected_steps += 1;
                         dt = retry;
@@ -630,7 +628,6 @@ impl Simulation {
             if err > 1.0 && dt > dt_min * (1.0 + 1e-12) {
                 self.rollback();
                 return Err(StepError::Reject {
-                    err,
                     dt: (dt * factor).max(dt_min),
                 });
             }
@@ -719,7 +716,11 @@ impl Simulation {
             let v = [w.dt_u(i, 0), w.dt_u(i, 1)];
             let acc = [p1[0] - p0[0] - v[0], p1[1] - p0[1] - v[1]];
             let at = |th: f64| {
-                o.query([p0[0] + th * v[0] + th * th * acc[0], p0[1] + th * v[1] + th * th * acc[1]]).distance
+                o.query([
+                    p0[0] + th * v[0] + th * th * acc[0],
+                    p0[1] + th * v[1] + th * th * acc[1],
+                ])
+                .distance
             };
             let (mut a, mut b) = (0.0, 1.0);
             let (mut fa, mut fb) = (at(0.0), at(1.0));
