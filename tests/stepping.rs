@@ -130,7 +130,10 @@ fn adaptive_cantilever_error_follows_the_tolerance() {
         assert!(s.steps > last_steps, "steps must grow as rtol falls");
         // The estimate sees backward Euler's leading term only; the elastic oscillation adds
         // error it does not see, so the bound holds within a factor of 3.
-        assert!(err <= 3.0 * budget, "tip error {err} exceeds 3x the accumulated tolerance {budget}");
+        assert!(
+            err <= 3.0 * budget,
+            "tip error {err} exceeds 3x the accumulated tolerance {budget}"
+        );
         last_err = err;
         last_steps = s.steps;
     }
@@ -163,10 +166,21 @@ fn time_of_impact_lands_the_point_mass_on_the_plane() {
     // Fixed steps: backward Euler's fall runs ahead of the parabola by g t dt/2, so the crossing
     // is early by at most dt/2. Adaptive: the position error is at most the accumulated local
     // tolerance, steps × (atol + rtol·1 m), which shifts the crossing by that over v.
-    let adaptive = |rtol: &'static str| vec!["solve.time_of_impact=true", "solve.stepping=\"adaptive\"", rtol, "solve.atol=1e-12"];
+    let adaptive = |rtol: &'static str| {
+        vec![
+            "solve.time_of_impact=true",
+            "solve.stepping=\"adaptive\"",
+            rtol,
+            "solve.atol=1e-12",
+        ]
+    };
     for (sets, fixed_dt, local_tol) in [
         (vec!["solve.time_of_impact=true"], 1e-4, 0.0),
-        (vec!["solve.time_of_impact=true", "solve.dt=1e-5"], 1e-5, 0.0),
+        (
+            vec!["solve.time_of_impact=true", "solve.dt=1e-5"],
+            1e-5,
+            0.0,
+        ),
         (adaptive("solve.rtol=1e-6"), 0.0, 1e-6),
         (adaptive("solve.rtol=1e-8"), 0.0, 1e-8),
     ] {
@@ -176,10 +190,17 @@ fn time_of_impact_lands_the_point_mass_on_the_plane() {
         let mut o = Onset { at: None, steps: 0 };
         sim.run(&mut o).unwrap();
         let (t, y) = o.at.expect("contact");
-        let tol = if fixed_dt > 0.0 { fixed_dt / 2.0 } else { o.steps as f64 * local_tol / v };
+        let tol = if fixed_dt > 0.0 {
+            fixed_dt / 2.0
+        } else {
+            o.steps as f64 * local_tol / v
+        };
         println!("{sets:?}: contact at t = {t:.9} s (analytic {t_exact:.9}, tolerance {tol:.2e} s), y = {y:.3e} m");
         assert!(y.abs() <= 1e-9, "{sets:?}: lands {y} m from the plane");
-        assert!((t - t_exact).abs() <= tol, "{sets:?}: contact at {t}, analytic {t_exact}, tolerance {tol}");
+        assert!(
+            (t - t_exact).abs() <= tol,
+            "{sets:?}: contact at {t}, analytic {t_exact}, tolerance {tol}"
+        );
     }
     // Without time of impact the contact step ends wherever the step grid puts it.
     let (_, s) = run(DROP, &[]);

@@ -144,7 +144,15 @@ impl RodWork {
             contact_saved: vec![None; n],
             released: Vec::with_capacity(n),
             step_dt: 0.0,
-            max_update: if n > 1 { 0.5 * rod.rest_length.iter().copied().fold(f64::INFINITY, f64::min) } else { 0.0 },
+            max_update: if n > 1 {
+                0.5 * rod
+                    .rest_length
+                    .iter()
+                    .copied()
+                    .fold(f64::INFINITY, f64::min)
+            } else {
+                0.0
+            },
             force_scale,
             length_scale: rod.length,
             filter_scale: mean_mass,
@@ -357,11 +365,20 @@ pub fn solve(
             }
             let (dx, dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], w.contact[i]);
             if !(dx.is_finite() && dy.is_finite()) {
-                return Err(NewtonFailure { node: i, residual: res, reason: "non-finite Newton update", iterations });
+                return Err(NewtonFailure {
+                    node: i,
+                    residual: res,
+                    reason: "non-finite Newton update",
+                    iterations,
+                });
             }
             full = full.max(dx.abs()).max(dy.abs());
         }
-        let scale = if w.max_update > 0.0 && full > w.max_update { w.max_update / full } else { 1.0 };
+        let scale = if w.max_update > 0.0 && full > w.max_update {
+            w.max_update / full
+        } else {
+            1.0
+        };
         let mut upd = 0.0f64;
         for i in 0..n {
             let fi = w.free_index[i];
