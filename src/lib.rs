@@ -14,6 +14,7 @@ pub mod obstacle;
 pub mod record;
 pub mod scenario;
 pub mod solver;
+pub mod study;
 
 pub use scenario::Scenario;
 pub use solver::Simulation;

@@ -101,6 +101,16 @@ enum Command {
         #[arg(long)]
         repeats: Option<usize>,
     },
+    /// Run a grid of scenario variants in parallel on all cores, resumable and shardable, with
+    /// a summary table and plots (docs/studies.md).
+    ///
+    /// Each case is the scenario with the --set values and one value of every --vary key
+    /// applied (as `gripsim run --set`); its result goes atomically into DIR/cases/<id>/, so a
+    /// re-run skips finished cases and Ctrl-C (SIGINT) or SIGTERM leaves no half result.
+    #[command(
+        after_help = "Examples:\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary obstacle.0.radius=0.05,0.04 --vary rod.0.E=1e6,1e9 --out out/study\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary rod.0.E=1e6:1e9:7:log --set solve.t_end=0.08 --out out/e\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary obstacle.0.radius=0.03:0.05:9 --shard $SLURM_ARRAY_TASK_ID/8 --out out/r\n  gripsim sweep merge out/r"
+    )]
+    Sweep(SweepCli),
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -109,6 +119,60 @@ enum DetailArg {
     Step,
     /// Also every Newton iteration of every predictor and corrector pass.
     Iteration,
+}
+
+/// `gripsim sweep` arguments (or `gripsim sweep merge DIR...`).
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+struct SweepCli {
+    #[command(subcommand)]
+    merge: Option<SweepMerge>,
+    /// Scenario file (TOML).
+    #[arg(required = true)]
+    scenario: Option<PathBuf>,
+    /// A varied key: KEY=V1,V2,... or KEY=START:STOP:COUNT[:log] (repeatable; the grid is every
+    /// combination, the first --vary varying slowest).
+    #[arg(long = "vary", value_name = "KEY=VALUES", required = true)]
+    vary: Vec<gripsim::study::Vary>,
+    /// Override a scenario value in every case, e.g. solve.t_end=0.08 (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Cases run at once [default: one per core].
+    #[arg(long, short, value_name = "N")]
+    jobs: Option<usize>,
+    /// Output folder; a re-run with the same folder resumes.
+    #[arg(long, value_name = "DIR", required = true)]
+    out: Option<PathBuf>,
+    /// Run only the cases k with k mod N = I (I is 0-based), for batch arrays; join the shards
+    /// with `gripsim sweep merge`.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<gripsim::study::Shard>,
+    /// No figures (per case and per sweep).
+    #[arg(long)]
+    no_plots: bool,
+    /// No progress bar or per-case lines.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+#[derive(Subcommand)]
+enum SweepMerge {
+    /// Join the case folders of a sweep's shards into one folder and write its summary.csv and
+    /// plots.
+    #[command(
+        after_help = "Examples:\n  gripsim sweep merge out/study                     # shards that shared one folder\n  gripsim sweep merge out/s0 out/s1 --out out/study  # one folder per shard"
+    )]
+    Merge {
+        /// Sweep folders of the same sweep.
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// The merged sweep folder [default: the first folder].
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// No sweep figures.
+        #[arg(long)]
+        no_plots: bool,
+    },
 }
 
 /// What `run` writes.
@@ -168,7 +232,13 @@ fn main() -> ExitCode {
             }
         },
         Command::Scenarios { dir } => list_scenarios(&dir),
-        Command::Bench { quick, stress, out, repeats } => bench(quick, stress, out, repeats),
+        Command::Bench {
+            quick,
+            stress,
+            out,
+            repeats,
+        } => bench(quick, stress, out, repeats),
+        Command::Sweep(args) => sweep(args),
     }
 }
 
@@ -421,7 +491,11 @@ fn list_scenarios(dir: &Path) -> ExitCode {
 
 fn bench(quick: bool, stress: bool, out: PathBuf, repeats: Option<usize>) -> ExitCode {
     use gripsim::bench;
-    let opt = bench::BenchOptions { quick, out: out.clone(), repeats: repeats.unwrap_or(if quick { 1 } else { 5 }) };
+    let opt = bench::BenchOptions {
+        quick,
+        out: out.clone(),
+        repeats: repeats.unwrap_or(if quick { 1 } else { 5 }),
+    };
     let mut log = |s: &str| println!("{s}");
     let result = if stress {
         bench::stress(&opt, &mut log).map(|cells| {
@@ -430,11 +504,107 @@ fn bench(quick: bool, stress: bool, out: PathBuf, repeats: Option<usize>) -> Exi
             println!("stress map: {} cells, {bad} with a non-finite value, {pen} ok cells with penetration > 1e-9 m", cells.len());
         })
     } else {
-        bench::work_precision(&opt, &mut log).and_then(|_| bench::scaling(&opt, &mut log)).map(|_| ())
+        bench::work_precision(&opt, &mut log)
+            .and_then(|_| bench::scaling(&opt, &mut log))
+            .map(|_| ())
     };
     match result {
         Ok(()) => {
             println!("wrote tables and figures to {}", out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// `gripsim sweep` and `gripsim sweep merge`: the library does the work. Exit 0 when done
+/// (cases that stopped with a solver error are results: see the error column), 2 on an error,
+/// 130/143 when a signal stopped it (finished cases stay; run the same command to resume).
+fn sweep(args: SweepCli) -> ExitCode {
+    use gripsim::study;
+    if let Some(SweepMerge::Merge {
+        dirs,
+        out,
+        no_plots,
+    }) = args.merge
+    {
+        let opts = study::MergeOptions {
+            dirs,
+            out,
+            plots: !no_plots,
+        };
+        return match study::merge(&opts) {
+            Ok(r) => {
+                for e in &r.plot_errors {
+                    eprintln!("warning: figures not drawn: {e}");
+                }
+                println!(
+                    "merged {} cases into {} ({} case folders copied); wrote {}",
+                    r.cases,
+                    r.out.display(),
+                    r.copied,
+                    r.summary.display()
+                );
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
+    let (Some(scenario), Some(out)) = (args.scenario, args.out) else {
+        eprintln!("error: sweep needs a SCENARIO and --out DIR");
+        return ExitCode::from(2);
+    };
+    install_signal_handlers();
+    let opts = study::SweepOptions {
+        scenario,
+        vary: args.vary,
+        sets: args.sets,
+        jobs: args.jobs.unwrap_or(0),
+        out,
+        shard: args.shard,
+        plots: !args.no_plots,
+        quiet: args.quiet,
+        stop: Some(std::sync::Arc::new(|| STOP.load(Ordering::Relaxed) != 0)),
+    };
+    match study::run_sweep(&opts) {
+        Ok(r) => {
+            for e in &r.plot_errors {
+                eprintln!("warning: figures not drawn: {e}");
+            }
+            let shard = opts
+                .shard
+                .map(|s| format!(" (shard {}/{}: {} of them)", s.index, s.count, r.in_shard))
+                .unwrap_or_default();
+            println!(
+                "sweep: {} cases{shard}: {} run, {} skipped (finished before), {} stopped with an error, {} with warnings, {:.2} s",
+                r.cases, r.ran, r.skipped, r.failed, r.warned, r.wall_time_s
+            );
+            if r.interrupted {
+                let stop = STOP.load(Ordering::Relaxed);
+                let signal = if stop == 143 { "SIGTERM" } else { "SIGINT" };
+                eprintln!(
+                    "interrupted by {signal}: {} of {} cases are finished in {}; run the same command again to resume",
+                    r.ran + r.skipped,
+                    r.in_shard,
+                    opts.out.join("cases").display()
+                );
+                return ExitCode::from(if stop == 0 { 130 } else { stop as u8 });
+            }
+            if let Some(p) = &r.summary {
+                println!("wrote {}", p.display());
+            }
+            if opts.shard.is_some() {
+                println!(
+                    "when every shard is done: gripsim sweep merge {}",
+                    opts.out.display()
+                );
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -89,8 +89,7 @@ fn range(vals: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
     if log {
         let (a, b) = (lo.log10().floor(), hi.log10().ceil());
         let b = if b <= a { a + 1.0 } else { b };
-        // A hair wider than the decades, so both end decades get their tick label.
-        (10f64.powf(a) * (1.0 - 1e-9), 10f64.powf(b) * (1.0 + 1e-9))
+        (10f64.powf(a), 10f64.powf(b))
     } else {
         let pad = ((hi - lo) * 0.05).max(1e-12 * hi.abs().max(1.0));
         (lo - pad, hi + pad)
@@ -143,12 +142,13 @@ where
     macro_rules! body {
         ($chart:expr) => {{
             let mut chart = $chart;
-            chart
-                .configure_mesh()
-                .light_line_style(TRANSPARENT)
-                .x_labels(if p.log_x { 4 } else { 10 })
-                .y_labels(if p.log_y { 4 } else { 10 })
-                .x_desc(p.x_label.as_str())
+            let mut mesh = chart.configure_mesh();
+            // Minor grid lines only on log charts, where they mark the 2…9 multiples; linear
+            // charts (time histories, sweeps) stay light, and their PNGs small.
+            if !(p.log_x || p.log_y) {
+                mesh.light_line_style(TRANSPARENT);
+            }
+            mesh.x_desc(p.x_label.as_str())
                 .y_desc(p.y_label.as_str())
                 .x_label_formatter(&|v| tick(*v, p.log_x, x0, x1))
                 .y_label_formatter(&|v| tick(*v, p.log_y, y0, y1))

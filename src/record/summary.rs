@@ -29,6 +29,13 @@ pub struct RodSummary {
     pub first_contact_time_s: Vec<Option<f64>>,
     /// Force of the drive on the clamped nodes at the end (N, sum over clamped nodes).
     pub final_drive_force_n: [f64; 2],
+    /// The tip: the last node, or node 0 when the last node is clamped and node 0 is not.
+    pub tip_node: usize,
+    /// Max over time of the tip's deflection from the rigidly driven shape (m):
+    /// |x_tip(t) − x_tip(0) − (x_c(t) − x_c(0))|, x_c the first clamped node (the drives are
+    /// translations, so this is the tip's distance from where the undeformed prong would put
+    /// it); with no clamped node, the tip's displacement |x_tip(t) − x_tip(0)|.
+    pub max_tip_deflection_m: f64,
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -61,13 +68,15 @@ pub struct Summary {
 /// Cumulative contact impulse of one node as a piecewise-linear function of time, trimmed
 /// to the last window: the impulse-consistent force is (C(t) − C(t − τ))/τ.
 #[derive(Debug, Default, Clone)]
-struct Window {
+pub struct Window {
     /// (time, cumulative impulse x, y) breakpoints, oldest first.
     points: std::collections::VecDeque<(f64, f64, f64)>,
 }
 
 impl Window {
-    fn push(&mut self, t0: f64, t1: f64, jx: f64, jy: f64, tau: f64) -> f64 {
+    /// Add the impulse (jx, jy) of the step t0 → t1 and return the impulse-consistent force
+    /// magnitude at t1 over a window of τ.
+    pub fn push(&mut self, t0: f64, t1: f64, jx: f64, jy: f64, tau: f64) -> f64 {
         let (cx, cy) = self.points.back().map(|p| (p.1, p.2)).unwrap_or((0.0, 0.0));
         if self.points.is_empty() {
             self.points.push_back((t0, 0.0, 0.0));
@@ -93,6 +102,16 @@ impl Window {
     }
 }
 
+/// The tip of a rod: the last node, or node 0 when the last node is clamped and node 0 is not.
+pub fn tip_node(clamped: &[bool]) -> usize {
+    let n = clamped.len();
+    if n > 1 && clamped[n - 1] && !clamped[0] {
+        0
+    } else {
+        n.saturating_sub(1)
+    }
+}
+
 /// Collects a [`Summary`] from step events.
 #[derive(Debug, Default)]
 pub struct SummaryCollector {
@@ -113,6 +132,8 @@ pub struct SummaryCollector {
     t: f64,
     error: Option<String>,
     ended: bool,
+    /// Per rod: (tip node, first clamped node) and their initial positions.
+    tips: Vec<(usize, Option<usize>, Option<([f64; 2], [f64; 2])>)>,
 }
 
 impl SummaryCollector {
@@ -182,6 +203,19 @@ impl Observer for SummaryCollector {
                         peak_bending_stress_per_node_pa: vec![0.0; r.nodes],
                         first_contact_time_s: vec![None; r.nodes],
                         final_drive_force_n: [0.0; 2],
+                        tip_node: tip_node(&r.clamped),
+                        max_tip_deflection_m: 0.0,
+                    })
+                    .collect();
+                self.tips = info
+                    .rods
+                    .iter()
+                    .map(|r| {
+                        (
+                            tip_node(&r.clamped),
+                            r.clamped.iter().position(|c| *c),
+                            None,
+                        )
                     })
                     .collect();
                 self.windows = info
@@ -248,6 +282,16 @@ impl Observer for SummaryCollector {
                         }
                     }
                     s.final_drive_force_n = drive;
+                    let (tip, base, start) = &mut self.tips[ri];
+                    let at = |k: usize| [v.q[2 * k], v.q[2 * k + 1]];
+                    let b = base.map(at).unwrap_or([0.0; 2]);
+                    let (tip0, b0) = *start.get_or_insert((at(*tip), b));
+                    let p = at(*tip);
+                    let d =
+                        (p[0] - tip0[0] - (b[0] - b0[0])).hypot(p[1] - tip0[1] - (b[1] - b0[1]));
+                    if d > s.max_tip_deflection_m {
+                        s.max_tip_deflection_m = d;
+                    }
                 }
             }
             Event::RunEnd { error, .. } => {

@@ -1,0 +1,1083 @@
+//! The sweep: build the grid, run the unfinished cases on a pool of threads, write each case's
+//! result folder atomically, and the summary table and plots once every case is done.
+//!
+//! Layout of an output folder:
+//!
+//! ```text
+//! DIR/sweep.json                the grid: keys, values, case ids and scenario hashes
+//! DIR/cases/<id>/case.json      the done marker: parameters and metrics (written last)
+//! DIR/cases/<id>/summary.json   what `gripsim run --summary` writes for this case
+//! DIR/cases/<id>/scenario.toml  the case's scenario with every assignment applied
+//! DIR/cases/<id>/forces.png|svg reaction, impulse-consistent force, bending stress per node
+//! DIR/cases/<id>/shapes.png|svg prong snapshots, nodes coloured by force
+//! DIR/summary.csv, summary.md   one row per case, in grid order
+//! DIR/plots/vs-<key>.png|svg    every metric against every varied key
+//! DIR/summary.shard-I-of-N.csv  a shard's own rows (`--shard`)
+//! ```
+//!
+//! A case folder is filled under `cases/.tmp-<id>` and renamed into place in one step, so a
+//! folder `cases/<id>` is always complete; a run stopped by a signal leaves only the temporary
+//! folder, which the next run replaces.
+
+use super::plots::{self, Trace};
+use super::{case_id, io_err, Shard, StudyError, Vary};
+use crate::events::{Fanout, Observer};
+use crate::record::summary::{Summary, SummaryCollector};
+use crate::solver::SimError;
+use crate::{Scenario, Simulation};
+use serde::{Deserialize, Serialize};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::Instant;
+
+/// Version of `sweep.json` and `case.json`.
+pub const FORMAT: u32 = 1;
+
+/// What `gripsim sweep` was asked to do.
+#[derive(Clone)]
+pub struct SweepOptions {
+    pub scenario: PathBuf,
+    pub vary: Vec<Vary>,
+    /// Assignments applied to every case before the varied ones.
+    pub sets: Vec<String>,
+    /// Worker threads; 0 = one per core.
+    pub jobs: usize,
+    pub out: PathBuf,
+    pub shard: Option<Shard>,
+    /// Per-case figures (forces, shapes) and the sweep's metric figures.
+    pub plots: bool,
+    /// No progress bar and no per-case lines.
+    pub quiet: bool,
+    /// Polled between steps and between cases; true stops the sweep (finished cases stay).
+    pub stop: Option<Arc<dyn Fn() -> bool + Send + Sync>>,
+}
+
+/// What a sweep did.
+#[derive(Debug, Clone, Default)]
+pub struct SweepReport {
+    /// Cases in the whole grid.
+    pub cases: usize,
+    /// Cases in this shard (the whole grid without `--shard`).
+    pub in_shard: usize,
+    pub ran: usize,
+    pub skipped: usize,
+    /// Cases whose run stopped with an error (they are results too: `completed` is false).
+    pub failed: usize,
+    /// Cases with a warning event (e.g. a driven node entered the fruit).
+    pub warned: usize,
+    pub interrupted: bool,
+    /// The summary table written (None when interrupted).
+    pub summary: Option<PathBuf>,
+    pub wall_time_s: f64,
+    /// Figures that could not be drawn (e.g. no font), one message per kind.
+    pub plot_errors: Vec<String>,
+}
+
+/// One case of the grid, as recorded in `sweep.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaseEntry {
+    pub id: String,
+    /// One value per varied key, in `vary` order.
+    pub values: Vec<String>,
+    /// FNV-1a of the case's effective scenario text (all assignments applied).
+    pub scenario_hash: String,
+}
+
+/// `sweep.json`: the grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: u32,
+    pub scenario: String,
+    pub sets: Vec<String>,
+    pub vary: Vec<Vary>,
+    /// Rod names of the first case (the per-prong columns).
+    pub rods: Vec<String>,
+    pub cases: Vec<CaseEntry>,
+}
+
+impl Manifest {
+    /// Same grid and same scenarios (the scenario path and `--set` text may differ).
+    fn same_grid(&self, other: &Manifest) -> bool {
+        self.vary == other.vary && self.rods == other.rods && self.cases == other.cases
+    }
+}
+
+/// The numbers of one case (a row of `summary.csv`). Node numbers are 0-based.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    pub completed: bool,
+    pub error: Option<String>,
+    pub steps: u64,
+    pub simulated_time_s: f64,
+    /// Peak eq. 2 reaction magnitude (N), where and when.
+    pub peak_reaction_n: f64,
+    pub peak_reaction_rod: Option<String>,
+    pub peak_reaction_node: Option<usize>,
+    pub peak_reaction_time_s: Option<f64>,
+    /// Peak impulse-consistent force (N): contact impulse over a sliding 1 ms window / window.
+    pub peak_impulse_consistent_force_n: f64,
+    pub peak_impulse_consistent_rod: Option<String>,
+    pub peak_impulse_consistent_node: Option<usize>,
+    /// Σ over nodes of Σ |R| dt, per rod (N·s).
+    pub total_impulse_per_rod_ns: Vec<f64>,
+    /// The node constrained at the end of the most steps (ties: the lowest rod, then node).
+    pub most_contact_steps_rod: Option<String>,
+    pub most_contact_steps_node: Option<usize>,
+    pub most_contact_steps: u64,
+    pub contact_onset_s: Option<f64>,
+    /// The node that touched first (ties: the lowest rod, then node).
+    pub first_contact_rod: Option<String>,
+    pub first_contact_node: Option<usize>,
+    pub max_bending_stress_pa: f64,
+    pub max_bending_stress_rod: Option<String>,
+    pub max_bending_stress_node: Option<usize>,
+    /// Per rod: max over time of the tip's deflection from the rigidly driven shape (m).
+    pub max_tip_deflection_per_rod_m: Vec<f64>,
+    pub max_penetration_m: f64,
+    /// Constraints released because their eq. 2 reaction turned adhesive (R·n < 0).
+    pub releases: u64,
+    /// Warning events of the run (a driven node entering an obstacle, …).
+    pub warnings: usize,
+    pub wall_time_s: f64,
+}
+
+impl Metrics {
+    pub fn from_summary(s: &Summary, releases: u64, warnings: usize) -> Metrics {
+        let mut most: Option<(String, usize, u64)> = None;
+        for r in &s.rods {
+            for (i, c) in r.contact_steps_per_node.iter().enumerate() {
+                if *c > 0 && most.as_ref().is_none_or(|m| *c > m.2) {
+                    most = Some((r.name.clone(), i, *c));
+                }
+            }
+        }
+        let mut first: Option<(String, usize, f64)> = None;
+        for r in &s.rods {
+            for (i, t) in r.first_contact_time_s.iter().enumerate() {
+                if let Some(t) = *t {
+                    if first.as_ref().is_none_or(|f| t < f.2) {
+                        first = Some((r.name.clone(), i, t));
+                    }
+                }
+            }
+        }
+        Metrics {
+            completed: s.completed,
+            error: s.error.clone(),
+            steps: s.steps,
+            simulated_time_s: s.simulated_time_s,
+            peak_reaction_n: s.peak_reaction_force_n,
+            peak_reaction_rod: s.peak_reaction_node.as_ref().map(|n| n.rod.clone()),
+            peak_reaction_node: s.peak_reaction_node.as_ref().map(|n| n.node),
+            peak_reaction_time_s: s.peak_reaction_time_s,
+            peak_impulse_consistent_force_n: s.peak_impulse_consistent_force_n,
+            peak_impulse_consistent_rod: s
+                .peak_impulse_consistent_node
+                .as_ref()
+                .map(|n| n.rod.clone()),
+            peak_impulse_consistent_node: s.peak_impulse_consistent_node.as_ref().map(|n| n.node),
+            total_impulse_per_rod_ns: s
+                .rods
+                .iter()
+                .map(|r| r.total_impulse_per_node_ns.iter().sum())
+                .collect(),
+            most_contact_steps: most.as_ref().map(|m| m.2).unwrap_or(0),
+            most_contact_steps_rod: most.as_ref().map(|m| m.0.clone()),
+            most_contact_steps_node: most.as_ref().map(|m| m.1),
+            contact_onset_s: s.contact_onset_time_s,
+            first_contact_rod: first.as_ref().map(|f| f.0.clone()),
+            first_contact_node: first.as_ref().map(|f| f.1),
+            max_bending_stress_pa: s.max_bending_stress_pa,
+            max_bending_stress_rod: s.max_bending_stress_node.as_ref().map(|n| n.rod.clone()),
+            max_bending_stress_node: s.max_bending_stress_node.as_ref().map(|n| n.node),
+            max_tip_deflection_per_rod_m: s.rods.iter().map(|r| r.max_tip_deflection_m).collect(),
+            max_penetration_m: s.max_penetration_m,
+            releases,
+            warnings,
+            wall_time_s: s.wall_time_s,
+        }
+    }
+}
+
+/// `case.json`: the done marker of a case folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaseRecord {
+    pub format: u32,
+    pub id: String,
+    /// (key, value) of every varied key.
+    pub parameters: Vec<(String, String)>,
+    /// Every assignment applied, base `--set` first.
+    pub sets: Vec<String>,
+    pub scenario_hash: String,
+    pub gripsim_version: String,
+    /// The same run by hand: `gripsim run SCENARIO --set … --summary FILE --no-record`.
+    pub command: String,
+    pub metrics: Metrics,
+    pub warnings: Vec<String>,
+    pub plot_error: Option<String>,
+}
+
+/// A case ready to run.
+struct Case {
+    index: usize,
+    id: String,
+    values: Vec<String>,
+    sets: Vec<String>,
+    scenario: Scenario,
+    hash: String,
+}
+
+fn hash_text(text: &str) -> String {
+    format!("{:016x}", super::fnv1a(text.as_bytes()))
+}
+
+/// The grid in order: the first `--vary` key varies slowest.
+fn grid(vary: &[Vary]) -> Vec<Vec<String>> {
+    let mut rows: Vec<Vec<String>> = vec![Vec::new()];
+    for v in vary {
+        let mut next = Vec::with_capacity(rows.len() * v.values.len());
+        for r in &rows {
+            for val in &v.values {
+                let mut r = r.clone();
+                r.push(val.clone());
+                next.push(r);
+            }
+        }
+        rows = next;
+    }
+    rows
+}
+
+fn build_cases(opts: &SweepOptions) -> Result<Vec<Case>, StudyError> {
+    if opts.vary.is_empty() {
+        return Err(StudyError::Usage(
+            "a sweep needs at least one --vary KEY=V1,V2,...".into(),
+        ));
+    }
+    for (i, v) in opts.vary.iter().enumerate() {
+        if opts.vary[..i].iter().any(|w| w.key == v.key) {
+            return Err(StudyError::Usage(format!(
+                "--vary {} is given twice: list all its values in one --vary",
+                v.key
+            )));
+        }
+    }
+    let keys: Vec<String> = opts.vary.iter().map(|v| v.key.clone()).collect();
+    let text = std::fs::read(&opts.scenario)
+        .map_err(|e| io_err(&opts.scenario, format!("cannot read the scenario: {e}")))?;
+    let text = String::from_utf8(text).map_err(|_| io_err(&opts.scenario, "not UTF-8 text"))?;
+    let file = opts.scenario.display().to_string();
+    let mut cases = Vec::new();
+    for (index, values) in grid(&opts.vary).into_iter().enumerate() {
+        let mut sets = opts.sets.clone();
+        sets.extend(keys.iter().zip(&values).map(|(k, v)| format!("{k}={v}")));
+        let scenario = Scenario::from_str(&text, &file, &sets).map_err(|e| {
+            let what: Vec<String> = keys
+                .iter()
+                .zip(&values)
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect();
+            StudyError::Scenario(format!("case {index} ({}): {e}", what.join(", ")))
+        })?;
+        let hash = hash_text(&scenario.text);
+        cases.push(Case {
+            index,
+            id: case_id(&keys, &values),
+            values,
+            sets,
+            scenario,
+            hash,
+        });
+    }
+    for (i, c) in cases.iter().enumerate() {
+        if let Some(o) = cases[..i].iter().find(|o| o.id == c.id) {
+            return Err(StudyError::Usage(format!(
+                "cases {} and {} get the same folder name {}",
+                o.index, c.index, c.id
+            )));
+        }
+    }
+    Ok(cases)
+}
+
+fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Option<T>, StudyError> {
+    match std::fs::read(path) {
+        Ok(b) => serde_json::from_slice(&b)
+            .map(Some)
+            .map_err(|e| io_err(path, format!("unreadable: {e}"))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(io_err(path, e)),
+    }
+}
+
+/// Write through a temporary file of a name no other process or thread uses, then rename:
+/// shards sharing a folder may write the same file at the same time.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StudyError> {
+    static SEQ: AtomicUsize = AtomicUsize::new(0);
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).map_err(|e| io_err(dir, e))?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let host = std::env::var("HOSTNAME").unwrap_or_default();
+    let tmp = dir.join(format!(
+        ".{name}.{}.{}.{}.partial",
+        super::sanitize(&host),
+        std::process::id(),
+        SEQ.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::write(&tmp, bytes).map_err(|e| io_err(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io_err(path, e)
+    })
+}
+
+fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), StudyError> {
+    let mut text = serde_json::to_string_pretty(v).expect("serialises");
+    text.push('\n');
+    write_atomic(path, text.as_bytes())
+}
+
+/// Write `path` only when its content changes (so a sweep with nothing new touches nothing).
+fn write_if_changed(path: &Path, bytes: &[u8]) -> Result<bool, StudyError> {
+    if std::fs::read(path).ok().as_deref() == Some(bytes) {
+        return Ok(false);
+    }
+    write_atomic(path, bytes)?;
+    Ok(true)
+}
+
+/// The finished record of a case folder, if it is one of this scenario.
+fn finished(cases_dir: &Path, id: &str, hash: &str) -> Result<Option<CaseRecord>, StudyError> {
+    let path = cases_dir.join(id).join("case.json");
+    let rec: Option<CaseRecord> = match read_json(&path) {
+        Ok(r) => r,
+        // A damaged marker: the case runs again and replaces the folder.
+        Err(_) => return Ok(None),
+    };
+    match rec {
+        Some(r) if r.scenario_hash == hash => Ok(Some(r)),
+        Some(_) => Err(StudyError::Mismatch(format!(
+            "{} holds a result of a different scenario (the base scenario or --set changed since it ran); \
+             use another --out, or delete that folder to recompute it",
+            cases_dir.join(id).display()
+        ))),
+        None => Ok(None),
+    }
+}
+
+fn command_line(scenario: &str, sets: &[String]) -> String {
+    let mut s = format!("gripsim run {}", shell_quote(scenario));
+    for a in sets {
+        s.push_str(" --set ");
+        s.push_str(&shell_quote(a));
+    }
+    s.push_str(" --summary summary.json --no-record");
+    s
+}
+
+fn shell_quote(s: &str) -> String {
+    if s.chars()
+        .all(|c| c.is_ascii_alphanumeric() || "._-=/+:,".contains(c))
+    {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
+    }
+}
+
+enum Outcome {
+    Done(Box<CaseRecord>),
+    Interrupted,
+}
+
+/// Run one case into `cases/.tmp-<id>` and rename it to `cases/<id>`.
+fn run_case(
+    case: &Case,
+    opts: &SweepOptions,
+    cases_dir: &Path,
+    keys: &[String],
+) -> Result<Outcome, StudyError> {
+    let tmp = cases_dir.join(format!(".tmp-{}", case.id));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
+    let mut sim = Simulation::new(&case.scenario);
+    if let Some(stop) = &opts.stop {
+        let stop = stop.clone();
+        sim.interrupt = Some(Box::new(move || stop()));
+    }
+    let mut collector = SummaryCollector::new();
+    let mut trace = Trace::new(&case.scenario);
+    let start = Instant::now();
+    let result = {
+        let mut fan = Fanout::new();
+        fan.push(&mut collector as &mut dyn Observer);
+        fan.push(&mut trace as &mut dyn Observer);
+        sim.run(&mut fan)
+    };
+    let wall = start.elapsed().as_secs_f64();
+    if matches!(result, Err(SimError::Interrupted { .. })) {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Ok(Outcome::Interrupted);
+    }
+    let summary = collector.finish(&sim.stats, wall);
+    write_json(&tmp.join("summary.json"), &summary)?;
+    let sc_path = tmp.join("scenario.toml");
+    std::fs::write(&sc_path, case.scenario.text.as_bytes()).map_err(|e| io_err(&sc_path, e))?;
+    let plot_error = if opts.plots {
+        let label: Vec<String> = keys
+            .iter()
+            .zip(&case.values)
+            .map(|(k, v)| format!("{}={v}", k.rsplit('.').next().unwrap_or(k)))
+            .collect();
+        plots::draw_case(&trace, &summary, &label.join(", "), &tmp).err()
+    } else {
+        None
+    };
+    let rec = CaseRecord {
+        format: FORMAT,
+        id: case.id.clone(),
+        parameters: keys
+            .iter()
+            .cloned()
+            .zip(case.values.iter().cloned())
+            .collect(),
+        sets: case.sets.clone(),
+        scenario_hash: case.hash.clone(),
+        gripsim_version: env!("CARGO_PKG_VERSION").to_string(),
+        command: command_line(&opts.scenario.display().to_string(), &case.sets),
+        metrics: Metrics::from_summary(&summary, trace.releases, trace.warnings.len()),
+        warnings: trace.warnings.clone(),
+        plot_error,
+    };
+    // The marker goes in last, then the folder appears in one rename.
+    write_json(&tmp.join("case.json"), &rec)?;
+    let dest = cases_dir.join(&case.id);
+    if dest.exists() {
+        std::fs::remove_dir_all(&dest).map_err(|e| io_err(&dest, e))?;
+    }
+    std::fs::rename(&tmp, &dest).map_err(|e| io_err(&dest, e))?;
+    Ok(Outcome::Done(Box::new(rec)))
+}
+
+/// Run (or resume) a sweep. Without `--shard` the summary table and plots are written when
+/// every case is done.
+pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
+    let start = Instant::now();
+    let cases = build_cases(opts)?;
+    let keys: Vec<String> = opts.vary.iter().map(|v| v.key.clone()).collect();
+    let manifest = Manifest {
+        format: FORMAT,
+        scenario: opts.scenario.display().to_string(),
+        sets: opts.sets.clone(),
+        vary: opts.vary.clone(),
+        rods: cases[0]
+            .scenario
+            .rods
+            .iter()
+            .map(|r| r.name.clone())
+            .collect(),
+        cases: cases
+            .iter()
+            .map(|c| CaseEntry {
+                id: c.id.clone(),
+                values: c.values.clone(),
+                scenario_hash: c.hash.clone(),
+            })
+            .collect(),
+    };
+    let cases_dir = opts.out.join("cases");
+    std::fs::create_dir_all(&cases_dir).map_err(|e| io_err(&cases_dir, e))?;
+
+    // Which cases of this shard are finished already.
+    let mut records: Vec<Option<CaseRecord>> = vec![None; cases.len()];
+    let mut todo: Vec<&Case> = Vec::new();
+    let mine: Vec<&Case> = cases
+        .iter()
+        .filter(|c| opts.shard.is_none_or(|s| s.contains(c.index)))
+        .collect();
+    for c in &mine {
+        match finished(&cases_dir, &c.id, &c.hash)? {
+            Some(r) => records[c.index] = Some(r),
+            None => todo.push(c),
+        }
+    }
+    // Shards sharing a folder write the same manifest; only a changed grid rewrites it.
+    let mpath = opts.out.join("sweep.json");
+    let old: Option<Manifest> = read_json(&mpath).ok().flatten();
+    if old.as_ref() != Some(&manifest) {
+        write_json(&mpath, &manifest)?;
+    }
+
+    let mut report = SweepReport {
+        cases: cases.len(),
+        in_shard: mine.len(),
+        skipped: mine.len() - todo.len(),
+        ..Default::default()
+    };
+    let stopped = || opts.stop.as_ref().is_some_and(|s| s());
+    if !todo.is_empty() {
+        let jobs = if opts.jobs == 0 {
+            std::thread::available_parallelism()
+                .map(|n| n.get())
+                .unwrap_or(1)
+        } else {
+            opts.jobs
+        }
+        .min(todo.len())
+        .max(1);
+        let bar = if opts.quiet {
+            indicatif::ProgressBar::hidden()
+        } else {
+            let b = indicatif::ProgressBar::new(todo.len() as u64);
+            b.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{bar:32} {pos}/{len} cases  {elapsed_precise} (eta {eta})  {msg}",
+                )
+                .expect("valid template"),
+            );
+            b
+        };
+        let lines = !opts.quiet && (bar.is_hidden() || !std::io::stderr().is_terminal());
+        let next = AtomicUsize::new(0);
+        let halted = AtomicBool::new(false);
+        let (tx, rx) = mpsc::channel::<(usize, Result<Outcome, StudyError>)>();
+        let mut first_error: Option<StudyError> = None;
+        std::thread::scope(|s| {
+            for _ in 0..jobs {
+                let tx = tx.clone();
+                let (todo, next, halted, cases_dir, keys) =
+                    (&todo, &next, &halted, &cases_dir, &keys);
+                s.spawn(move || loop {
+                    if halted.load(Ordering::Relaxed) || stopped() {
+                        break;
+                    }
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(case) = todo.get(k) else { break };
+                    let r = run_case(case, opts, cases_dir, keys);
+                    if r.is_err() {
+                        halted.store(true, Ordering::Relaxed);
+                    }
+                    if tx.send((case.index, r)).is_err() {
+                        break;
+                    }
+                });
+            }
+            drop(tx);
+            for (index, r) in rx {
+                match r {
+                    Ok(Outcome::Done(rec)) => {
+                        report.ran += 1;
+                        let m = &rec.metrics;
+                        if !m.completed {
+                            report.failed += 1;
+                        }
+                        if m.warnings > 0 {
+                            report.warned += 1;
+                        }
+                        if let Some(e) = &rec.plot_error {
+                            if !report.plot_errors.contains(e) {
+                                bar.println(format!(
+                                    "warning: case {}: figures not drawn: {e}",
+                                    rec.id
+                                ));
+                                report.plot_errors.push(e.clone());
+                            }
+                        }
+                        let line = format!(
+                            "[{}/{}] {} {} in {:.2} s: peak {:.4} N{}, impulse-consistent {:.4} N{}{}{}",
+                            report.ran,
+                            todo.len(),
+                            rec.id,
+                            if m.completed { "done" } else { "FAILED" },
+                            m.wall_time_s,
+                            m.peak_reaction_n,
+                            m.peak_reaction_node.map(|n| format!(" at node {n}")).unwrap_or_default(),
+                            m.peak_impulse_consistent_force_n,
+                            m.peak_impulse_consistent_node.map(|n| format!(" at node {n}")).unwrap_or_default(),
+                            if m.warnings > 0 { format!("; warning: {}", rec.warnings[0]) } else { String::new() },
+                            m.error.as_ref().map(|e| format!("; error: {e}")).unwrap_or_default(),
+                        );
+                        if lines {
+                            eprintln!("{line}");
+                        } else if !m.completed || m.warnings > 0 {
+                            bar.println(line);
+                        }
+                        bar.set_message(rec.id.clone());
+                        bar.inc(1);
+                        records[index] = Some(*rec);
+                    }
+                    Ok(Outcome::Interrupted) => report.interrupted = true,
+                    Err(e) => {
+                        if first_error.is_none() {
+                            first_error = Some(e);
+                        }
+                    }
+                }
+            }
+        });
+        bar.finish_and_clear();
+        if let Some(e) = first_error {
+            return Err(e);
+        }
+        if report.ran + report.skipped < mine.len() {
+            report.interrupted = true;
+            report.wall_time_s = start.elapsed().as_secs_f64();
+            return Ok(report);
+        }
+    }
+
+    let rows: Vec<&CaseRecord> = mine
+        .iter()
+        .map(|c| {
+            records[c.index]
+                .as_ref()
+                .expect("every case of the shard is done")
+        })
+        .collect();
+    match opts.shard {
+        Some(s) => {
+            let path = opts
+                .out
+                .join(format!("summary.shard-{}-of-{}.csv", s.index, s.count));
+            let idx: Vec<usize> = mine.iter().map(|c| c.index).collect();
+            write_if_changed(&path, summary_csv(&manifest, &idx, &rows).as_bytes())?;
+            report.summary = Some(path);
+        }
+        None => {
+            let (path, errs) = finalize(&opts.out, &manifest, &rows, opts.plots)?;
+            report.summary = Some(path);
+            for e in errs {
+                if !report.plot_errors.contains(&e) {
+                    report.plot_errors.push(e);
+                }
+            }
+        }
+    }
+    report.wall_time_s = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+/// `summary.csv`, `summary.md` and the sweep figures, for a complete grid.
+fn finalize(
+    out: &Path,
+    manifest: &Manifest,
+    records: &[&CaseRecord],
+    plots: bool,
+) -> Result<(PathBuf, Vec<String>), StudyError> {
+    let idx: Vec<usize> = (0..records.len()).collect();
+    let csv = summary_csv(manifest, &idx, records);
+    let path = out.join("summary.csv");
+    let changed = write_if_changed(&path, csv.as_bytes())?;
+    write_if_changed(
+        &out.join("summary.md"),
+        summary_md(manifest, records).as_bytes(),
+    )?;
+    let mut errors = Vec::new();
+    if plots {
+        let dir = out.join("plots");
+        let missing = manifest.vary.iter().any(|v| {
+            !dir.join(format!("{}.png", plots::sweep_plot_name(&v.key)))
+                .exists()
+        });
+        if changed || missing {
+            if let Err(e) = plots::draw_sweep(manifest, records, &dir) {
+                errors.push(e);
+            }
+        }
+    }
+    Ok((path, errors))
+}
+
+fn opt<T: std::fmt::Display>(v: &Option<T>) -> String {
+    v.as_ref().map(|x| x.to_string()).unwrap_or_default()
+}
+
+/// Floats as Rust's shortest round-trip text: parsing a cell gives back the exact f64.
+fn num(v: f64) -> String {
+    format!("{v:?}")
+}
+
+fn csv_header(manifest: &Manifest) -> Vec<String> {
+    let multi = manifest.rods.len() > 1;
+    let mut h: Vec<String> = vec!["case".into(), "id".into()];
+    h.extend(manifest.vary.iter().map(|v| v.key.clone()));
+    h.extend(["completed", "steps", "simulated_time_s", "peak_reaction_n"].map(String::from));
+    if multi {
+        h.push("peak_reaction_rod".into());
+    }
+    h.extend(
+        [
+            "peak_reaction_node",
+            "peak_reaction_time_s",
+            "peak_impulse_consistent_force_n",
+        ]
+        .map(String::from),
+    );
+    if multi {
+        h.push("peak_impulse_consistent_rod".into());
+    }
+    h.push("peak_impulse_consistent_node".into());
+    h.extend(
+        manifest
+            .rods
+            .iter()
+            .map(|r| format!("total_impulse_ns:{r}")),
+    );
+    if multi {
+        h.push("most_contact_steps_rod".into());
+    }
+    h.extend(
+        [
+            "most_contact_steps_node",
+            "most_contact_steps",
+            "contact_onset_s",
+        ]
+        .map(String::from),
+    );
+    if multi {
+        h.push("first_contact_rod".into());
+    }
+    h.extend(["first_contact_node", "max_bending_stress_pa"].map(String::from));
+    if multi {
+        h.push("max_bending_stress_rod".into());
+    }
+    h.push("max_bending_stress_node".into());
+    h.extend(
+        manifest
+            .rods
+            .iter()
+            .map(|r| format!("max_tip_deflection_m:{r}")),
+    );
+    h.extend(
+        [
+            "max_penetration_m",
+            "releases",
+            "warnings",
+            "error",
+            "wall_time_s",
+        ]
+        .map(String::from),
+    );
+    h
+}
+
+fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
+    let multi = manifest.rods.len() > 1;
+    let m = &r.metrics;
+    let mut row = vec![index.to_string(), r.id.clone()];
+    row.extend(r.parameters.iter().map(|p| p.1.clone()));
+    row.extend([
+        m.completed.to_string(),
+        m.steps.to_string(),
+        num(m.simulated_time_s),
+        num(m.peak_reaction_n),
+    ]);
+    if multi {
+        row.push(opt(&m.peak_reaction_rod));
+    }
+    row.extend([
+        opt(&m.peak_reaction_node),
+        m.peak_reaction_time_s.map(num).unwrap_or_default(),
+        num(m.peak_impulse_consistent_force_n),
+    ]);
+    if multi {
+        row.push(opt(&m.peak_impulse_consistent_rod));
+    }
+    row.push(opt(&m.peak_impulse_consistent_node));
+    row.extend((0..manifest.rods.len()).map(|k| {
+        m.total_impulse_per_rod_ns
+            .get(k)
+            .map(|v| num(*v))
+            .unwrap_or_default()
+    }));
+    if multi {
+        row.push(opt(&m.most_contact_steps_rod));
+    }
+    row.extend([
+        opt(&m.most_contact_steps_node),
+        m.most_contact_steps.to_string(),
+        m.contact_onset_s.map(num).unwrap_or_default(),
+    ]);
+    if multi {
+        row.push(opt(&m.first_contact_rod));
+    }
+    row.extend([opt(&m.first_contact_node), num(m.max_bending_stress_pa)]);
+    if multi {
+        row.push(opt(&m.max_bending_stress_rod));
+    }
+    row.push(opt(&m.max_bending_stress_node));
+    row.extend((0..manifest.rods.len()).map(|k| {
+        m.max_tip_deflection_per_rod_m
+            .get(k)
+            .map(|v| num(*v))
+            .unwrap_or_default()
+    }));
+    row.extend([
+        num(m.max_penetration_m),
+        m.releases.to_string(),
+        m.warnings.to_string(),
+        opt(&m.error),
+        num(m.wall_time_s),
+    ]);
+    row
+}
+
+/// One row per case in grid order; `indices` are the cases' grid indices.
+fn summary_csv(manifest: &Manifest, indices: &[usize], records: &[&CaseRecord]) -> String {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(csv_header(manifest)).expect("in memory");
+    for (i, r) in indices.iter().zip(records) {
+        w.write_record(csv_row(manifest, *i, r)).expect("in memory");
+    }
+    String::from_utf8(w.into_inner().expect("in memory")).expect("UTF-8")
+}
+
+fn fmt_g(v: f64) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else if (1e-2..1e5).contains(&v.abs()) {
+        format!("{:.4}", v)
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
+    } else {
+        format!("{v:.3e}")
+    }
+}
+
+/// A Markdown table of the main metrics (0-based nodes).
+fn summary_md(manifest: &Manifest, records: &[&CaseRecord]) -> String {
+    let multi = manifest.rods.len() > 1;
+    let node = |rod: &Option<String>, n: &Option<usize>| match (rod, n) {
+        (Some(r), Some(n)) if multi => format!("{r} {n}"),
+        (_, Some(n)) => n.to_string(),
+        _ => "–".into(),
+    };
+    let mut s = String::from("| case |");
+    for v in &manifest.vary {
+        s.push_str(&format!(" `{}` |", v.key));
+    }
+    s.push_str(
+        " peak eq. 2 reaction (N) | node | peak impulse-consistent force (N) | node | most contact steps: node | \
+         contact onset (s) | first node | max bending stress (Pa) | node | max tip deflection (mm) | max penetration (m) | releases | warnings |\n|---|",
+    );
+    for _ in &manifest.vary {
+        s.push_str("---|");
+    }
+    s.push_str("---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (i, r) in records.iter().enumerate() {
+        let m = &r.metrics;
+        s.push_str(&format!("| {i} |"));
+        for p in &r.parameters {
+            s.push_str(&format!(" {} |", p.1));
+        }
+        let tip = m
+            .max_tip_deflection_per_rod_m
+            .iter()
+            .cloned()
+            .fold(0.0, f64::max);
+        s.push_str(&format!(
+            " {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            fmt_g(m.peak_reaction_n),
+            node(&m.peak_reaction_rod, &m.peak_reaction_node),
+            fmt_g(m.peak_impulse_consistent_force_n),
+            node(
+                &m.peak_impulse_consistent_rod,
+                &m.peak_impulse_consistent_node
+            ),
+            match m.most_contact_steps_node {
+                Some(_) => format!(
+                    "{} ({})",
+                    node(&m.most_contact_steps_rod, &m.most_contact_steps_node),
+                    m.most_contact_steps
+                ),
+                None => "–".into(),
+            },
+            m.contact_onset_s
+                .map(|t| format!("{t:.5}"))
+                .unwrap_or_else(|| "none".into()),
+            node(&m.first_contact_rod, &m.first_contact_node),
+            fmt_g(m.max_bending_stress_pa),
+            node(&m.max_bending_stress_rod, &m.max_bending_stress_node),
+            fmt_g(tip * 1e3),
+            fmt_g(m.max_penetration_m),
+            m.releases,
+            if m.completed {
+                m.warnings.to_string()
+            } else {
+                format!("{} (stopped: {})", m.warnings, opt(&m.error))
+            },
+        ));
+    }
+    s
+}
+
+/// What `gripsim sweep merge` was asked to do.
+#[derive(Debug, Clone)]
+pub struct MergeOptions {
+    /// Sweep folders (shards) of one sweep.
+    pub dirs: Vec<PathBuf>,
+    /// Where the merged sweep goes [default: the first folder].
+    pub out: Option<PathBuf>,
+    pub plots: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct MergeReport {
+    pub cases: usize,
+    /// Case folders copied into the output folder.
+    pub copied: usize,
+    pub out: PathBuf,
+    pub summary: PathBuf,
+    pub plot_errors: Vec<String>,
+}
+
+fn copy_dir(from: &Path, to: &Path) -> Result<(), StudyError> {
+    std::fs::create_dir_all(to).map_err(|e| io_err(to, e))?;
+    for e in std::fs::read_dir(from).map_err(|e| io_err(from, e))? {
+        let e = e.map_err(|e| io_err(from, e))?;
+        let p = e.path();
+        let dest = to.join(e.file_name());
+        if p.is_dir() {
+            copy_dir(&p, &dest)?;
+        } else {
+            std::fs::copy(&p, &dest).map_err(|e| io_err(&p, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Join the case folders of shards into one sweep folder and write its summary and plots.
+pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StudyError> {
+    let Some(first) = opts.dirs.first() else {
+        return Err(StudyError::Usage(
+            "sweep merge needs at least one sweep folder".into(),
+        ));
+    };
+    let out = opts.out.clone().unwrap_or_else(|| first.clone());
+    let mut manifest: Option<Manifest> = None;
+    for d in &opts.dirs {
+        let path = d.join("sweep.json");
+        let m: Manifest = read_json(&path)?.ok_or_else(|| {
+            io_err(
+                &path,
+                "not found: is this a sweep folder (gripsim sweep --out)?",
+            )
+        })?;
+        match &manifest {
+            None => manifest = Some(m),
+            Some(m0) if !m0.same_grid(&m) => {
+                return Err(StudyError::Mismatch(format!(
+                    "{} and {} hold different sweeps (other --vary values, scenario or --set)",
+                    first.display(),
+                    d.display()
+                )));
+            }
+            Some(_) => {}
+        }
+    }
+    let manifest = manifest.expect("at least one folder");
+    let out_cases = out.join("cases");
+    std::fs::create_dir_all(&out_cases).map_err(|e| io_err(&out_cases, e))?;
+    let mut records = Vec::with_capacity(manifest.cases.len());
+    let mut copied = 0;
+    let mut missing = Vec::new();
+    for c in &manifest.cases {
+        if let Some(r) = finished(&out_cases, &c.id, &c.scenario_hash)? {
+            records.push(r);
+            continue;
+        }
+        let mut found = None;
+        for d in &opts.dirs {
+            let cd = d.join("cases");
+            if cd == out_cases {
+                continue;
+            }
+            if let Some(r) = finished(&cd, &c.id, &c.scenario_hash)? {
+                found = Some((cd.join(&c.id), r));
+                break;
+            }
+        }
+        match found {
+            Some((src, r)) => {
+                let tmp = out_cases.join(format!(".tmp-{}", c.id));
+                let _ = std::fs::remove_dir_all(&tmp);
+                copy_dir(&src, &tmp)?;
+                let dest = out_cases.join(&c.id);
+                if dest.exists() {
+                    std::fs::remove_dir_all(&dest).map_err(|e| io_err(&dest, e))?;
+                }
+                std::fs::rename(&tmp, &dest).map_err(|e| io_err(&dest, e))?;
+                copied += 1;
+                records.push(r);
+            }
+            None => missing.push(c.id.clone()),
+        }
+    }
+    if !missing.is_empty() {
+        let n = manifest.cases.len();
+        let shown: Vec<&str> = missing.iter().take(5).map(String::as_str).collect();
+        return Err(StudyError::Incomplete(format!(
+            "{} of {n} cases are not finished in any folder ({}{}); run the missing shards (or the sweep without --shard on {}) first",
+            missing.len(),
+            shown.join(", "),
+            if missing.len() > 5 { ", …" } else { "" },
+            out.display()
+        )));
+    }
+    let mpath = out.join("sweep.json");
+    let old: Option<Manifest> = read_json(&mpath).ok().flatten();
+    if old.as_ref() != Some(&manifest) {
+        write_json(&mpath, &manifest)?;
+    }
+    let refs: Vec<&CaseRecord> = records.iter().collect();
+    let (summary, plot_errors) = finalize(&out, &manifest, &refs, opts.plots)?;
+    Ok(MergeReport {
+        cases: manifest.cases.len(),
+        copied,
+        out,
+        summary,
+        plot_errors,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_order_is_row_major() {
+        let v = vec![
+            Vary {
+                key: "a".into(),
+                values: vec!["1".into(), "2".into()],
+            },
+            Vary {
+                key: "b".into(),
+                values: vec!["x".into(), "y".into(), "z".into()],
+            },
+        ];
+        let g = grid(&v);
+        assert_eq!(g.len(), 6);
+        assert_eq!(g[0], ["1", "x"]);
+        assert_eq!(g[1], ["1", "y"]);
+        assert_eq!(g[3], ["2", "x"]);
+    }
+
+    #[test]
+    fn shell_quoting() {
+        assert_eq!(shell_quote("rod.0.E=1e9"), "rod.0.E=1e9");
+        assert_eq!(
+            shell_quote("rod.0.drive.acceleration=[-9.8, 0]"),
+            "'rod.0.drive.acceleration=[-9.8, 0]'"
+        );
+    }
+}
