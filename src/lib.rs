@@ -12,6 +12,7 @@ pub mod events;
 pub mod model;
 pub mod obstacle;
 pub mod record;
+pub mod replay;
 pub mod scenario;
 pub mod solver;
 pub mod study;

@@ -111,6 +111,12 @@ enum Command {
         after_help = "Examples:\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary obstacle.0.radius=0.05,0.04 --vary rod.0.E=1e6,1e9 --out out/study\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary rod.0.E=1e6:1e9:7:log --set solve.t_end=0.08 --out out/e\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary obstacle.0.radius=0.03:0.05:9 --shard $SLURM_ARRAY_TASK_ID/8 --out out/r\n  gripsim sweep merge out/r"
     )]
     Sweep(SweepCli),
+    /// Read recorded runs back: check one for velocity spikes and sticking nodes, diff two,
+    /// or turn one into a Rerun .rrd (docs/replay.md).
+    #[command(
+        after_help = "Examples:\n  gripsim replay check recordings/point-mass-plane-dt1e-4.mcap\n  gripsim replay diff recordings/golden/point-mass-plane-dt1e-4.mcap out/now.mcap\n  gripsim replay show recordings/seed-grasp-r5.mcap --rrd out/r5.rrd"
+    )]
+    Replay(gripsim::replay::ReplayArgs),
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -239,6 +245,7 @@ fn main() -> ExitCode {
             repeats,
         } => bench(quick, stress, out, repeats),
         Command::Sweep(args) => sweep(args),
+        Command::Replay(args) => replay(args),
     }
 }
 
@@ -612,4 +619,9 @@ fn sweep(args: SweepCli) -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// `gripsim replay`: the library does the work; exit 0 clean, 1 flagged/different, 2 error.
+fn replay(args: gripsim::replay::ReplayArgs) -> ExitCode {
+    ExitCode::from(gripsim::replay::main(args))
 }

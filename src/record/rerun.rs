@@ -37,8 +37,8 @@ use crate::obstacle::Obstacle;
 use crate::scenario::Scenario;
 use ::rerun::blueprint::components::PanelState;
 use ::rerun::blueprint::{
-    Blueprint, BlueprintPanel, Horizontal, SelectionPanel, Spatial2DView, Tabs, TextLogView,
-    TimePanel, TimeSeriesView, Vertical,
+    Blueprint, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel, Spatial2DView, Tabs,
+    TextLogView, TimePanel, TimeSeriesView, Vertical,
 };
 use ::rerun::log::ChunkBatcherConfig;
 use ::rerun::{
@@ -67,7 +67,7 @@ pub struct RerunSink {
 }
 
 /// Entity paths of one rod, and what its transient entities showed at the last step.
-struct RodEntities {
+pub struct RodEntities {
     info: RodInfo,
     nodes: EntityPath,
     centerline: EntityPath,
@@ -77,6 +77,17 @@ struct RodEntities {
     iterate: EntityPath,
     had_contacts: bool,
     had_predictor: bool,
+}
+
+/// How a rod is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Look {
+    /// A run as recorded: nodes coloured by reaction, centre line, normals, reactions and the
+    /// predictor's positions.
+    Live,
+    /// A second run drawn for comparison (`replay diff --rrd`): grey, translucent nodes and
+    /// centre line only, under the live run.
+    Ghost,
 }
 
 /// Scalar time series that share their time points, buffered until the next flush.
@@ -129,25 +140,33 @@ fn path(parts: &[&str]) -> EntityPath {
 /// The layout the file opens with: the scene on the left; reaction forces, solver plots and
 /// the event log on the right.
 pub fn blueprint() -> Blueprint {
+    blueprint_with(Vec::new())
+}
+
+/// [`blueprint`] with `extra` views as the first tabs of the plot tabs (replay overlays add
+/// their difference plots there).
+pub fn blueprint_with(extra: Vec<ContainerLike>) -> Blueprint {
     let scene = Spatial2DView::new("Scene")
         .with_origin("/")
         .with_contents(["+ /scene/**"]);
     let reactions = TimeSeriesView::new("Reaction force |R| (N)").with_origin("/plots/reaction");
-    let solver = Tabs::new([
-        TimeSeriesView::new("Solver: residual (N) and Newton iterations")
-            .with_origin("/solver")
-            .with_contents(["+ /solver/**", "- /solver/dt", "- /solver/update"])
-            .into(),
-        TimeSeriesView::new("Step size dt (s)")
-            .with_origin("/solver/dt")
-            .into(),
-        TimeSeriesView::new("Contact impulse (N s)")
-            .with_origin("/plots/impulse")
-            .into(),
-        TimeSeriesView::new("Bending stress (Pa)")
-            .with_origin("/plots/bending_stress")
-            .into(),
-    ]);
+    let solver = Tabs::new(
+        extra.into_iter().chain([
+            TimeSeriesView::new("Solver: residual (N) and Newton iterations")
+                .with_origin("/solver")
+                .with_contents(["+ /solver/**", "- /solver/dt", "- /solver/update"])
+                .into(),
+            TimeSeriesView::new("Step size dt (s)")
+                .with_origin("/solver/dt")
+                .into(),
+            TimeSeriesView::new("Contact impulse (N s)")
+                .with_origin("/plots/impulse")
+                .into(),
+            TimeSeriesView::new("Bending stress (Pa)")
+                .with_origin("/plots/bending_stress")
+                .into(),
+        ]),
+    );
     let events = TextLogView::new("Events").with_origin("/events");
     Blueprint::new(
         Horizontal::new([
@@ -177,14 +196,23 @@ impl RerunSink {
         opts: RecordOptions,
         scenario: &Scenario,
     ) -> Result<Self, RecordError> {
+        Self::create_named(path, opts, &scenario.name, &scenario.text, blueprint())
+    }
+
+    /// Create `path` for a run of the scenario named `name` with TOML `text` (the recording id
+    /// derives from both), laid out by `blueprint`. `gripsim replay` drives the sink from a
+    /// stored run this way.
+    pub fn create_named(
+        path: &Path,
+        opts: RecordOptions,
+        name: &str,
+        text: &str,
+        blueprint: Blueprint,
+    ) -> Result<Self, RecordError> {
         let out = OutputFile::new(path);
         // Creates the directory and removes an older final file; the SDK opens the file.
         drop(out.create()?);
-        let id = format!(
-            "{}-{:016x}",
-            scenario.name,
-            super::stable_hash(scenario.text.as_bytes())
-        );
+        let id = format!("{}-{:016x}", name, super::stable_hash(text.as_bytes()));
         // Chunks close only when we flush (or at 2 MiB), never on a timer.
         let batching = ChunkBatcherConfig {
             flush_tick: std::time::Duration::MAX,
@@ -194,13 +222,13 @@ impl RerunSink {
             .recording_id(id)
             .enabled(true)
             .batcher_config(batching)
-            .with_blueprint(blueprint())
+            .with_blueprint(blueprint)
             .save(&out.partial)
             .map_err(|e| RecordError::write(&out.partial, e))?;
         rec.set_log_time_enabled(false);
         rec.set_log_tick_enabled(false);
         // The name only: the builder's recording properties would carry the wall-clock start.
-        rec.send_recording_name(scenario.name.clone())
+        rec.send_recording_name(name.to_string())
             .map_err(|e| RecordError::write(&out.partial, e))?;
         Ok(Self {
             out,
@@ -218,6 +246,12 @@ impl RerunSink {
             completed: false,
             error: None,
         })
+    }
+
+    /// The recording stream (None once finished), for replay overlays that log their own
+    /// entities at the times the sink has set.
+    pub fn stream(&self) -> Option<&RecordingStream> {
+        self.rec.as_ref()
     }
 
     fn fail(&mut self, e: impl std::fmt::Display) {
@@ -257,18 +291,7 @@ impl RerunSink {
     fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
         self.obstacles = info.obstacles.to_vec();
         for r in info.rods {
-            let rod = |kind: &str| path(&["scene", &r.name, kind]);
-            self.rods.push(RodEntities {
-                info: r.clone(),
-                nodes: rod("nodes"),
-                centerline: rod("centerline"),
-                normals: rod("normals"),
-                reactions: rod("reactions"),
-                predictor: rod("predictor"),
-                iterate: rod("iterate"),
-                had_contacts: true,
-                had_predictor: true,
-            });
+            self.rods.push(RodEntities::new(&["scene"], r.clone()));
         }
         for kind in ["reaction", "impulse", "bending_stress"] {
             for r in info.rods {
@@ -378,104 +401,11 @@ impl RerunSink {
     }
 
     fn draw_rod(&mut self, r: usize, style: &RodStyle, v: &RodStepView<'_>, corrected: bool) {
-        let n = v.in_contact.len();
-        let p = |i: usize| [v.q[2 * i] as f32, v.q[2 * i + 1] as f32];
-        let radius = style.node_radius as f32;
-        let e = &self.rods[r];
-        let colors: Vec<Color> = (0..n)
-            .map(|i| {
-                if e.info.clamped.get(i).copied().unwrap_or(false) {
-                    rgb(DRIVEN_COLOR)
-                } else {
-                    rgb(RodStyle::heat(style.level(node_norm(v.reaction, i))))
-                }
-            })
-            .collect();
-        let (nodes, centerline) = (e.nodes.clone(), e.centerline.clone());
-        let points: Vec<[f32; 2]> = (0..n).map(p).collect();
-        self.log(
-            &nodes,
-            &Points2D::new(points.iter().copied())
-                .with_radii([radius])
-                .with_colors(colors)
-                .with_draw_order(DRAW_NODES),
-        );
-        self.log(
-            &centerline,
-            &LineStrips2D::new([points])
-                .with_colors([rgb(ROD_COLOR)])
-                .with_radii([Radius::new_ui_points(1.5)])
-                .with_draw_order(DRAW_ROD),
-        );
-
-        // Normals and reactions at constrained nodes; logged empty once when contact ends.
-        let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
-        let e = &self.rods[r];
-        if !contacts.is_empty() || e.had_contacts {
-            let (normals, reactions) = (e.normals.clone(), e.reactions.clone());
-            let origins: Vec<[f32; 2]> = contacts.iter().map(|&i| p(i)).collect();
-            let nl = style.normal_length;
-            let nvec = contacts.iter().map(|&i| {
-                [
-                    (nl * v.normal[2 * i]) as f32,
-                    (nl * v.normal[2 * i + 1]) as f32,
-                ]
-            });
-            self.log(
-                &normals,
-                &Arrows2D::from_vectors(nvec)
-                    .with_origins(origins.iter().copied())
-                    .with_colors([rgb(NORMAL_COLOR)])
-                    .with_radii([0.25 * radius])
-                    .with_draw_order(DRAW_NORMALS),
-            );
-            let mut rvec = Vec::with_capacity(contacts.len());
-            let mut labels = Vec::with_capacity(contacts.len());
-            for &i in &contacts {
-                let f = node_norm(v.reaction, i);
-                let s = if f > 0.0 {
-                    style.reaction_length * style.level(f) / f
-                } else {
-                    0.0
-                };
-                rvec.push([
-                    (s * v.reaction[2 * i]) as f32,
-                    (s * v.reaction[2 * i + 1]) as f32,
-                ]);
-                labels.push(format!("{f:.3} N"));
-            }
-            self.log(
-                &reactions,
-                &Arrows2D::from_vectors(rvec)
-                    .with_origins(origins)
-                    .with_labels(labels)
-                    .with_colors([rgb(RodStyle::heat(1.0))])
-                    .with_radii([0.5 * radius])
-                    .with_draw_order(DRAW_REACTIONS),
-            );
-        }
-        self.rods[r].had_contacts = !contacts.is_empty();
-
-        // The predictor's positions where a corrector pass moved the rod.
-        if corrected || self.rods[r].had_predictor {
-            let ghost: Vec<[f32; 2]> = if corrected {
-                v.q_predictor
-                    .chunks_exact(2)
-                    .map(|c| [c[0] as f32, c[1] as f32])
-                    .collect()
-            } else {
-                Vec::new()
-            };
-            let predictor = self.rods[r].predictor.clone();
-            self.log(
-                &predictor,
-                &Points2D::new(ghost)
-                    .with_radii([0.8 * radius])
-                    .with_colors([Color::from_unmultiplied_rgba(150, 150, 150, 110)])
-                    .with_draw_order(DRAW_GHOSTS),
-            );
-        }
-        self.rods[r].had_predictor = corrected;
+        let Some(rec) = self.rec.clone() else {
+            return;
+        };
+        let res = self.rods[r].draw(&rec, style, v, corrected, Look::Live);
+        self.check(res);
     }
 
     fn iteration(&mut self, ev: IterationEvent<'_>) {
@@ -539,9 +469,157 @@ impl RerunSink {
     }
 }
 
+impl RodEntities {
+    /// The entities of rod `info` under `root`: `root/<rod>/nodes`, `…/centerline`,
+    /// `…/normals`, `…/reactions`, `…/predictor`, `…/iterate` (a live run uses `["scene"]`).
+    pub fn new(root: &[&str], info: RodInfo) -> Self {
+        let rod = |kind: &str| {
+            let mut parts: Vec<&str> = root.to_vec();
+            parts.extend([info.name.as_str(), kind]);
+            path(&parts)
+        };
+        Self {
+            nodes: rod("nodes"),
+            centerline: rod("centerline"),
+            normals: rod("normals"),
+            reactions: rod("reactions"),
+            predictor: rod("predictor"),
+            iterate: rod("iterate"),
+            had_contacts: true,
+            had_predictor: true,
+            info,
+        }
+    }
+
+    /// Log the rod's state `v` at the stream's current time. `corrected`: a corrector pass
+    /// moved the rod this step (its predictor positions are shown).
+    pub fn draw(
+        &mut self,
+        rec: &RecordingStream,
+        style: &RodStyle,
+        v: &RodStepView<'_>,
+        corrected: bool,
+        look: Look,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        let n = v.in_contact.len();
+        let p = |i: usize| [v.q[2 * i] as f32, v.q[2 * i + 1] as f32];
+        let radius = style.node_radius as f32;
+        let points: Vec<[f32; 2]> = (0..n).map(p).collect();
+        if look == Look::Ghost {
+            // Opaque light grey: translucent points render dark in some viewers.
+            rec.log(
+                self.nodes.clone(),
+                &Points2D::new(points.iter().copied())
+                    .with_radii([0.8 * radius])
+                    .with_colors([rgb(GHOST_COLOR)])
+                    .with_draw_order(DRAW_GHOSTS),
+            )?;
+            return rec.log(
+                self.centerline.clone(),
+                &LineStrips2D::new([points])
+                    .with_colors([rgb(GHOST_COLOR)])
+                    .with_radii([Radius::new_ui_points(1.5)])
+                    .with_draw_order(DRAW_GHOSTS),
+            );
+        }
+        let colors: Vec<Color> = (0..n)
+            .map(|i| {
+                if self.info.clamped.get(i).copied().unwrap_or(false) {
+                    rgb(DRIVEN_COLOR)
+                } else {
+                    rgb(RodStyle::heat(style.level(node_norm(v.reaction, i))))
+                }
+            })
+            .collect();
+        rec.log(
+            self.nodes.clone(),
+            &Points2D::new(points.iter().copied())
+                .with_radii([radius])
+                .with_colors(colors)
+                .with_draw_order(DRAW_NODES),
+        )?;
+        rec.log(
+            self.centerline.clone(),
+            &LineStrips2D::new([points])
+                .with_colors([rgb(ROD_COLOR)])
+                .with_radii([Radius::new_ui_points(1.5)])
+                .with_draw_order(DRAW_ROD),
+        )?;
+
+        // Normals and reactions at constrained nodes; logged empty once when contact ends.
+        let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
+        if !contacts.is_empty() || self.had_contacts {
+            let origins: Vec<[f32; 2]> = contacts.iter().map(|&i| p(i)).collect();
+            let nl = style.normal_length;
+            let nvec = contacts.iter().map(|&i| {
+                [
+                    (nl * v.normal[2 * i]) as f32,
+                    (nl * v.normal[2 * i + 1]) as f32,
+                ]
+            });
+            rec.log(
+                self.normals.clone(),
+                &Arrows2D::from_vectors(nvec)
+                    .with_origins(origins.iter().copied())
+                    .with_colors([rgb(NORMAL_COLOR)])
+                    .with_radii([0.25 * radius])
+                    .with_draw_order(DRAW_NORMALS),
+            )?;
+            let mut rvec = Vec::with_capacity(contacts.len());
+            let mut labels = Vec::with_capacity(contacts.len());
+            for &i in &contacts {
+                let f = node_norm(v.reaction, i);
+                let s = if f > 0.0 {
+                    style.reaction_length * style.level(f) / f
+                } else {
+                    0.0
+                };
+                rvec.push([
+                    (s * v.reaction[2 * i]) as f32,
+                    (s * v.reaction[2 * i + 1]) as f32,
+                ]);
+                labels.push(format!("{f:.3} N"));
+            }
+            rec.log(
+                self.reactions.clone(),
+                &Arrows2D::from_vectors(rvec)
+                    .with_origins(origins)
+                    .with_labels(labels)
+                    .with_colors([rgb(RodStyle::heat(1.0))])
+                    .with_radii([0.5 * radius])
+                    .with_draw_order(DRAW_REACTIONS),
+            )?;
+        }
+        self.had_contacts = !contacts.is_empty();
+
+        // The predictor's positions where a corrector pass moved the rod.
+        if corrected || self.had_predictor {
+            let ghost: Vec<[f32; 2]> = if corrected {
+                v.q_predictor
+                    .chunks_exact(2)
+                    .map(|c| [c[0] as f32, c[1] as f32])
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            rec.log(
+                self.predictor.clone(),
+                &Points2D::new(ghost)
+                    .with_radii([0.8 * radius])
+                    .with_colors([Color::from_unmultiplied_rgba(150, 150, 150, 110)])
+                    .with_draw_order(DRAW_GHOSTS),
+            )?;
+        }
+        self.had_predictor = corrected;
+        Ok(())
+    }
+}
+
 // Draw order in the 2D view (higher on top): a normal shares its direction with the
 // node's reaction, so the thin normal is drawn over the thick reaction arrow.
 const DRAW_OBSTACLES: f32 = 5.0;
+/// Colour of a second run drawn for comparison ([`Look::Ghost`]).
+const GHOST_COLOR: [u8; 3] = [185, 190, 200];
 const DRAW_GHOSTS: f32 = 10.0;
 const DRAW_ROD: f32 = 20.0;
 const DRAW_REACTIONS: f32 = 30.0;

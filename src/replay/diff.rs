@@ -1,0 +1,947 @@
+//! Two runs compared on simulated time.
+//!
+//! The runs may use different, proximity-switched or adaptive step sizes, so they are compared
+//! at the union of their step times: at each such time the run without a step there is
+//! interpolated linearly between its two neighbouring steps. Positions, velocities and eq. 2
+//! reactions are compared node by node (Euclidean norm of the difference vector); contact
+//! events are paired by rod, node, change and obstacle; spikes and sticking episodes found by
+//! [`super::detect`] are paired the same way.
+
+use super::detect::{self, Counts, Findings, Thresholds};
+use super::read::Run;
+use super::{ReplayError, REPORT_VERSION};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// When two runs count as the same (each one a `gripsim replay diff` flag).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, clap::Args)]
+pub struct Tolerances {
+    /// Largest position difference |q_A - q_B| per node (m).
+    #[arg(long, value_name = "M", default_value = "1e-9")]
+    pub tol_position: f64,
+    /// Largest velocity difference per node (m/s).
+    #[arg(long, value_name = "M/S", default_value = "1e-6")]
+    pub tol_velocity: f64,
+    /// Largest eq. 2 reaction difference per node (N).
+    #[arg(long, value_name = "N", default_value = "1e-6")]
+    pub tol_reaction: f64,
+    /// Largest time shift of a contact event, and of the runs' ends (s) [default: one step,
+    /// the larger step of the two runs at that time].
+    #[arg(long, value_name = "S")]
+    pub tol_time: Option<f64>,
+    /// Contact events and findings further apart than this (s) are not paired: each is then
+    /// reported as found in one run only.
+    #[arg(long, value_name = "S", default_value = "5e-3")]
+    pub event_window: f64,
+}
+
+impl Tolerances {
+    pub const DEFAULT: Tolerances = Tolerances {
+        tol_position: 1e-9,
+        tol_velocity: 1e-6,
+        tol_reaction: 1e-6,
+        tol_time: None,
+        event_window: 5e-3,
+    };
+
+    pub fn validate(&self) -> Result<(), String> {
+        let all = [
+            ("--tol-position", self.tol_position),
+            ("--tol-velocity", self.tol_velocity),
+            ("--tol-reaction", self.tol_reaction),
+            ("--tol-time", self.tol_time.unwrap_or(0.0)),
+            ("--event-window", self.event_window),
+        ];
+        for (name, v) in all {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} must be a finite number >= 0, got {v}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for Tolerances {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// One run as the report names it.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunRef {
+    pub file: String,
+    pub scenario: String,
+    pub gripsim_version: String,
+    pub steps: usize,
+    pub t_end: f64,
+    pub truncated: Option<String>,
+    pub completed: Option<bool>,
+}
+
+impl RunRef {
+    fn of(run: &Run) -> Self {
+        Self {
+            file: run.path.display().to_string(),
+            scenario: run.meta.scenario_name.clone(),
+            gripsim_version: run.meta.gripsim_version.clone(),
+            steps: run.steps.len(),
+            t_end: run.t_end(),
+            truncated: run.status.truncated.clone(),
+            completed: run.completed(),
+        }
+    }
+}
+
+/// A scenario value that differs, by dotted path (`rod.0.E`); null where a run lacks it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamDiff {
+    pub key: String,
+    pub a: Option<serde_json::Value>,
+    pub b: Option<serde_json::Value>,
+}
+
+/// The time spans of the two runs.
+#[derive(Debug, Clone, Serialize)]
+pub struct Span {
+    pub a_t_end: f64,
+    pub b_t_end: f64,
+    /// Both runs are compared up to here.
+    pub compared_to: f64,
+    /// The ends differ by more than the time tolerance.
+    pub differs: bool,
+}
+
+/// The first time a node's quantity differs beyond its tolerance.
+#[derive(Debug, Clone, Serialize)]
+pub struct Divergence {
+    pub t: f64,
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    /// `position`, `velocity` or `reaction`.
+    pub quantity: &'static str,
+    pub a: [f64; 2],
+    pub b: [f64; 2],
+    pub difference: f64,
+    pub tolerance: f64,
+    /// The step of each run at or just after `t`.
+    pub step_a: u64,
+    pub step_b: u64,
+}
+
+/// The largest difference of one quantity at one node, and when.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Max {
+    pub max: f64,
+    pub t: f64,
+}
+
+impl Max {
+    fn add(&mut self, d: f64, t: f64) {
+        if d > self.max {
+            self.max = d;
+            self.t = t;
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct NodeDiff {
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    pub position: Max,
+    pub velocity: Max,
+    pub reaction: Max,
+    /// The quantities over their tolerance.
+    pub exceeds: Vec<&'static str>,
+}
+
+/// A contact event found in one run only, or in both at different times.
+#[derive(Debug, Clone, Serialize)]
+pub struct EventDiff {
+    /// `only_a`, `only_b` or `shifted`.
+    pub status: &'static str,
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    /// `added` or `released`.
+    pub change: String,
+    pub obstacle: usize,
+    pub t_a: Option<f64>,
+    pub t_b: Option<f64>,
+    pub step_a: Option<u64>,
+    pub step_b: Option<u64>,
+    /// t_b − t_a for a shifted pair.
+    pub shift: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct EventCounts {
+    pub a: usize,
+    pub b: usize,
+    pub matched: usize,
+    pub shifted: usize,
+    pub only_a: usize,
+    pub only_b: usize,
+}
+
+/// A spike or sticking episode found in one run only.
+#[derive(Debug, Clone, Serialize)]
+pub struct FindingDiff {
+    /// `only_a` or `only_b`.
+    pub status: &'static str,
+    /// `spike` or `sticking`.
+    pub category: &'static str,
+    /// The spike kind or sticking rule.
+    pub kind: &'static str,
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    pub step: u64,
+    pub t: f64,
+}
+
+/// The report of `replay diff`.
+#[derive(Debug, Clone, Serialize)]
+pub struct DiffReport {
+    pub report_version: u32,
+    pub a: RunRef,
+    pub b: RunRef,
+    pub tolerances: Tolerances,
+    pub thresholds: Thresholds,
+    pub within_tolerance: bool,
+    pub parameters: Vec<ParamDiff>,
+    pub span: Span,
+    /// Times compared (the union of both runs' step times up to `span.compared_to`).
+    pub samples: usize,
+    pub first_divergence: Option<Divergence>,
+    pub nodes: Vec<NodeDiff>,
+    pub contact_event_counts: EventCounts,
+    pub contact_events: Vec<EventDiff>,
+    pub counts_a: Counts,
+    pub counts_b: Counts,
+    pub findings: Vec<FindingDiff>,
+    /// What each run found, for the overlay (not serialised: `replay check` reports it).
+    #[serde(skip)]
+    pub findings_a: Findings,
+    #[serde(skip)]
+    pub findings_b: Findings,
+}
+
+/// Why two runs cannot be compared node by node, if they cannot.
+pub fn comparable(a: &Run, b: &Run) -> Result<(), ReplayError> {
+    let desc = |r: &Run| {
+        let rods: Vec<String> = r
+            .meta
+            .rods
+            .iter()
+            .map(|x| format!("{:?} with {} node(s)", x.name, x.nodes))
+            .collect();
+        format!(
+            "{} ({} rod(s): {})",
+            r.path.display(),
+            r.meta.rods.len(),
+            rods.join(", ")
+        )
+    };
+    let same = a.meta.rods.len() == b.meta.rods.len()
+        && a.meta
+            .rods
+            .iter()
+            .zip(&b.meta.rods)
+            .all(|(x, y)| x.nodes == y.nodes);
+    if !same {
+        return Err(ReplayError::new(format!(
+            "cannot compare the runs node by node: A is {} and B is {}. A diff pairs rod i node j \
+             of A with rod i node j of B, so both runs need the same rods in the same order with \
+             the same node counts (compare their summaries instead)",
+            desc(a),
+            desc(b)
+        )));
+    }
+    if a.dynamic() != b.dynamic() {
+        return Err(ReplayError::new(format!(
+            "cannot compare a {} run ({}) with a {} run ({}): one is timed by simulated time, the \
+             other by load factor",
+            a.meta.mode,
+            a.path.display(),
+            b.meta.mode,
+            b.path.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Every leaf of a TOML table by dotted path; arrays of tables are indexed (`rod.0.E`), other
+/// arrays are one value.
+pub fn flatten(prefix: &str, v: &toml::Value, out: &mut BTreeMap<String, toml::Value>) {
+    let key = |k: &str| {
+        if prefix.is_empty() {
+            k.to_string()
+        } else {
+            format!("{prefix}.{k}")
+        }
+    };
+    match v {
+        toml::Value::Table(t) => {
+            for (k, x) in t {
+                flatten(&key(k), x, out);
+            }
+        }
+        toml::Value::Array(a) if !a.is_empty() && a.iter().all(|x| x.is_table()) => {
+            for (i, x) in a.iter().enumerate() {
+                flatten(&key(&i.to_string()), x, out);
+            }
+        }
+        other => {
+            out.insert(prefix.to_string(), other.clone());
+        }
+    }
+}
+
+/// Scenario values that differ between the runs, by dotted path.
+pub fn parameter_diff(a: &Run, b: &Run) -> Vec<ParamDiff> {
+    let parse = |r: &Run| {
+        let mut m = BTreeMap::new();
+        if let Ok(t) = r.meta.scenario_text.parse::<toml::Table>() {
+            flatten("", &toml::Value::Table(t), &mut m);
+        }
+        m
+    };
+    let (pa, pb) = (parse(a), parse(b));
+    let json = |v: &toml::Value| serde_json::to_value(v).ok();
+    let mut keys: Vec<&String> = pa.keys().chain(pb.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    keys.into_iter()
+        .filter(|k| pa.get(*k) != pb.get(*k))
+        .map(|k| ParamDiff {
+            key: k.clone(),
+            a: pa.get(k).and_then(json),
+            b: pb.get(k).and_then(json),
+        })
+        .collect()
+}
+
+/// Where a time falls in a run: the steps around it and the blend weight of the later one.
+#[derive(Debug, Clone, Copy)]
+pub struct At {
+    pub k0: usize,
+    pub k1: usize,
+    pub w: f64,
+}
+
+impl At {
+    /// Linear interpolation of node `i`'s vector in `field` of rod `r`.
+    pub fn vec2(
+        &self,
+        run: &Run,
+        r: usize,
+        i: usize,
+        field: fn(&super::read::RodState) -> &[f64],
+    ) -> [f64; 2] {
+        let a = field(&run.steps[self.k0].rods[r]);
+        if self.w == 0.0 {
+            return [a[2 * i], a[2 * i + 1]];
+        }
+        let b = field(&run.steps[self.k1].rods[r]);
+        let w = self.w;
+        [
+            a[2 * i] + w * (b[2 * i] - a[2 * i]),
+            a[2 * i + 1] + w * (b[2 * i + 1] - a[2 * i + 1]),
+        ]
+    }
+
+    /// The step at or just after the time.
+    pub fn step(&self, run: &Run) -> u64 {
+        if self.w == 0.0 {
+            run.steps[self.k0].step
+        } else {
+            run.steps[self.k1].step
+        }
+    }
+}
+
+/// Locate `t` in `run` (clamped to its span).
+pub fn locate(run: &Run, t: f64) -> At {
+    let s = &run.steps;
+    let k1 = s.partition_point(|x| x.t < t);
+    if k1 >= s.len() {
+        return At {
+            k0: s.len() - 1,
+            k1: s.len() - 1,
+            w: 0.0,
+        };
+    }
+    if s[k1].t == t || k1 == 0 {
+        return At { k0: k1, k1, w: 0.0 };
+    }
+    let k0 = k1 - 1;
+    let w = (t - s[k0].t) / (s[k1].t - s[k0].t);
+    At { k0, k1, w }
+}
+
+/// The step size of the step that ends at or just after `t`.
+fn dt_at(run: &Run, t: f64) -> f64 {
+    let at = locate(run, t);
+    let k = if at.w == 0.0 { at.k0 } else { at.k1 };
+    let dt = run.steps[k].dt;
+    if dt > 0.0 {
+        dt
+    } else {
+        run.steps.get(k + 1).map(|s| s.dt).unwrap_or(0.0)
+    }
+}
+
+/// The sorted union of both runs' step times up to `end`.
+pub fn sample_times(a: &Run, b: &Run, end: f64) -> Vec<f64> {
+    let mut t: Vec<f64> = a
+        .steps
+        .iter()
+        .chain(&b.steps)
+        .map(|s| s.t)
+        .filter(|&t| t <= end)
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t.dedup();
+    t
+}
+
+pub fn pos(v: &super::read::RodState) -> &[f64] {
+    &v.q
+}
+pub fn vel(v: &super::read::RodState) -> &[f64] {
+    &v.u
+}
+pub fn reac(v: &super::read::RodState) -> &[f64] {
+    &v.reaction
+}
+
+/// Compare two runs.
+pub fn diff(
+    a: &Run,
+    b: &Run,
+    tol: &Tolerances,
+    th: &Thresholds,
+) -> Result<DiffReport, ReplayError> {
+    comparable(a, b)?;
+    let parameters = parameter_diff(a, b);
+    let (ta, tb) = (a.t_end(), b.t_end());
+    let end = ta.min(tb);
+    let time_tol = |t: f64| {
+        tol.tol_time
+            .unwrap_or_else(|| dt_at(a, t).max(dt_at(b, t)) * (1.0 + 1e-9))
+    };
+    let span = Span {
+        a_t_end: ta,
+        b_t_end: tb,
+        compared_to: end,
+        differs: (ta - tb).abs() > time_tol(end),
+    };
+
+    let times = sample_times(a, b, end);
+    let quantities: [(&'static str, fn(&super::read::RodState) -> &[f64], f64); 3] = [
+        ("position", pos, tol.tol_position),
+        ("velocity", vel, tol.tol_velocity),
+        ("reaction", reac, tol.tol_reaction),
+    ];
+    let mut nodes: Vec<NodeDiff> = Vec::new();
+    for (r, rod) in a.meta.rods.iter().enumerate() {
+        for i in 0..rod.nodes {
+            nodes.push(NodeDiff {
+                rod: r,
+                rod_name: rod.name.clone(),
+                node: i,
+                position: Max::default(),
+                velocity: Max::default(),
+                reaction: Max::default(),
+                exceeds: Vec::new(),
+            });
+        }
+    }
+    let mut first: Option<Divergence> = None;
+    for &t in &times {
+        let (la, lb) = (locate(a, t), locate(b, t));
+        let mut worst: Option<(f64, Divergence)> = None;
+        let mut idx = 0;
+        for (r, rod) in a.meta.rods.iter().enumerate() {
+            for i in 0..rod.nodes {
+                let nd = &mut nodes[idx];
+                idx += 1;
+                for (q, (name, field, tolerance)) in quantities.iter().enumerate() {
+                    let (va, vb) = (la.vec2(a, r, i, *field), lb.vec2(b, r, i, *field));
+                    let d = (va[0] - vb[0]).hypot(va[1] - vb[1]);
+                    match q {
+                        0 => nd.position.add(d, t),
+                        1 => nd.velocity.add(d, t),
+                        _ => nd.reaction.add(d, t),
+                    }
+                    if first.is_none() && d > *tolerance {
+                        let ratio = if *tolerance > 0.0 {
+                            d / tolerance
+                        } else {
+                            f64::INFINITY
+                        };
+                        if worst.as_ref().is_none_or(|(w, _)| ratio > *w) {
+                            worst = Some((
+                                ratio,
+                                Divergence {
+                                    t,
+                                    rod: r,
+                                    rod_name: rod.name.clone(),
+                                    node: i,
+                                    quantity: name,
+                                    a: va,
+                                    b: vb,
+                                    difference: d,
+                                    tolerance: *tolerance,
+                                    step_a: la.step(a),
+                                    step_b: lb.step(b),
+                                },
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+        if first.is_none() {
+            first = worst.map(|w| w.1);
+        }
+    }
+    for nd in &mut nodes {
+        for (name, m, tolerance) in [
+            ("position", nd.position, tol.tol_position),
+            ("velocity", nd.velocity, tol.tol_velocity),
+            ("reaction", nd.reaction, tol.tol_reaction),
+        ] {
+            if m.max > tolerance {
+                nd.exceeds.push(name);
+            }
+        }
+    }
+
+    // Contact events, paired by (rod, node, change, obstacle) and nearest time.
+    let in_span = |t: f64| t <= end + time_tol(end);
+    let ea: Vec<&super::read::Contact> = a.contacts.iter().filter(|c| in_span(c.t)).collect();
+    let eb: Vec<&super::read::Contact> = b.contacts.iter().filter(|c| in_span(c.t)).collect();
+    let mut used = vec![false; eb.len()];
+    let mut counts = EventCounts {
+        a: ea.len(),
+        b: eb.len(),
+        ..EventCounts::default()
+    };
+    let mut events = Vec::new();
+    let name = |r: usize| a.meta.rods[r].name.clone();
+    // B's events by (rod, node, change, obstacle), so pairing looks at one node's events only.
+    let mut groups: BTreeMap<(usize, usize, &str, usize), Vec<usize>> = BTreeMap::new();
+    for (j, y) in eb.iter().enumerate() {
+        groups
+            .entry((y.rod, y.node, y.change.as_str(), y.obstacle))
+            .or_default()
+            .push(j);
+    }
+    for x in &ea {
+        let best = groups
+            .get(&(x.rod, x.node, x.change.as_str(), x.obstacle))
+            .into_iter()
+            .flatten()
+            .map(|&j| (j, eb[j]))
+            .filter(|(j, y)| !used[*j] && (y.t - x.t).abs() <= tol.event_window)
+            .min_by(|p, q| (p.1.t - x.t).abs().total_cmp(&(q.1.t - x.t).abs()));
+        match best {
+            Some((j, y)) => {
+                used[j] = true;
+                counts.matched += 1;
+                if (y.t - x.t).abs() > time_tol(x.t.min(y.t)) {
+                    counts.shifted += 1;
+                    events.push(EventDiff {
+                        status: "shifted",
+                        rod: x.rod,
+                        rod_name: name(x.rod),
+                        node: x.node,
+                        change: x.change.clone(),
+                        obstacle: x.obstacle,
+                        t_a: Some(x.t),
+                        t_b: Some(y.t),
+                        step_a: Some(x.step),
+                        step_b: Some(y.step),
+                        shift: Some(y.t - x.t),
+                    });
+                }
+            }
+            None => {
+                counts.only_a += 1;
+                events.push(EventDiff {
+                    status: "only_a",
+                    rod: x.rod,
+                    rod_name: name(x.rod),
+                    node: x.node,
+                    change: x.change.clone(),
+                    obstacle: x.obstacle,
+                    t_a: Some(x.t),
+                    t_b: None,
+                    step_a: Some(x.step),
+                    step_b: None,
+                    shift: None,
+                });
+            }
+        }
+    }
+    for (j, y) in eb.iter().enumerate() {
+        if !used[j] {
+            counts.only_b += 1;
+            events.push(EventDiff {
+                status: "only_b",
+                rod: y.rod,
+                rod_name: name(y.rod),
+                node: y.node,
+                change: y.change.clone(),
+                obstacle: y.obstacle,
+                t_a: None,
+                t_b: Some(y.t),
+                step_a: None,
+                step_b: Some(y.step),
+                shift: None,
+            });
+        }
+    }
+    events.sort_by(|p, q| {
+        let t = |e: &EventDiff| e.t_a.or(e.t_b).unwrap_or(0.0);
+        t(p).total_cmp(&t(q))
+    });
+
+    // Spikes and sticking found in one run only.
+    let fa = detect::detect(a, th);
+    let fb = detect::detect(b, th);
+    let findings = finding_diff(&fa, &fb, end + time_tol(end), tol.event_window);
+
+    let within_tolerance = !span.differs
+        && first.is_none()
+        && counts.shifted == 0
+        && counts.only_a == 0
+        && counts.only_b == 0
+        && findings.is_empty();
+    Ok(DiffReport {
+        report_version: REPORT_VERSION,
+        a: RunRef::of(a),
+        b: RunRef::of(b),
+        tolerances: *tol,
+        thresholds: *th,
+        within_tolerance,
+        parameters,
+        span,
+        samples: times.len(),
+        first_divergence: first,
+        nodes,
+        contact_event_counts: counts,
+        contact_events: events,
+        counts_a: fa.counts(),
+        counts_b: fb.counts(),
+        findings,
+        findings_a: fa,
+        findings_b: fb,
+    })
+}
+
+/// Findings of one run with no counterpart (same category, kind, rod and node within
+/// `window` seconds) in the other.
+fn finding_diff(fa: &Findings, fb: &Findings, end: f64, window: f64) -> Vec<FindingDiff> {
+    type Key = (&'static str, &'static str, usize, usize);
+    let list = |f: &Findings| -> Vec<(Key, String, u64, f64)> {
+        f.spikes
+            .iter()
+            .map(|s| {
+                (
+                    ("spike", s.kind, s.rod, s.node),
+                    s.rod_name.clone(),
+                    s.step,
+                    s.t,
+                )
+            })
+            .chain(f.sticking.iter().map(|s| {
+                (
+                    ("sticking", s.rule, s.rod, s.node),
+                    s.rod_name.clone(),
+                    s.step,
+                    s.t,
+                )
+            }))
+            .filter(|x| x.3 <= end)
+            .collect()
+    };
+    let (la, lb) = (list(fa), list(fb));
+    let mut used_b = vec![false; lb.len()];
+    let mut used_a = vec![false; la.len()];
+    let mut groups: BTreeMap<Key, Vec<usize>> = BTreeMap::new();
+    for (j, y) in lb.iter().enumerate() {
+        groups.entry(y.0).or_default().push(j);
+    }
+    for (i, x) in la.iter().enumerate() {
+        let best = groups
+            .get(&x.0)
+            .into_iter()
+            .flatten()
+            .map(|&j| (j, &lb[j]))
+            .filter(|(j, y)| !used_b[*j] && (y.3 - x.3).abs() <= window)
+            .min_by(|p, q| (p.1 .3 - x.3).abs().total_cmp(&(q.1 .3 - x.3).abs()));
+        if let Some((j, _)) = best {
+            used_b[j] = true;
+            used_a[i] = true;
+        }
+    }
+    let mut out: Vec<FindingDiff> = Vec::new();
+    for (status, l, used) in [("only_a", &la, &used_a), ("only_b", &lb, &used_b)] {
+        for (x, u) in l.iter().zip(used.iter()) {
+            if !u {
+                out.push(FindingDiff {
+                    status,
+                    category: x.0 .0,
+                    kind: x.0 .1,
+                    rod: x.0 .2,
+                    rod_name: x.1.clone(),
+                    node: x.0 .3,
+                    step: x.2,
+                    t: x.3,
+                });
+            }
+        }
+    }
+    out.sort_by(|p, q| p.t.total_cmp(&q.t));
+    out
+}
+
+fn g(x: f64) -> String {
+    super::g(x)
+}
+
+/// The human form of a diff report.
+pub fn format_diff(rep: &DiffReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    for (tag, r) in [("A", &rep.a), ("B", &rep.b)] {
+        let _ = writeln!(
+            s,
+            "{tag}  {}  ({}, {} steps to t = {} s{})",
+            r.file,
+            r.scenario,
+            r.steps,
+            g(r.t_end),
+            if r.truncated.is_some() {
+                ", INCOMPLETE"
+            } else {
+                ""
+            }
+        );
+    }
+    let _ = writeln!(s);
+    if rep.parameters.is_empty() {
+        let _ = writeln!(s, "parameters       identical");
+    } else {
+        let _ = writeln!(s, "parameters       {} differ", rep.parameters.len());
+        let show = |v: &Option<serde_json::Value>| match v {
+            None => "(absent)".to_string(),
+            Some(x) => x.to_string(),
+        };
+        let _ = writeln!(s, "  {:<28} {:>22} {:>22}", "key", "A", "B");
+        for p in rep.parameters.iter().take(super::MAX_ROWS) {
+            let _ = writeln!(s, "  {:<28} {:>22} {:>22}", p.key, show(&p.a), show(&p.b));
+        }
+    }
+    let _ = writeln!(
+        s,
+        "span             A to {} s, B to {} s; compared at {} times up to {} s{}",
+        g(rep.span.a_t_end),
+        g(rep.span.b_t_end),
+        rep.samples,
+        g(rep.span.compared_to),
+        if rep.span.differs { "  DIFFERS" } else { "" }
+    );
+    match &rep.first_divergence {
+        None => {
+            let _ = writeln!(s, "first divergence none");
+        }
+        Some(d) => {
+            let _ = writeln!(
+                s,
+                "first divergence t = {} s, rod {:?} node {}, {}: |A - B| = {} > {} (A step {}, B step {})",
+                g(d.t),
+                d.rod_name,
+                d.node,
+                d.quantity,
+                g(d.difference),
+                g(d.tolerance),
+                d.step_a,
+                d.step_b
+            );
+        }
+    }
+    let over: Vec<&NodeDiff> = rep.nodes.iter().filter(|n| !n.exceeds.is_empty()).collect();
+    let _ = writeln!(
+        s,
+        "\nper node maxima   ({} of {} nodes over tolerance: position {} m, velocity {} m/s, reaction {} N)",
+        over.len(),
+        rep.nodes.len(),
+        g(rep.tolerances.tol_position),
+        g(rep.tolerances.tol_velocity),
+        g(rep.tolerances.tol_reaction)
+    );
+    let _ = writeln!(
+        s,
+        "  {:<10} {:>4}  {:>10} {:>10}  {:>10} {:>10}  {:>10} {:>10}",
+        "rod", "node", "|dq| m", "at t", "|du| m/s", "at t", "|dR| N", "at t"
+    );
+    let mark = |n: &NodeDiff, q: &str| if n.exceeds.contains(&q) { "*" } else { " " };
+    for n in rep.nodes.iter().take(super::MAX_ROWS) {
+        let _ = writeln!(
+            s,
+            "  {:<10} {:>4}  {:>9}{} {:>10}  {:>9}{} {:>10}  {:>9}{} {:>10}",
+            n.rod_name,
+            n.node,
+            g(n.position.max),
+            mark(n, "position"),
+            g(n.position.t),
+            g(n.velocity.max),
+            mark(n, "velocity"),
+            g(n.velocity.t),
+            g(n.reaction.max),
+            mark(n, "reaction"),
+            g(n.reaction.t)
+        );
+    }
+    if rep.nodes.len() > super::MAX_ROWS {
+        let _ = writeln!(
+            s,
+            "  … and {} more nodes (all in --json)",
+            rep.nodes.len() - super::MAX_ROWS
+        );
+    }
+    let c = &rep.contact_event_counts;
+    let _ = writeln!(
+        s,
+        "\ncontact events   A {}, B {}: {} paired ({} shifted), {} only in A, {} only in B",
+        c.a, c.b, c.matched, c.shifted, c.only_a, c.only_b
+    );
+    if !rep.contact_events.is_empty() {
+        let _ = writeln!(
+            s,
+            "  {:<8} {:<10} {:>4} {:<9} {:>12} {:>12} {:>11}",
+            "status", "rod", "node", "change", "t A (s)", "t B (s)", "shift (s)"
+        );
+        let opt = |x: Option<f64>| x.map(g).unwrap_or_else(|| "-".into());
+        for e in rep.contact_events.iter().take(super::MAX_ROWS) {
+            let _ = writeln!(
+                s,
+                "  {:<8} {:<10} {:>4} {:<9} {:>12} {:>12} {:>11}",
+                e.status,
+                e.rod_name,
+                e.node,
+                e.change,
+                opt(e.t_a),
+                opt(e.t_b),
+                opt(e.shift)
+            );
+        }
+        if rep.contact_events.len() > super::MAX_ROWS {
+            let _ = writeln!(
+                s,
+                "  … and {} more (all in --json)",
+                rep.contact_events.len() - super::MAX_ROWS
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nspikes           A {} (impact {}, unexplained {}, alternating {}), B {} (impact {}, unexplained {}, alternating {})",
+        rep.counts_a.spikes,
+        rep.counts_a.impact,
+        rep.counts_a.unexplained,
+        rep.counts_a.alternating,
+        rep.counts_b.spikes,
+        rep.counts_b.impact,
+        rep.counts_b.unexplained,
+        rep.counts_b.alternating
+    );
+    let _ = writeln!(
+        s,
+        "sticking         A {}, B {}",
+        rep.counts_a.sticking, rep.counts_b.sticking
+    );
+    if !rep.findings.is_empty() {
+        let _ = writeln!(s, "found in one run only");
+        let _ = writeln!(
+            s,
+            "  {:<8} {:<9} {:<14} {:<10} {:>4} {:>9} {:>12}",
+            "status", "category", "kind", "rod", "node", "step", "t (s)"
+        );
+        for f in rep.findings.iter().take(super::MAX_ROWS) {
+            let _ = writeln!(
+                s,
+                "  {:<8} {:<9} {:<14} {:<10} {:>4} {:>9} {:>12}",
+                f.status,
+                f.category,
+                f.kind,
+                f.rod_name,
+                f.node,
+                f.step,
+                g(f.t)
+            );
+        }
+        if rep.findings.len() > super::MAX_ROWS {
+            let _ = writeln!(
+                s,
+                "  … and {} more (all in --json)",
+                rep.findings.len() - super::MAX_ROWS
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n{}",
+        if rep.within_tolerance {
+            "WITHIN TOLERANCE (exit 0)"
+        } else {
+            "DIFFERENT (exit 1)"
+        }
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        tol: Tolerances,
+    }
+
+    #[test]
+    fn flag_defaults_are_the_documented_defaults() {
+        let cli = Cli::try_parse_from(["x"]).unwrap();
+        assert_eq!(cli.tol, Tolerances::DEFAULT);
+    }
+
+    #[test]
+    fn scenario_tables_flatten_to_dotted_paths() {
+        let t: toml::Table = "a = 1\n[solve]\ngravity = [0.0, -9.8]\n[[rod]]\nE = 1e6\n[[rod]]\nE = 2e6\nshape = { kind = \"straight\" }\n"
+            .parse()
+            .unwrap();
+        let mut m = BTreeMap::new();
+        flatten("", &toml::Value::Table(t), &mut m);
+        let keys: Vec<&str> = m.keys().map(|k| k.as_str()).collect();
+        assert_eq!(
+            keys,
+            [
+                "a",
+                "rod.0.E",
+                "rod.1.E",
+                "rod.1.shape.kind",
+                "solve.gravity"
+            ]
+        );
+    }
+}

@@ -1,0 +1,553 @@
+//! Rerun views of stored runs.
+//!
+//! A stored run is turned back into the events of a live run and fed to the live
+//! [`RerunSink`], so `replay show` gives the same entities, timelines and layout as
+//! `gripsim run --rrd`. The overlays of `check --rrd` and `diff --rrd` are logged on the sink's
+//! stream right after each step, at the time the sink has just set:
+//!
+//! | entity | what |
+//! |---|---|
+//! | `scene/run_b/<rod>/nodes`, `…/centerline` | run B, light grey, at A's step times (interpolated) |
+//! | `scene/flags/spike/<rod>/node_<i>` | a ring where node i spiked, from that step on (colour by kind) |
+//! | `scene/flags/sticking/<rod>/node_<i>` | a ring where node i started to stick |
+//! | `scene/flags/run_b/…` | the same for run B's findings (diff), thinner |
+//! | `scene/divergence` | the first divergence: a ring at A's node, labelled with the quantity |
+//! | `diff/position/<rod>`, `diff/velocity/<rod>` | max over the rod's nodes of \|A − B\| (diff) |
+//! | `events` | one WARN line per finding and for the first divergence |
+
+use super::detect::{Findings, Spike, Sticking};
+use super::diff::{locate, DiffReport};
+use super::read::{read_messages, Message, Meta, Run, Step};
+use super::{CheckReport, ReplayError};
+use crate::events::{Event, Observer, RodInfo, RodStepView, RunInfo};
+use crate::record::rerun::{blueprint, blueprint_with, Look, RerunSink, RodEntities};
+use crate::record::{Detail, RecordOptions, Recording, SceneStyle};
+use crate::scenario::Scenario;
+use ::rerun::blueprint::{Blueprint, TimeSeriesView};
+use ::rerun::{
+    Color, EntityPath, EntityPathPart, LineStrips2D, Radius, RecordingStream, Scalars, TextLog,
+};
+use std::path::Path;
+
+/// What `show` wrote.
+#[derive(Debug, Clone)]
+pub struct Shown {
+    pub steps: usize,
+    /// Set when the MCAP was read only in part.
+    pub warning: Option<String>,
+}
+
+/// Owned arrays a [`RodStepView`] borrows that the MCAP stores differently.
+struct Views {
+    obstacles: Vec<Vec<usize>>,
+}
+
+impl Views {
+    fn of(step: &Step) -> Self {
+        Self {
+            obstacles: step
+                .rods
+                .iter()
+                .map(|r| {
+                    r.contact_obstacle
+                        .iter()
+                        .map(|o| o.unwrap_or(usize::MAX))
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+
+    fn views<'a>(&'a self, step: &'a Step) -> Vec<RodStepView<'a>> {
+        step.rods
+            .iter()
+            .zip(&self.obstacles)
+            .map(|(v, o)| RodStepView {
+                q: &v.q,
+                u: &v.u,
+                reaction: &v.reaction,
+                impulse: &v.impulse,
+                drive_force: &v.drive_force,
+                normal: &v.normal,
+                contact_obstacle: o,
+                in_contact: &v.in_contact,
+                bending_stress: &v.bending_stress,
+                gap: &v.gap,
+                q_predictor: &v.q_predictor,
+            })
+            .collect()
+    }
+}
+
+/// What a stored run's drive needs to know about the sink it creates.
+struct SinkSpec {
+    name: String,
+    text: String,
+    blueprint: Blueprint,
+    iterations: bool,
+}
+
+/// Read `path` in file order and feed it to a [`RerunSink`] writing `out`, calling
+/// `after_step(stream, step, style)` after each step has been logged. Returns the steps read
+/// and the read status warning.
+fn drive(
+    path: &Path,
+    out: &Path,
+    iterations: bool,
+    spec: impl FnOnce(&Meta) -> SinkSpec,
+    mut after_step: impl FnMut(&RecordingStream, &Step, &SceneStyle) -> Result<(), ReplayError>,
+) -> Result<Shown, ReplayError> {
+    let werr = |e: crate::record::RecordError| ReplayError::file(out, e.to_string());
+    let mut spec = Some(spec);
+    let mut sink: Option<RerunSink> = None;
+    let mut scenario: Option<Scenario> = None;
+    let mut infos: Vec<RodInfo> = Vec::new();
+    let mut style: Option<SceneStyle> = None;
+    let mut steps = 0usize;
+    let mut last: Option<(u64, f64)> = None;
+    let mut ended = false;
+    let status = read_messages(path, iterations, |m| {
+        match m {
+            Message::Meta(meta) => {
+                let sc = super::read::parse_scenario(path, &meta)?;
+                let s = (spec.take().expect("one /sim/meta"))(&meta);
+                let opts = RecordOptions {
+                    detail: if s.iterations {
+                        Detail::Iteration
+                    } else {
+                        Detail::Step
+                    },
+                    flush_every: meta.flush_every.max(1),
+                };
+                let mut k = RerunSink::create_named(out, opts, &s.name, &s.text, s.blueprint)
+                    .map_err(werr)?;
+                infos = meta.rods.iter().map(|r| r.info()).collect();
+                let info = RunInfo {
+                    scenario_name: &meta.scenario_name,
+                    scenario_text: &meta.scenario_text,
+                    rods: &infos,
+                    obstacles: &sc.obstacles,
+                    mode: sc.solve.mode,
+                };
+                k.on_event(&Event::RunStart(&info));
+                sink = Some(k);
+                scenario = Some(sc);
+            }
+            Message::Step(st) => {
+                let k = sink.as_mut().expect("meta first");
+                let owned = Views::of(&st);
+                let views = owned.views(&st);
+                if style.is_none() {
+                    let sc = scenario.as_ref().expect("meta first");
+                    style = Some(SceneStyle::new(&infos, &views, &sc.obstacles));
+                }
+                k.on_event(&Event::StepEnd {
+                    step: st.step,
+                    t: st.t,
+                    dt: st.dt,
+                    newton_iterations: st.newton_iterations,
+                    passes: st.passes,
+                    rods: &views,
+                });
+                steps += 1;
+                last = Some((st.step, st.t));
+                if let Some(rec) = k.stream() {
+                    after_step(rec, &st, style.as_ref().expect("set above"))?;
+                }
+            }
+            Message::Contact(c) => {
+                let k = sink.as_mut().expect("meta first");
+                if c.added() {
+                    k.on_event(&Event::ConstraintAdded(c.change()));
+                } else {
+                    k.on_event(&Event::ConstraintReleased(c.change(), c.release_reason()));
+                }
+            }
+            Message::Iteration(it) => {
+                let k = sink.as_mut().expect("meta first");
+                k.on_event(&Event::Iteration {
+                    step: it.step,
+                    t: it.t,
+                    phase: it.phase,
+                    pass: it.pass,
+                    iteration: it.iteration,
+                    rod: it.rod,
+                    residual: it.residual,
+                    update: it.update,
+                    q: &it.q,
+                });
+            }
+            Message::Event(e) => {
+                let Some(k) = sink.as_mut() else {
+                    return Ok(());
+                };
+                let reason = e.reason.as_deref().unwrap_or("");
+                match e.kind.as_str() {
+                    "dt_changed" => k.on_event(&Event::DtChanged {
+                        step: e.step,
+                        t: e.t,
+                        old: e.old_dt.unwrap_or(0.0),
+                        new: e.new_dt.unwrap_or(0.0),
+                        reason,
+                    }),
+                    "newton_failed" => k.on_event(&Event::NewtonFailed {
+                        step: e.step,
+                        t: e.t,
+                        dt: e.dt.unwrap_or(0.0),
+                        rod: e.rod.unwrap_or(0),
+                        node: e.node.unwrap_or(0),
+                        residual: e.residual.unwrap_or(0.0),
+                        reason,
+                    }),
+                    "run_end" => {
+                        ended = true;
+                        k.on_event(&Event::RunEnd {
+                            steps: e.step,
+                            t: e.t,
+                            error: e.error.as_deref(),
+                        });
+                    }
+                    // "warning" and kinds of later format versions: shown as warnings.
+                    _ => k.on_event(&Event::Warning {
+                        step: e.step,
+                        t: e.t,
+                        message: &e.message,
+                    }),
+                }
+            }
+        }
+        Ok(())
+    })?;
+    let mut k = sink.expect("read_messages checks /sim/meta");
+    let warning = status.truncated.as_ref().map(|why| {
+        let (s, t) = last.unwrap_or((0, 0.0));
+        format!(
+            "warning: {} is incomplete ({why}); read {steps} steps up to step {s} (t = {t} s), \
+             the last complete chunk",
+            path.display()
+        )
+    });
+    if !ended {
+        let (s, t) = last.unwrap_or((0, 0.0));
+        let why = format!(
+            "the recording stops at step {s} without the run's end: {}",
+            status
+                .truncated
+                .as_deref()
+                .unwrap_or("the run end event is missing")
+        );
+        k.on_event(&Event::RunEnd {
+            steps: s,
+            t,
+            error: Some(&why),
+        });
+    }
+    let done = k.finish().map_err(werr)?;
+    if done.path != out {
+        // An incomplete run keeps the sink's .partial name; the user asked for `out`.
+        std::fs::rename(&done.path, out)
+            .map_err(|e| ReplayError::file(out, format!("cannot rename the output: {e}")))?;
+    }
+    Ok(Shown { steps, warning })
+}
+
+/// `replay show`: the stored run as a `.rrd`, as a live run would have written it.
+pub fn show(path: &Path, out: &Path) -> Result<Shown, ReplayError> {
+    drive(
+        path,
+        out,
+        true,
+        |meta| SinkSpec {
+            name: meta.scenario_name.clone(),
+            text: meta.scenario_text.clone(),
+            blueprint: blueprint(),
+            iterations: meta.detail == "iteration",
+        },
+        |_, _, _| Ok(()),
+    )
+}
+
+// Ring colours; run B's findings are drawn with thinner rings.
+const IMPACT_COLOR: [u8; 3] = [230, 40, 200];
+const UNEXPLAINED_COLOR: [u8; 3] = [200, 0, 60];
+const ALTERNATING_COLOR: [u8; 3] = [130, 60, 255];
+const STICK_COLOR: [u8; 3] = [255, 150, 0];
+const DIVERGENCE_COLOR: [u8; 3] = [255, 30, 30];
+/// Rings sit over the nodes (they are outlines and hide nothing).
+const DRAW_HALO: f32 = 45.0;
+
+fn color(c: [u8; 3]) -> Color {
+    Color::from_rgb(c[0], c[1], c[2])
+}
+
+/// A finding to mark when the replay reaches its step.
+struct Mark {
+    /// Marked when the replayed run reaches this time.
+    t: f64,
+    rod: usize,
+    /// Where (m): the node's position in the run the finding belongs to.
+    at: [f64; 2],
+    entity: EntityPath,
+    /// The ring's label (shown only with `show_label`) and the events log line.
+    label: String,
+    text: String,
+    color: [u8; 3],
+    /// Ring radius relative to the node radius, and its line width (UI points).
+    scale: f32,
+    width: f32,
+    /// Show the label in the scene (the events log always has it): only the first
+    /// divergence, so that rings of neighbouring nodes do not stack their texts.
+    show_label: bool,
+}
+
+/// An entity path from parts (names may hold any character).
+fn ent(parts: &[&str]) -> EntityPath {
+    EntityPath::new(parts.iter().map(|p| EntityPathPart::new(*p)).collect())
+}
+
+fn spike_label(s: &Spike, tag: &str) -> String {
+    let steps = if s.last_step != s.step {
+        format!("steps {}-{}", s.step, s.last_step)
+    } else {
+        format!("step {}", s.step)
+    };
+    format!(
+        "{tag}{} spike of rod {:?} node {}, {steps}: jump {:.3e} m/s over dt = {:.1e} s ({:.2e} m)",
+        s.kind, s.rod_name, s.node, s.jump, s.dt, s.displacement
+    )
+}
+
+fn stick_label(s: &Sticking, tag: &str) -> String {
+    format!(
+        "{tag}sticking ({}) of rod {:?} node {}, steps {}-{}",
+        s.rule.replace('_', " "),
+        s.rod_name,
+        s.node,
+        s.step,
+        s.last_step
+    )
+}
+
+/// The position of node `i` of rod `r` in `run` at the step numbered `step`.
+fn node_at(run: &Run, r: usize, i: usize, step: u64) -> [f64; 2] {
+    let k = run
+        .steps
+        .partition_point(|s| s.step < step)
+        .min(run.steps.len() - 1);
+    let q = &run.steps[k].rods[r].q;
+    [q[2 * i], q[2 * i + 1]]
+}
+
+fn marks(run: &Run, f: &Findings, b: bool) -> Vec<Mark> {
+    let (root, tag, width): (&[&str], _, _) = if b {
+        (&["scene", "flags", "run_b"], "B: ", 1.0)
+    } else {
+        (&["scene", "flags"], "", 2.5)
+    };
+    let entity = |kind: &str, rod: &str, node: usize| {
+        let node = format!("node_{node}");
+        let mut parts = root.to_vec();
+        parts.extend([kind, rod, node.as_str()]);
+        ent(&parts)
+    };
+    let mut out = Vec::new();
+    for s in &f.spikes {
+        out.push(Mark {
+            t: s.t,
+            rod: s.rod,
+            at: node_at(run, s.rod, s.node, s.step),
+            entity: entity("spike", &s.rod_name, s.node),
+            label: String::new(),
+            text: spike_label(s, tag),
+            color: match s.kind {
+                "impact" => IMPACT_COLOR,
+                "unexplained" => UNEXPLAINED_COLOR,
+                _ => ALTERNATING_COLOR,
+            },
+            scale: if b { 1.6 } else { 1.9 },
+            width,
+            show_label: false,
+        });
+    }
+    for s in &f.sticking {
+        out.push(Mark {
+            t: s.t,
+            rod: s.rod,
+            at: node_at(run, s.rod, s.node, s.step),
+            entity: entity("sticking", &s.rod_name, s.node),
+            label: String::new(),
+            text: stick_label(s, tag),
+            color: STICK_COLOR,
+            scale: if b { 2.3 } else { 2.6 },
+            width,
+            show_label: false,
+        });
+    }
+    out.sort_by(|p, q| p.t.total_cmp(&q.t));
+    out
+}
+
+/// Log every mark whose time has come (`t` of the step just logged).
+fn log_marks(
+    rec: &RecordingStream,
+    marks: &[Mark],
+    next: &mut usize,
+    t: f64,
+    style: &SceneStyle,
+) -> Result<(), ReplayError> {
+    while *next < marks.len() && marks[*next].t <= t {
+        let m = &marks[*next];
+        *next += 1;
+        let radius = style.rods.get(m.rod).map(|s| s.node_radius).unwrap_or(1e-3) as f32;
+        let rr = m.scale * radius;
+        let circle: Vec<[f32; 2]> = (0..=32)
+            .map(|j| {
+                let a = j as f32 * std::f32::consts::TAU / 32.0;
+                [m.at[0] as f32 + rr * a.cos(), m.at[1] as f32 + rr * a.sin()]
+            })
+            .collect();
+        let mut ring = LineStrips2D::new([circle])
+            .with_colors([color(m.color)])
+            .with_radii([Radius::new_ui_points(m.width)])
+            .with_draw_order(DRAW_HALO);
+        if m.show_label {
+            ring = ring.with_labels([m.label.as_str()]);
+        }
+        rec.log(m.entity.clone(), &ring)
+            .map_err(|e| ReplayError::new(format!("cannot log a marker: {e}")))?;
+        rec.log("events", &TextLog::new(m.text.as_str()).with_level("WARN"))
+            .map_err(|e| ReplayError::new(format!("cannot log an event: {e}")))?;
+    }
+    Ok(())
+}
+
+/// `replay check --rrd`: the run with its spikes and sticking nodes marked.
+pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), ReplayError> {
+    let found = Findings {
+        spikes: rep.spikes.clone(),
+        sticking: rep.sticking.clone(),
+    };
+    let marks = marks(run, &found, false);
+    let mut next = 0;
+    drive(
+        &run.path,
+        out,
+        false,
+        |meta| SinkSpec {
+            name: format!("{} (check)", meta.scenario_name),
+            text: meta.scenario_text.clone(),
+            blueprint: blueprint(),
+            iterations: false,
+        },
+        |rec, st, style| log_marks(rec, &marks, &mut next, st.t, style),
+    )?;
+    Ok(())
+}
+
+/// `replay diff --rrd`: A as recorded, B ghosted at A's times, both runs' findings and the
+/// first divergence marked, and the rod-wise largest differences plotted.
+pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), ReplayError> {
+    let mut all = marks(a, &rep.findings_a, false);
+    all.extend(marks(b, &rep.findings_b, true));
+    if let Some(d) = &rep.first_divergence {
+        all.push(Mark {
+            t: d.t,
+            rod: d.rod,
+            at: d.a,
+            entity: ent(&["scene", "divergence"]),
+            label: format!("first divergence ({})", d.quantity),
+            text: format!(
+                "first divergence: {} of rod {:?} node {}, |A - B| = {:.3e} > {:.3e} at t = {} s (A step {}, B step {})",
+                d.quantity, d.rod_name, d.node, d.difference, d.tolerance, d.t, d.step_a, d.step_b
+            ),
+            color: DIVERGENCE_COLOR,
+            scale: 3.2,
+            width: 3.0,
+            show_label: true,
+        });
+        // The position of the node, whatever quantity diverged.
+        let at = locate(a, d.t);
+        let p = at.vec2(a, d.rod, d.node, super::diff::pos);
+        if let Some(m) = all.last_mut() {
+            m.at = p;
+        }
+    }
+    all.sort_by(|p, q| p.t.total_cmp(&q.t));
+    let mut next = 0;
+    let mut ghosts: Vec<RodEntities> = b
+        .meta
+        .rods
+        .iter()
+        .map(|r| RodEntities::new(&["scene", "run_b"], r.info()))
+        .collect();
+    let b_end = b.t_end();
+    let names: Vec<String> = a.meta.rods.iter().map(|r| r.name.clone()).collect();
+    let extra = vec![
+        TimeSeriesView::new("Position difference |A - B| (m), max over each rod's nodes")
+            .with_origin("/diff/position")
+            .into(),
+        TimeSeriesView::new("Velocity difference |A - B| (m/s), max over each rod's nodes")
+            .with_origin("/diff/velocity")
+            .into(),
+    ];
+    let text = format!("{}\n{}", a.meta.scenario_text, b.meta.scenario_text);
+    let title = format!("{} vs {}", a.meta.scenario_name, b.meta.scenario_name);
+    drive(
+        &a.path,
+        out,
+        false,
+        |_| SinkSpec {
+            name: title,
+            text,
+            blueprint: blueprint_with(extra),
+            iterations: false,
+        },
+        |rec, st, style| {
+            let t = st.t;
+            if t <= b_end {
+                let at = locate(b, t);
+                let kb = at.k0;
+                for (r, g) in ghosts.iter_mut().enumerate() {
+                    let bs = &b.steps[kb].rods[r];
+                    let n = bs.in_contact.len();
+                    let q: Vec<f64> = (0..n)
+                        .flat_map(|i| at.vec2(b, r, i, super::diff::pos))
+                        .collect();
+                    let obst = vec![usize::MAX; n];
+                    let view = RodStepView {
+                        q: &q,
+                        u: &bs.u,
+                        reaction: &bs.reaction,
+                        impulse: &bs.impulse,
+                        drive_force: &bs.drive_force,
+                        normal: &bs.normal,
+                        contact_obstacle: &obst,
+                        in_contact: &bs.in_contact,
+                        bending_stress: &bs.bending_stress,
+                        gap: &bs.gap,
+                        q_predictor: &bs.q_predictor,
+                    };
+                    g.draw(rec, &style.rods[r], &view, false, Look::Ghost)
+                        .map_err(|e| ReplayError::new(format!("cannot log run B: {e}")))?;
+                    // Largest differences over the rod's nodes.
+                    let (mut dq, mut du) = (0.0f64, 0.0f64);
+                    let va = &st.rods[r];
+                    for i in 0..n {
+                        let qb = [q[2 * i], q[2 * i + 1]];
+                        let ub = at.vec2(b, r, i, super::diff::vel);
+                        dq = dq.max((va.q[2 * i] - qb[0]).hypot(va.q[2 * i + 1] - qb[1]));
+                        du = du.max((va.u[2 * i] - ub[0]).hypot(va.u[2 * i + 1] - ub[1]));
+                    }
+                    for (kind, v) in [("position", dq), ("velocity", du)] {
+                        rec.log(ent(&["diff", kind, &names[r]]), &Scalars::single(v))
+                            .map_err(|e| {
+                                ReplayError::new(format!("cannot log a difference: {e}"))
+                            })?;
+                    }
+                }
+            }
+            log_marks(rec, &all, &mut next, t, style)
+        },
+    )?;
+    Ok(())
+}

@@ -1,0 +1,697 @@
+//! Reading a recorded run back from its MCAP file (docs/recording-format.md).
+//!
+//! The file is read linearly, record by record, chunks decompressed and their CRCs checked, so
+//! a file without a summary or footer (a run killed by SIGKILL, a crash) is read up to its last
+//! complete chunk. Every message is checked against what the rest of the code indexes with
+//! (array lengths, rod and node numbers), so a damaged or foreign file gives a
+//! [`ReplayError`] that names the file, never a panic.
+
+use super::ReplayError;
+use crate::events::{ContactChange, Phase, ReleaseReason, RodInfo};
+use crate::record::mcap::FORMAT_VERSION;
+use crate::scenario::{Mode, Scenario};
+use serde::Deserialize;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+/// The channels a replay needs, with the schema each must have.
+pub const REQUIRED: [(&str, &str); 4] = [
+    ("/sim/meta", "gripsim.Meta"),
+    ("/sim/step", "gripsim.Step"),
+    ("/sim/contact", "gripsim.Contact"),
+    ("/sim/event", "gripsim.Event"),
+];
+
+/// `/sim/meta`, the fields a replay uses.
+#[derive(Debug, Clone, Deserialize)]
+pub struct Meta {
+    pub format_version: u32,
+    #[serde(default)]
+    pub gripsim_version: String,
+    pub scenario_name: String,
+    pub scenario_text: String,
+    pub mode: String,
+    #[serde(default)]
+    pub detail: String,
+    #[serde(default)]
+    pub flush_every: u64,
+    pub rods: Vec<RodMeta>,
+}
+
+/// One entry of `/sim/meta` `rods[]`.
+#[derive(Debug, Clone, Deserialize)]
+pub struct RodMeta {
+    pub name: String,
+    pub nodes: usize,
+    pub mass: Vec<f64>,
+    pub clamped: Vec<bool>,
+    pub rest_length: Vec<f64>,
+    pub rest_curvature: Vec<f64>,
+    pub youngs_modulus: f64,
+    pub area: f64,
+    pub inertia: f64,
+    pub half_height: f64,
+    #[serde(default)]
+    pub particle: bool,
+}
+
+impl RodMeta {
+    pub fn info(&self) -> RodInfo {
+        RodInfo {
+            name: self.name.clone(),
+            nodes: self.nodes,
+            mass: self.mass.clone(),
+            clamped: self.clamped.clone(),
+            rest_length: self.rest_length.clone(),
+            rest_curvature: self.rest_curvature.clone(),
+            youngs_modulus: self.youngs_modulus,
+            area: self.area,
+            inertia: self.inertia,
+            half_height: self.half_height,
+            particle: self.particle,
+        }
+    }
+}
+
+/// One `/sim/step` message.
+#[derive(Debug, Clone, Deserialize)]
+pub struct Step {
+    pub step: u64,
+    pub t: f64,
+    pub dt: f64,
+    #[serde(default)]
+    pub newton_iterations: u32,
+    #[serde(default)]
+    pub passes: u32,
+    pub rods: Vec<RodState>,
+}
+
+/// One rod of a `/sim/step` message (interleaved vectors `[x0, y0, x1, y1, …]`).
+#[derive(Debug, Clone, Deserialize)]
+pub struct RodState {
+    pub q: Vec<f64>,
+    pub u: Vec<f64>,
+    pub reaction: Vec<f64>,
+    pub impulse: Vec<f64>,
+    pub drive_force: Vec<f64>,
+    pub normal: Vec<f64>,
+    pub in_contact: Vec<bool>,
+    pub contact_obstacle: Vec<Option<usize>>,
+    pub bending_stress: Vec<f64>,
+    /// `null` (no obstacle) is read as +∞.
+    #[serde(deserialize_with = "nullable_f64s")]
+    pub gap: Vec<f64>,
+    pub q_predictor: Vec<f64>,
+}
+
+fn nullable_f64s<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+    let v: Vec<Option<f64>> = Vec::deserialize(d)?;
+    Ok(v.into_iter().map(|x| x.unwrap_or(f64::INFINITY)).collect())
+}
+
+/// One `/sim/contact` message.
+#[derive(Debug, Clone, Deserialize)]
+pub struct Contact {
+    /// `added` or `released`.
+    pub change: String,
+    #[serde(default)]
+    pub reason: Option<String>,
+    pub step: u64,
+    pub t: f64,
+    #[serde(default)]
+    pub pass: u32,
+    pub rod: usize,
+    pub node: usize,
+    pub obstacle: usize,
+    pub normal: [f64; 2],
+    pub gap: f64,
+    pub reaction: [f64; 2],
+    pub z: f64,
+}
+
+impl Contact {
+    pub fn added(&self) -> bool {
+        self.change == "added"
+    }
+
+    pub fn change(&self) -> ContactChange {
+        ContactChange {
+            step: self.step,
+            t: self.t,
+            pass: self.pass,
+            rod: self.rod,
+            node: self.node,
+            obstacle: self.obstacle,
+            normal: self.normal,
+            gap: self.gap,
+            reaction: self.reaction,
+            z: self.z,
+        }
+    }
+
+    /// Why it was released (only `adhesive` exists in format 1).
+    pub fn release_reason(&self) -> ReleaseReason {
+        ReleaseReason::Adhesive
+    }
+}
+
+/// One `/sim/event` message.
+#[derive(Debug, Clone, Deserialize)]
+pub struct SimEvent {
+    pub kind: String,
+    pub step: u64,
+    pub t: f64,
+    pub message: String,
+    pub old_dt: Option<f64>,
+    pub new_dt: Option<f64>,
+    pub reason: Option<String>,
+    pub dt: Option<f64>,
+    pub rod: Option<usize>,
+    pub node: Option<usize>,
+    pub residual: Option<f64>,
+    pub completed: Option<bool>,
+    #[serde(default)]
+    pub error: Option<String>,
+}
+
+/// One `/sim/iteration` message.
+#[derive(Debug, Clone, Deserialize)]
+pub struct Iteration {
+    pub step: u64,
+    pub t: f64,
+    pub phase: Phase,
+    pub pass: u32,
+    pub iteration: u32,
+    pub rod: usize,
+    pub residual: f64,
+    pub update: f64,
+    pub q: Vec<f64>,
+}
+
+/// A decoded message, in file order.
+#[derive(Debug, Clone)]
+pub enum Message {
+    Meta(Box<Meta>),
+    Step(Step),
+    Contact(Contact),
+    Event(SimEvent),
+    Iteration(Iteration),
+}
+
+/// What the linear read found besides the messages.
+#[derive(Debug, Clone, Default)]
+pub struct ReadStatus {
+    /// Why reading stopped before the end of a whole file (no summary or footer, a damaged
+    /// chunk): the data are complete up to the last complete chunk.
+    pub truncated: Option<String>,
+    /// The `gripsim.run_end` metadata record (missing after a kill).
+    pub run_end: Option<BTreeMap<String, String>>,
+}
+
+/// The setting the messages are checked against, known once `/sim/meta` is read.
+struct Shape {
+    nodes: Vec<usize>,
+    obstacles: usize,
+}
+
+fn check_step(s: &Step, shape: &Shape) -> Result<(), String> {
+    if s.rods.len() != shape.nodes.len() {
+        return Err(format!(
+            "/sim/step step {} has {} rods, /sim/meta lists {}",
+            s.step,
+            s.rods.len(),
+            shape.nodes.len()
+        ));
+    }
+    if !s.t.is_finite() || !s.dt.is_finite() || s.dt < 0.0 {
+        return Err(format!(
+            "/sim/step step {} has t = {}, dt = {}",
+            s.step, s.t, s.dt
+        ));
+    }
+    for (r, (v, &n)) in s.rods.iter().zip(&shape.nodes).enumerate() {
+        let vectors: [(&str, usize); 7] = [
+            ("q", v.q.len()),
+            ("u", v.u.len()),
+            ("reaction", v.reaction.len()),
+            ("impulse", v.impulse.len()),
+            ("drive_force", v.drive_force.len()),
+            ("normal", v.normal.len()),
+            ("q_predictor", v.q_predictor.len()),
+        ];
+        let scalars: [(&str, usize); 4] = [
+            ("in_contact", v.in_contact.len()),
+            ("contact_obstacle", v.contact_obstacle.len()),
+            ("bending_stress", v.bending_stress.len()),
+            ("gap", v.gap.len()),
+        ];
+        for (name, len) in vectors {
+            if len != 2 * n {
+                return Err(format!(
+                    "/sim/step step {} rod {r}: `{name}` has {len} numbers, expected 2 x {n} nodes",
+                    s.step
+                ));
+            }
+        }
+        for (name, len) in scalars {
+            if len != n {
+                return Err(format!(
+                    "/sim/step step {} rod {r}: `{name}` has {len} entries, expected {n} (one per node)",
+                    s.step
+                ));
+            }
+        }
+        let finite = [
+            &v.q,
+            &v.u,
+            &v.reaction,
+            &v.normal,
+            &v.q_predictor,
+            &v.drive_force,
+        ];
+        if finite.iter().any(|x| x.iter().any(|y| !y.is_finite())) {
+            return Err(format!(
+                "/sim/step step {} rod {r} holds a non-finite number",
+                s.step
+            ));
+        }
+        if let Some(k) = v
+            .contact_obstacle
+            .iter()
+            .flatten()
+            .find(|&&k| k >= shape.obstacles)
+        {
+            return Err(format!(
+                "/sim/step step {} rod {r}: contact_obstacle {k} but the run has {} obstacle(s)",
+                s.step, shape.obstacles
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_node(what: &str, step: u64, rod: usize, node: usize, shape: &Shape) -> Result<(), String> {
+    match shape.nodes.get(rod) {
+        None => Err(format!(
+            "{what} at step {step} names rod {rod}, but the run has {} rod(s)",
+            shape.nodes.len()
+        )),
+        Some(&n) if node >= n => Err(format!(
+            "{what} at step {step} names node {node} of rod {rod}, which has {n} node(s)"
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Read `path` message by message in file order and hand each decoded message to `visit`.
+/// `/scene` is skipped; `/sim/iteration` is decoded only when `iterations` is true.
+///
+/// Errors (not an MCAP file, no `/sim/meta` or `/sim/step`, a wrong schema, a newer format,
+/// a malformed message) name the file. A file that stops early after at least one
+/// `/sim/step` is not an error: [`ReadStatus::truncated`] says why it stopped.
+pub fn read_messages(
+    path: &Path,
+    iterations: bool,
+    mut visit: impl FnMut(Message) -> Result<(), ReplayError>,
+) -> Result<ReadStatus, ReplayError> {
+    let err = |m: String| ReplayError::file(path, m);
+    let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
+    if bytes.len() < 8 || &bytes[..8] != mcap::MAGIC {
+        return Err(err(
+            "not an MCAP file (it does not start with the MCAP magic bytes); replay reads the \
+             .mcap that `gripsim run --mcap` writes"
+                .into(),
+        ));
+    }
+    let records = mcap::read::ChunkFlattener::new_with_options(
+        &bytes,
+        mcap::read::Options::ValidateChunkCrcs.into(),
+    )
+    .map_err(|e| err(format!("not a readable MCAP file: {e}")))?;
+
+    // id -> (name, encoding)
+    let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
+    // id -> topic
+    let mut channels: HashMap<u16, String> = HashMap::new();
+    let mut status = ReadStatus::default();
+    let mut shape: Option<Shape> = None;
+    let mut steps = 0u64;
+    let mut last_step: Option<(u64, f64)> = None;
+    let mut ended = false;
+
+    for record in records {
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                if steps == 0 {
+                    return Err(err(format!(
+                        "not a readable gripsim recording: the MCAP data stop before the first \
+                         /sim/step message ({e})"
+                    )));
+                }
+                status.truncated = Some(format!("reading stopped early: {e}"));
+                break;
+            }
+        };
+        use mcap::records::Record;
+        match record {
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, (header.name.clone(), header.encoding.clone()));
+            }
+            Record::Channel(c) => {
+                if let Some((_, want)) = REQUIRED.iter().find(|(t, _)| *t == c.topic) {
+                    let got = schemas.get(&c.schema_id);
+                    let ok = got.is_some_and(|(name, enc)| name == want && enc == "jsonschema")
+                        && c.message_encoding == "json";
+                    if !ok {
+                        return Err(err(format!(
+                            "wrong schema on {}: expected {want} (jsonschema, json messages), \
+                             found {} ({} messages); not a gripsim recording of this format",
+                            c.topic,
+                            got.map(|(n, e)| format!("{n} ({e})"))
+                                .unwrap_or_else(|| "no schema".into()),
+                            c.message_encoding
+                        )));
+                    }
+                }
+                channels.insert(c.id, c.topic.clone());
+            }
+            Record::Metadata(m) => {
+                if m.name == "gripsim" {
+                    check_version(
+                        path,
+                        m.metadata.get("format_version").map(|s| s.as_str()),
+                        m.metadata.get("gripsim_version").map(|s| s.as_str()),
+                    )?;
+                } else if m.name == "gripsim.run_end" {
+                    status.run_end = Some(m.metadata.clone());
+                }
+            }
+            Record::DataEnd(_) | Record::Footer(_) => ended = true,
+            Record::Message { header, data } => {
+                let Some(topic) = channels.get(&header.channel_id) else {
+                    return Err(err(format!(
+                        "a message on channel {} that was never defined",
+                        header.channel_id
+                    )));
+                };
+                let msg = match topic.as_str() {
+                    "/sim/meta" => {
+                        let raw: serde_json::Value = serde_json::from_slice(&data)
+                            .map_err(|e| err(format!("/sim/meta is not JSON: {e}")))?;
+                        check_version(
+                            path,
+                            raw.get("format_version").map(|v| v.to_string()).as_deref(),
+                            raw.get("gripsim_version").and_then(|v| v.as_str()),
+                        )?;
+                        let meta: Meta = serde_json::from_value(raw).map_err(|e| {
+                            err(format!("/sim/meta does not match schema gripsim.Meta: {e}"))
+                        })?;
+                        if shape.is_some() {
+                            return Err(err("a second /sim/meta message".into()));
+                        }
+                        for (r, rod) in meta.rods.iter().enumerate() {
+                            let n = rod.nodes;
+                            let ok = n > 0
+                                && rod.mass.len() == n
+                                && rod.clamped.len() == n
+                                && rod.rest_length.len() == n.saturating_sub(1)
+                                && rod.rest_curvature.len() == n
+                                && rod.mass.iter().all(|m| m.is_finite() && *m > 0.0);
+                            if !ok {
+                                return Err(err(format!(
+                                    "/sim/meta rod {r} ({:?}): its per-node arrays do not match \
+                                     its {n} nodes, or a mass is not positive",
+                                    rod.name
+                                )));
+                            }
+                        }
+                        if meta.rods.is_empty() {
+                            return Err(err("/sim/meta lists no rods".into()));
+                        }
+                        let obstacles = raw_obstacle_count(&data);
+                        shape = Some(Shape {
+                            nodes: meta.rods.iter().map(|r| r.nodes).collect(),
+                            obstacles,
+                        });
+                        Message::Meta(Box::new(meta))
+                    }
+                    "/sim/step" => {
+                        let Some(sh) = shape.as_ref() else {
+                            return Err(err("a /sim/step message before /sim/meta".into()));
+                        };
+                        let s: Step = serde_json::from_slice(&data).map_err(|e| {
+                            err(format!(
+                                "/sim/step message {} does not match schema gripsim.Step: {e}",
+                                steps + 1
+                            ))
+                        })?;
+                        check_step(&s, sh).map_err(err)?;
+                        if let Some((k, t)) = last_step {
+                            if s.step <= k || s.t < t {
+                                return Err(err(format!(
+                                    "/sim/step step {} at t = {} follows step {k} at t = {t}: \
+                                     steps must increase",
+                                    s.step, s.t
+                                )));
+                            }
+                        }
+                        last_step = Some((s.step, s.t));
+                        steps += 1;
+                        Message::Step(s)
+                    }
+                    "/sim/contact" => {
+                        let Some(sh) = shape.as_ref() else {
+                            return Err(err("a /sim/contact message before /sim/meta".into()));
+                        };
+                        let c: Contact = serde_json::from_slice(&data).map_err(|e| {
+                            err(format!(
+                                "a /sim/contact message does not match schema gripsim.Contact: {e}"
+                            ))
+                        })?;
+                        check_node("/sim/contact", c.step, c.rod, c.node, sh).map_err(err)?;
+                        if c.change != "added" && c.change != "released" {
+                            return Err(err(format!(
+                                "/sim/contact at step {}: change {:?} is neither added nor released",
+                                c.step, c.change
+                            )));
+                        }
+                        Message::Contact(c)
+                    }
+                    "/sim/event" => {
+                        let e: SimEvent = serde_json::from_slice(&data).map_err(|e| {
+                            err(format!(
+                                "a /sim/event message does not match schema gripsim.Event: {e}"
+                            ))
+                        })?;
+                        Message::Event(e)
+                    }
+                    "/sim/iteration" if iterations => {
+                        let Some(sh) = shape.as_ref() else {
+                            return Err(err("a /sim/iteration message before /sim/meta".into()));
+                        };
+                        let it: Iteration = serde_json::from_slice(&data).map_err(|e| {
+                            err(format!(
+                                "a /sim/iteration message does not match schema gripsim.Iteration: {e}"
+                            ))
+                        })?;
+                        check_node("/sim/iteration", it.step, it.rod, 0, sh).map_err(err)?;
+                        if it.q.len() != 2 * sh.nodes[it.rod] {
+                            return Err(err(format!(
+                                "/sim/iteration at step {}: q has {} numbers for {} nodes",
+                                it.step,
+                                it.q.len(),
+                                sh.nodes[it.rod]
+                            )));
+                        }
+                        Message::Iteration(it)
+                    }
+                    _ => continue,
+                };
+                visit(msg)?;
+            }
+            _ => {}
+        }
+    }
+    for (topic, schema) in REQUIRED {
+        if !channels.values().any(|t| t == topic) {
+            let why = if steps == 0 && status.truncated.is_none() {
+                "the file holds no gripsim run"
+            } else {
+                "not a gripsim recording, or one cut before the channel was written"
+            };
+            return Err(err(format!(
+                "missing channel {topic} (schema {schema}): {why}"
+            )));
+        }
+    }
+    if shape.is_none() {
+        return Err(err("no /sim/meta message: not a gripsim recording".into()));
+    }
+    if steps == 0 {
+        return Err(err(
+            "no /sim/step message: the run was cut before its first chunk was written".into(),
+        ));
+    }
+    if status.truncated.is_none() && !ended {
+        status.truncated = Some("the file ends without a summary or footer".into());
+    }
+    Ok(status)
+}
+
+/// How many obstacles `/sim/meta` lists (only the count is needed to check indices).
+fn raw_obstacle_count(data: &[u8]) -> usize {
+    #[derive(Deserialize)]
+    struct Obstacles {
+        #[serde(default)]
+        obstacles: Vec<serde::de::IgnoredAny>,
+    }
+    serde_json::from_slice::<Obstacles>(data)
+        .map(|o| o.obstacles.len())
+        .unwrap_or(0)
+}
+
+fn check_version(
+    path: &Path,
+    version: Option<&str>,
+    writer: Option<&str>,
+) -> Result<(), ReplayError> {
+    let Some(v) = version else { return Ok(()) };
+    let v: u64 = v
+        .trim_matches('"')
+        .parse()
+        .map_err(|_| ReplayError::file(path, format!("format_version {v:?} is not a number")))?;
+    if v > FORMAT_VERSION as u64 {
+        return Err(ReplayError::file(
+            path,
+            format!(
+                "recorded with format version {v} by gripsim {}; this gripsim ({}) reads format \
+                 version {FORMAT_VERSION} and older: replay it with a newer gripsim",
+                writer.unwrap_or("(unknown)"),
+                env!("CARGO_PKG_VERSION")
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A whole recorded run in memory (without `/sim/iteration` and `/scene`).
+#[derive(Debug, Clone)]
+pub struct Run {
+    pub path: PathBuf,
+    pub meta: Meta,
+    /// The scenario parsed from `/sim/meta` `scenario_text`.
+    pub scenario: Scenario,
+    pub steps: Vec<Step>,
+    pub contacts: Vec<Contact>,
+    pub events: Vec<SimEvent>,
+    pub status: ReadStatus,
+}
+
+impl Run {
+    /// Read a run, printing nothing: a cut-short file is read up to its last complete chunk
+    /// and [`Run::warning`] says so.
+    pub fn load(path: &Path) -> Result<Run, ReplayError> {
+        let mut meta = None;
+        let mut steps = Vec::new();
+        let mut contacts = Vec::new();
+        let mut events = Vec::new();
+        let status = read_messages(path, false, |m| {
+            match m {
+                Message::Meta(x) => meta = Some(*x),
+                Message::Step(s) => steps.push(s),
+                Message::Contact(c) => contacts.push(c),
+                Message::Event(e) => events.push(e),
+                Message::Iteration(_) => {}
+            }
+            Ok(())
+        })?;
+        let meta = meta.expect("read_messages checks /sim/meta");
+        let scenario = parse_scenario(path, &meta)?;
+        if scenario.rods.len() != meta.rods.len()
+            || scenario
+                .rods
+                .iter()
+                .zip(&meta.rods)
+                .any(|(s, m)| s.nodes != m.nodes)
+        {
+            return Err(ReplayError::file(
+                path,
+                "/sim/meta rods do not match its own scenario_text".into(),
+            ));
+        }
+        // A retried step can leave contact events of a rejected attempt; keep them all (they
+        // are what the solver did), but drop events past the last step read.
+        let last = steps.last().map(|s| s.step).unwrap_or(0);
+        contacts.retain(|c| c.step <= last);
+        Ok(Run {
+            path: path.to_path_buf(),
+            meta,
+            scenario,
+            steps,
+            contacts,
+            events,
+            status,
+        })
+    }
+
+    /// The stderr warning for a run read only in part, if it was.
+    pub fn warning(&self) -> Option<String> {
+        self.status.truncated.as_ref().map(|why| {
+            let last = self.steps.last().expect("a run has a step");
+            format!(
+                "warning: {} is incomplete ({why}); read {} steps up to step {} (t = {} s), \
+                 the last complete chunk",
+                self.path.display(),
+                self.steps.len(),
+                last.step,
+                last.t
+            )
+        })
+    }
+
+    pub fn dynamic(&self) -> bool {
+        self.scenario.solve.mode == Mode::Dynamic
+    }
+
+    /// Whether the run says it completed: `Some(true/false)` from its run end, `None` when the
+    /// file stops before the run end.
+    pub fn completed(&self) -> Option<bool> {
+        if let Some(e) = self.events.iter().rev().find(|e| e.kind == "run_end") {
+            return e.completed;
+        }
+        self.status
+            .run_end
+            .as_ref()
+            .and_then(|m| m.get("completed"))
+            .map(|c| c == "true")
+    }
+
+    /// Why the run stopped early, from its run end event.
+    pub fn end_error(&self) -> Option<String> {
+        self.events
+            .iter()
+            .rev()
+            .find(|e| e.kind == "run_end")
+            .and_then(|e| e.error.clone())
+    }
+
+    pub fn t_end(&self) -> f64 {
+        self.steps.last().map(|s| s.t).unwrap_or(0.0)
+    }
+
+    pub fn rod_name(&self, r: usize) -> &str {
+        &self.meta.rods[r].name
+    }
+}
+
+/// The scenario of a recording, from `/sim/meta` `scenario_text`.
+pub fn parse_scenario(path: &Path, meta: &Meta) -> Result<Scenario, ReplayError> {
+    let file = format!("{} (/sim/meta scenario_text)", path.display());
+    Scenario::from_str(&meta.scenario_text, &file, &[]).map_err(|e| {
+        ReplayError::file(
+            path,
+            format!("its recorded scenario does not read back: {e}"),
+        )
+    })
+}
