@@ -544,6 +544,21 @@ fn the_point_mass_at_dt_1e4_spikes_and_the_proximity_one_does_not() {
     let (_, rep500) = check(&coarse, &["--spike-accel-ratio", "500"]);
     let want500 = [("impact".to_string(), 0, 0, 1011)];
     assert_eq!(spikes(&rep500), set(&want500), "{:#}", rep500["spikes"]);
+    // A resting contact is support, never a spike: at dt = 2e-3 s gravity alone adds
+    // 0.0196 m/s per step that the contact cancels, on each of the ~50 steps after landing.
+    // With the gates off (any size, any acceleration) only the two landing steps are jumps.
+    let big = dir.path().join("big.mcap");
+    run_to(
+        &scenario("point-mass-plane-dt1e-4"),
+        &big,
+        &["solve.dt=2e-3"],
+    );
+    let (_, rep_big) = check(
+        &big,
+        &["--spike-accel-ratio", "0", "--spike-displacement", "0"],
+    );
+    assert_eq!(rep_big["counts"]["impact"], 2, "{:#}", rep_big["spikes"]);
+    assert_eq!(rep_big["counts"]["spikes"], 2, "{:#}", rep_big["spikes"]);
     let (code, fine_rep) = check(&fine, &[]);
     assert_eq!(code, 0, "{:#}", fine_rep["spikes"]);
     assert!(fine_rep["counts"]["spikes"].as_u64() < rep["counts"]["spikes"].as_u64());

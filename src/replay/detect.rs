@@ -3,15 +3,17 @@
 //!
 //! * **Spike** (per free node and step, dynamic runs): the velocity change not explained by the
 //!   smooth forces, e = Δv − Δt f(q_{k+1})/m (elastic + gravity + loads, recomputed from the
-//!   recorded positions as implicit Euler evaluates them), is split into the part a perfectly
-//!   inelastic, frictionless contact can produce (along the outward normal, at most the normal
-//!   approach speed) and the rest.
-//!   - `impact`: the contact part is large: ≥ `spike_floor`, implied acceleration ≥
-//!     `spike_accel_ratio` × the node's own acceleration scale, and the displacement it stands
-//!     for, jump × Δt, ≥ `spike_displacement`. The last term makes the severity scale with Δt:
-//!     the same impact resolved with a 100 times smaller step is not a spike.
+//!   recorded positions as implicit Euler evaluates them), is split into what a perfectly
+//!   inelastic, frictionless contact does (along the outward normal: cancel what the forces
+//!   push into the surface over the step — support — and remove at most the normal velocity
+//!   the node brought into the step — impact) and the rest.
+//!   - `impact`: the impact part is large: ≥ `spike_floor`, implied acceleration ≥
+//!     `spike_accel_ratio` × |g|, and the displacement it stands for, jump × Δt, ≥
+//!     `spike_displacement`. The last term makes the severity scale with Δt: the same impact
+//!     resolved with a 100 times smaller step is not a spike.
 //!   - `unexplained`: the rest is large (≥ `spike_floor` and ≥ `spike_accel_ratio` × the
-//!     acceleration scale), at any Δt: a jump no force and no contact can produce.
+//!     node's acceleration scale max(|g|, |f|/m)), at any Δt: a jump no force and no contact
+//!     can produce.
 //!   - `alternating`: Δv reverses direction at least `alternation_flips` times within
 //!     `alternation_window` steps with |Δv| ≥ max(`spike_floor`, `spike_accel_ratio` Δt |g|):
 //!     an oscillation of a period no step resolves.
@@ -35,8 +37,8 @@ pub struct Thresholds {
     /// Spikes: smallest velocity jump (m/s) counted at all.
     #[arg(long, value_name = "M/S", default_value = "1e-3")]
     pub spike_floor: f64,
-    /// Spikes: the jump's implied acceleration |jump|/dt must exceed this many times the node's
-    /// acceleration scale max(|g|, |f|/m).
+    /// Spikes: the jump's implied acceleration |jump|/dt must exceed this many times |g|
+    /// (impacts) or the node's acceleration scale max(|g|, |f|/m) (unexplained jumps).
     #[arg(long, value_name = "RATIO", default_value = "10")]
     pub spike_accel_ratio: f64,
     /// Impact spikes: the displacement the jump stands for, |jump| x dt (m), must exceed this.
@@ -138,15 +140,17 @@ pub struct Spike {
     /// The flagged jump (m/s): the contact part (`impact`), the unexplained part
     /// (`unexplained`), or the largest |Δv| of the episode (`alternating`).
     pub jump: f64,
-    /// The part of e = Δv − Δt f/m an inelastic frictionless contact explains (m/s).
+    /// The part of e = Δv − Δt f/m that removed the normal velocity the node brought into
+    /// the step (m/s).
     pub impact_jump: f64,
     /// The part of e nothing explains (m/s).
     pub unexplained_jump: f64,
-    /// Normal approach speed before the step (m/s), for a constrained node; else 0.
+    /// Normal speed into the surface at the start of the step (m/s), for a node constrained
+    /// at its end; else 0.
     pub approach_speed: f64,
     /// |jump| / dt (m/s²).
     pub accel: f64,
-    /// max(|g|, |f|/m) (m/s²).
+    /// The scale it is compared with (m/s²): |g| for an impact, max(|g|, |f|/m) otherwise.
     pub accel_ref: f64,
     pub accel_ratio: f64,
     /// |jump| × dt (m).
@@ -335,27 +339,38 @@ fn spikes(
             ];
             let fdv = [dt * f[2 * i] / m, dt * f[2 * i + 1] / m];
             let e = [dv[0] - fdv[0], dv[1] - fdv[1]];
-            let accel_ref = gnorm.max(norm([f[2 * i], f[2 * i + 1]]) / m).max(1e-300);
+            // Scales the jumps are measured against: the node's own force for a jump nothing
+            // explains; gravity for an impact (the elastic force at the end of an impact step
+            // is largely the rod's answer to that impact, so it is no scale for it).
+            let node_ref = gnorm.max(norm([f[2 * i], f[2 * i + 1]]) / m).max(1e-300);
+            let impact_ref = gnorm.max(1e-300);
             let (mut impact, mut approach) = (0.0, 0.0);
             let mut rest = e;
             if cur.in_contact[i] {
                 let nv = [cur.normal[2 * i], cur.normal[2 * i + 1]];
-                // Normal velocity the node would have without contact: it can be removed.
-                let v_free = [prev.u[2 * i] + fdv[0], prev.u[2 * i + 1] + fdv[1]];
-                approach = (-(nv[0] * v_free[0] + nv[1] * v_free[1])).max(0.0);
-                let en = nv[0] * e[0] + nv[1] * e[1];
-                impact = en.clamp(0.0, approach);
-                rest = [e[0] - impact * nv[0], e[1] - impact * nv[1]];
+                let dot = |v: [f64; 2]| nv[0] * v[0] + nv[1] * v[1];
+                // Support: the contact cancels what the forces push into the surface over
+                // the step. Impact: it removes the normal velocity the node brought into the
+                // step, and no more (perfectly inelastic). Nothing else along n, nothing along
+                // the surface (frictionless).
+                let support_max = (-dot(fdv)).max(0.0);
+                approach = (-dot([prev.u[2 * i], prev.u[2 * i + 1]])).max(0.0);
+                let en = dot(e);
+                let support = en.clamp(0.0, support_max);
+                impact = (en - support).clamp(0.0, approach);
+                let explained = support + impact;
+                rest = [e[0] - explained * nv[0], e[1] - explained * nv[1]];
             }
             let unexplained = norm(rest);
-            let large = |j: f64| j >= th.spike_floor && j / dt >= th.spike_accel_ratio * accel_ref;
-            let flag_unexplained = large(unexplained);
-            let flag_impact = large(impact) && impact * dt >= th.spike_displacement;
+            let large =
+                |j: f64, scale: f64| j >= th.spike_floor && j / dt >= th.spike_accel_ratio * scale;
+            let flag_unexplained = large(unexplained, node_ref);
+            let flag_impact = large(impact, impact_ref) && impact * dt >= th.spike_displacement;
             if flag_unexplained || flag_impact {
-                let jump = if flag_unexplained {
-                    unexplained
+                let (jump, accel_ref) = if flag_unexplained {
+                    (unexplained, node_ref)
                 } else {
-                    impact
+                    (impact, impact_ref)
                 };
                 out.push(Spike {
                     kind: if flag_unexplained {

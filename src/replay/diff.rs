@@ -335,13 +335,7 @@ pub struct At {
 
 impl At {
     /// Linear interpolation of node `i`'s vector in `field` of rod `r`.
-    pub fn vec2(
-        &self,
-        run: &Run,
-        r: usize,
-        i: usize,
-        field: fn(&super::read::RodState) -> &[f64],
-    ) -> [f64; 2] {
+    pub fn vec2(&self, run: &Run, r: usize, i: usize, field: Field) -> [f64; 2] {
         let a = field(&run.steps[self.k0].rods[r]);
         if self.w == 0.0 {
             return [a[2 * i], a[2 * i + 1]];
@@ -409,6 +403,9 @@ pub fn sample_times(a: &Run, b: &Run, end: f64) -> Vec<f64> {
     t
 }
 
+/// One per-node vector field of a recorded step.
+pub type Field = fn(&super::read::RodState) -> &[f64];
+
 pub fn pos(v: &super::read::RodState) -> &[f64] {
     &v.q
 }
@@ -442,7 +439,7 @@ pub fn diff(
     };
 
     let times = sample_times(a, b, end);
-    let quantities: [(&'static str, fn(&super::read::RodState) -> &[f64], f64); 3] = [
+    let quantities: [(&'static str, Field, f64); 3] = [
         ("position", pos, tol.tol_position),
         ("velocity", vel, tol.tol_velocity),
         ("reaction", reac, tol.tol_reaction),

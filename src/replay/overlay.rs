@@ -455,7 +455,7 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
             rod: d.rod,
             at: d.a,
             entity: ent(&["scene", "divergence"]),
-            label: format!("first divergence ({})", d.quantity),
+            label: "first divergence".into(),
             text: format!(
                 "first divergence: {} of rod {:?} node {}, |A - B| = {:.3e} > {:.3e} at t = {} s (A step {}, B step {})",
                 d.quantity, d.rod_name, d.node, d.difference, d.tolerance, d.t, d.step_a, d.step_b
