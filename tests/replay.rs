@@ -945,6 +945,10 @@ fn bad_input_is_a_clear_error() {
                 err.contains(&name) && err.contains(why),
                 "replay {args:?}: expected {why:?} naming the file, got:\n{err}"
             );
+            // No .rrd, whole or half written, is left for a refused input.
+            for left in ["out.rrd", "out.partial.rrd"] {
+                assert!(!d.join(left).exists(), "replay {args:?} left {left}");
+            }
         }
     }
 }

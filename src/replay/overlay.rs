@@ -217,7 +217,18 @@ fn drive(
             }
         }
         Ok(())
-    })?;
+    });
+    let status = match status {
+        Ok(s) => s,
+        Err(e) => {
+            // A refused input leaves no half-written .rrd behind.
+            if let Some(k) = sink.take() {
+                drop(k);
+                let _ = std::fs::remove_file(crate::record::OutputFile::new(out).partial);
+            }
+            return Err(e);
+        }
+    };
     let mut k = sink.expect("read_messages checks /sim/meta");
     let warning = status.truncated.as_ref().map(|why| {
         let (s, t) = last.unwrap_or((0, 0.0));

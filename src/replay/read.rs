@@ -345,7 +345,7 @@ pub fn read_messages(
             Err(e) => {
                 if steps == 0 {
                     return Err(err(format!(
-                        "not a readable gripsim recording: the MCAP data stop before the first \
+                        "not a readable MCAP file: its data stop before the first \
                          /sim/step message ({e})"
                     )));
                 }
