@@ -464,7 +464,11 @@ impl Simulation {
                 if let Some(c) = w.contact[i] {
                     let p = [w.q[2 * i], w.q[2 * i + 1]];
                     let prox = self.obstacles[c.obstacle].query(p);
-                    w.contact[i] = Some(contact::constraint_at(c.obstacle, &prox));
+                    let mut nc = contact::constraint_at(c.obstacle, &prox);
+                    nc.second = c.second.map(|s| {
+                        contact::corner_at(s.obstacle, &self.obstacles[s.obstacle].query(p))
+                    });
+                    w.contact[i] = Some(nc);
                 }
             }
         }
@@ -536,32 +540,91 @@ impl Simulation {
                     let p = [w.qn[2 * i], w.qn[2 * i + 1]];
                     match w.contact[i] {
                         Some(c) => {
-                            let rn = c.normal[0] * w.r[2 * i] + c.normal[1] * w.r[2 * i + 1];
-                            if rn < 0.0 && !c.locked {
-                                w.contact[i] = None;
-                                changed = true;
-                                obs.on_event(&Event::ConstraintReleased(
+                            let reaction = [w.r[2 * i], w.r[2 * i + 1]];
+                            // The reaction's normal parts: along n, or on n₁ and n₂ in a corner.
+                            let (rn, rn2) = contact::normal_parts(&c, reaction);
+                            let release = |k: usize, normal: [f64; 2]| {
+                                Event::ConstraintReleased(
                                     ContactChange {
                                         step,
                                         t: t1,
                                         pass: pass + 1,
                                         rod: r,
                                         node: i,
-                                        obstacle: c.obstacle,
-                                        normal: c.normal,
-                                        gap: self.obstacles[c.obstacle].query(p).distance,
-                                        reaction: [w.r[2 * i], w.r[2 * i + 1]],
+                                        obstacle: k,
+                                        normal,
+                                        gap: self.obstacles[k].query(p).distance,
+                                        reaction,
                                         z: 0.0,
                                     },
                                     ReleaseReason::Adhesive,
-                                ));
+                                )
+                            };
+                            if rn < 0.0 && !c.locked {
+                                // In a corner the node stays on the other surface.
+                                w.contact[i] = c.second.map(|s| contact::Constraint {
+                                    obstacle: s.obstacle,
+                                    normal: s.normal,
+                                    target: s.target,
+                                    locked: false,
+                                    second: None,
+                                });
+                                changed = true;
+                                obs.on_event(&release(c.obstacle, c.normal));
                                 // Mark so that a re-penetration in this step locks it.
                                 w.contact_saved_mark(i);
+                            } else if let (true, Some(s)) = (rn2 < 0.0, c.second) {
+                                w.contact[i] = Some(contact::Constraint { second: None, ..c });
+                                changed = true;
+                                obs.on_event(&release(s.obstacle, s.normal));
                             } else {
+                                let mut nc = c;
                                 let prox = self.obstacles[c.obstacle].query(p);
                                 if prox.distance < -relin_tol {
-                                    let mut nc = contact::constraint_at(c.obstacle, &prox);
+                                    nc = contact::constraint_at(c.obstacle, &prox);
                                     nc.locked = c.locked;
+                                    nc.second = c.second;
+                                }
+                                if let Some(s) = c.second {
+                                    let prox = self.obstacles[s.obstacle].query(p);
+                                    if prox.distance < -relin_tol {
+                                        nc.second = Some(contact::corner_at(s.obstacle, &prox));
+                                    }
+                                } else if let Some((k, prox)) = contact::deepest_other(
+                                    &self.obstacles,
+                                    p,
+                                    c.obstacle,
+                                    -relin_tol,
+                                ) {
+                                    // Held on one obstacle but inside another: a corner (or,
+                                    // for nearly parallel surfaces, the other one instead).
+                                    let (held, corner) = contact::add_surface(&nc, k, &prox);
+                                    nc = held;
+                                    let un =
+                                        |n: [f64; 2]| n[0] * w.u[2 * i] + n[1] * w.u[2 * i + 1];
+                                    let qk = [w.q[2 * i], w.q[2 * i + 1]];
+                                    let z = if dynamic {
+                                        (corner.target
+                                            - (corner.normal[0] * qk[0] + corner.normal[1] * qk[1]))
+                                            / dt
+                                            - un(corner.normal)
+                                    } else {
+                                        0.0
+                                    };
+                                    obs.on_event(&Event::ConstraintAdded(ContactChange {
+                                        step,
+                                        t: t1,
+                                        pass: pass + 1,
+                                        rod: r,
+                                        node: i,
+                                        obstacle: k,
+                                        normal: corner.normal,
+                                        gap: prox.distance,
+                                        reaction: [0.0; 2],
+                                        z,
+                                    }));
+                                }
+                                if nc != c {
                                     w.contact[i] = Some(nc);
                                     changed = true;
                                 }

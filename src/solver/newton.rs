@@ -11,6 +11,10 @@
 //! its normal velocity change is prescribed (the z of eq. 1) and its mass is filtered with
 //! S = I − n nᵀ. Newton then solves (P J P + s (I − P)) δ = −P r, so δ has no normal part at
 //! constrained nodes and the tangential residual goes to zero.
+//!
+//! A node that touches two obstacles at once (a corner, e.g. a prong tip between the fruit and
+//! the table) carries a second surface ([`Corner`]): it is held at the intersection of the two
+//! tangent lines, S = 0, and its whole residual is the reaction.
 
 use super::banded::BandLu;
 use crate::energy::{bend::bend, stretch::stretch};
@@ -25,6 +29,30 @@ pub struct Constraint {
     pub target: f64,
     /// Released once in this step and re-added: may not be released again in this step.
     pub locked: bool,
+    /// A second obstacle touched at the same time: the node is held at the corner.
+    pub second: Option<Corner>,
+}
+
+/// The second surface of a node held in a corner between two obstacles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Corner {
+    pub obstacle: usize,
+    pub normal: [f64; 2],
+    pub target: f64,
+}
+
+impl Constraint {
+    /// Where a node in a corner is held: n₁·p = h₁ and n₂·p = h₂ (the caller only makes
+    /// corners of surfaces that are not nearly parallel).
+    pub fn corner_point(&self) -> Option<[f64; 2]> {
+        let s = self.second?;
+        let (a, b) = (self.normal, s.normal);
+        let det = a[0] * b[1] - a[1] * b[0];
+        Some([
+            (self.target * b[1] - a[1] * s.target) / det,
+            (a[0] * s.target - self.target * b[0]) / det,
+        ])
+    }
 }
 
 /// Per-rod solver state and scratch space, allocated once.
@@ -254,7 +282,10 @@ pub fn solve(
     let n = rod.n;
     // Put constrained nodes exactly on their targets.
     for i in 0..n {
-        if let Some(c) = w.contact[i] {
+        if let Some(p) = w.contact[i].and_then(|c| c.corner_point()) {
+            w.dq[2 * i] = p[0] - w.q[2 * i];
+            w.dq[2 * i + 1] = p[1] - w.q[2 * i + 1];
+        } else if let Some(c) = w.contact[i] {
             let d = c.normal[0] * (w.q[2 * i] + w.dq[2 * i])
                 + c.normal[1] * (w.q[2 * i + 1] + w.dq[2 * i + 1])
                 - c.target;
@@ -308,7 +339,7 @@ pub fn solve(
             w.rhs[2 * fi + 1] = -ry;
         }
         if res <= ftol {
-            return Ok(iterations);
+            return all_finite(w, res, iterations);
         }
         if iterations >= opt.max_iterations {
             return Err(NewtonFailure {
@@ -329,10 +360,15 @@ pub fn solve(
             w.band.add(2 * fi + 1, 2 * fi + 1, cm);
         }
         let s = (opt.c * w.filter_scale).max(rod.ea / rod.length);
+        // A node in a corner: filtering with n and then with n⊥ gives S = 0.
+        let perp = |n: [f64; 2]| [-n[1], n[0]];
         for i in 0..n {
             if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
                 if fi != usize::MAX {
                     w.band.filter_rows(2 * fi, c.normal);
+                    if c.second.is_some() {
+                        w.band.filter_rows(2 * fi, perp(c.normal));
+                    }
                 }
             }
         }
@@ -340,6 +376,9 @@ pub fn solve(
             if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
                 if fi != usize::MAX {
                     w.band.filter_cols(2 * fi, c.normal, s);
+                    if c.second.is_some() {
+                        w.band.filter_cols(2 * fi, perp(c.normal), s);
+                    }
                 }
             }
         }
@@ -409,7 +448,7 @@ pub fn solve(
             }
             assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
             eq2_residual(rod, w, opt);
-            return Ok(iterations);
+            return all_finite(w, res, iterations);
         }
     }
 }
@@ -424,10 +463,28 @@ fn eq2_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
     }
 }
 
-/// The part of (x, y) along the surface of a constrained node: S v with S = I − n nᵀ.
+/// Accept a converged solve only when eq. 2's reaction is finite on every DOF, driven and
+/// constrained nodes included: a rod folded onto itself (two nodes at one point) can meet the
+/// update tolerance with NaN forces, and such a step must be retried, not recorded.
+#[inline]
+fn all_finite(w: &RodWork, res: f64, iterations: u32) -> Result<u32, NewtonFailure> {
+    match w.r.iter().position(|x| !x.is_finite()) {
+        None => Ok(iterations),
+        Some(k) => Err(NewtonFailure {
+            node: k / 2,
+            residual: res,
+            reason: "non-finite reaction",
+            iterations,
+        }),
+    }
+}
+
+/// The part of (x, y) along the surface of a constrained node: S v with S = I − n nᵀ
+/// (nothing for a node held in a corner).
 #[inline(always)]
 fn tangential(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
     match c {
+        Some(c) if c.second.is_some() => (0.0, 0.0),
         Some(c) => {
             let d = c.normal[0] * x + c.normal[1] * y;
             (x - d * c.normal[0], y - d * c.normal[1])
