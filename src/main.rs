@@ -364,7 +364,20 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
             ExitCode::from(stop as u8)
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            let hint = match e {
+                gripsim::solver::SimError::Diverged { .. }
+                    if sim.scenario.solve.mode == gripsim::scenario::Mode::Static =>
+                {
+                    " (hint: lower solve.load_step or raise solve.max_newton_iterations; the \
+                     recordings end at the last converged load step)"
+                }
+                gripsim::solver::SimError::Diverged { .. } => {
+                    " (hint: lower solve.dt, or raise solve.max_newton_iterations or \
+                     solve.max_backoff; the recordings end at the last accepted step)"
+                }
+                _ => "",
+            };
+            eprintln!("error: {e}{hint}");
             ExitCode::from(2)
         }
         Ok(_) if failed => ExitCode::from(2),

@@ -567,3 +567,95 @@ fn sigint_and_sigterm_close_the_recordings() {
         assert_eq!(report["metadata"]["gripsim.run_end"]["completed"], "false");
     }
 }
+
+/// A run that diverges (one Newton iteration allowed, no dt back-off, a stiff prong) stops
+/// with exit status 2 and a message naming the step, time, rod, node and residual; its
+/// recordings are closed properly up to the last accepted step (footer, summary), keep their
+/// .partial names, and end with the reason (the last /sim/event and the run_end metadata).
+#[test]
+fn a_diverged_run_exits_2_and_its_recordings_say_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (mcap, rrd, csv) = (d.join("div.mcap"), d.join("div.rrd"), d.join("div.csv"));
+    let out = gripsim()
+        .arg("run")
+        .arg(scenario("seed-grasp-r5"))
+        .args([
+            "-q",
+            "--set",
+            "rod.0.E=1e11",
+            "--set",
+            "solve.max_newton_iterations=1",
+            "--set",
+            "solve.max_backoff=0",
+            "--mcap",
+        ])
+        .arg(&mcap)
+        .arg("--rrd")
+        .arg(&rrd)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    // error: diverged at step N, t = T s: rod "prong" node I: <reason> (residual R N) ...
+    let first = stderr.lines().next().unwrap_or("");
+    let step: u64 = first
+        .strip_prefix("error: diverged at step ")
+        .and_then(|s| s.split(',').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no step in {stderr}"));
+    assert!(step > 100, "diverged at step {step}: expected mid-run");
+    for part in [", t = ", " s: rod \"prong\" node ", "(residual ", "hint:"] {
+        assert!(stderr.contains(part), "{part:?} missing from:\n{stderr}");
+    }
+
+    // MCAP: complete file, steps 0 .. N-1, then the reason.
+    assert!(
+        !mcap.exists() && !rrd.exists() && !csv.exists(),
+        "a failed run keeps .partial"
+    );
+    let partial = d.join("div.partial.mcap");
+    let report = read_mcap_py(&partial);
+    assert_eq!(report["error"], Value::Null, "{report}");
+    assert_eq!(report["summary"]["footer"], true);
+    assert_eq!(report["summary"]["statistics"], true);
+    let steps = report["steps"].as_array().unwrap();
+    assert_eq!(steps.len() as u64, step, "steps 0 .. {}", step - 1);
+    assert_eq!(steps.last().unwrap().as_u64(), Some(step - 1));
+    let last = &report["last_event"];
+    assert_eq!(last["kind"], "run_end");
+    assert_eq!(last["completed"], false);
+    let why = last["error"].as_str().unwrap();
+    assert!(
+        why.starts_with(&format!("diverged at step {step}, t = ")),
+        "{why}"
+    );
+    assert!(first.contains(why), "stderr and recording agree: {why}");
+    let end = &report["metadata"]["gripsim.run_end"];
+    assert_eq!(end["completed"], "false");
+    assert_eq!(end["error"], why);
+    assert_eq!(end["steps"], (step - 1).to_string());
+    // The failed attempt itself is an event just before the end.
+    let (msgs, err) = read_mcap_rust(&partial);
+    assert_eq!(err, None);
+    let kinds: Vec<&str> = msgs
+        .iter()
+        .filter(|m| m.topic == "/sim/event")
+        .filter_map(|m| m.json["kind"].as_str())
+        .collect();
+    assert_eq!(kinds[kinds.len() - 2..], ["newton_failed", "run_end"]);
+
+    // Rerun: a whole, valid file.
+    assert_rrd_verifies(&d.join("div.partial.rrd"));
+
+    // CSV: rows up to the last accepted step.
+    let text = std::fs::read_to_string(d.join("div.partial.csv")).unwrap();
+    let last_row = text.lines().last().unwrap();
+    assert!(
+        last_row.starts_with(&format!("{},", step - 1)),
+        "{last_row}"
+    );
+}
