@@ -281,9 +281,7 @@ impl Scenario {
             key: String::new(),
             value: String::new(),
             message: format!("cannot read the file: {e}"),
-            hint: Some(
-                "check the path; shipped scenarios are listed by `gripsim scenarios`".into(),
-            ),
+            hint: Some(missing_file_hint(path, &e)),
         })?;
         let text = String::from_utf8(bytes).map_err(|e| ScenarioError {
             file: file.clone(),
@@ -365,6 +363,42 @@ impl Scenario {
         crate::model::validate_geometry(&sc)?;
         Ok(sc)
     }
+}
+
+/// The hint for a scenario file that cannot be read: a "did you mean" when a `.toml` file
+/// of a similar name is beside it (or in `scenarios/`), e.g. for `seed-grasp-r6.toml` or a
+/// name given without `.toml` or without `scenarios/`.
+fn missing_file_hint(path: &std::path::Path, e: &std::io::Error) -> String {
+    use std::path::Path;
+    let general = "check the path; shipped scenarios are listed by `gripsim scenarios`";
+    if e.kind() != std::io::ErrorKind::NotFound {
+        return general.into();
+    }
+    let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return general.into();
+    };
+    let want = if name.ends_with(".toml") {
+        name
+    } else {
+        format!("{name}.toml")
+    };
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
+    for dir in [parent.unwrap_or(Path::new(".")), Path::new("scenarios")] {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        let mut names: Vec<String> = entries
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".toml"))
+            .collect();
+        names.sort();
+        let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+        if let Some(best) = reader::did_you_mean(&want, &refs) {
+            return format!("did you mean {}? ({general})", dir.join(best).display());
+        }
+    }
+    general.into()
 }
 
 fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError> {

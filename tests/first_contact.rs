@@ -1,0 +1,131 @@
+//! First contact: what a new user sees first — the help of every command (each shows an
+//! example), and errors that say how to fix them.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn gripsim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gripsim"))
+}
+
+fn text(out: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The subcommands listed under "Commands:" in a help text (without `help`).
+fn subcommands(help: &str) -> Vec<String> {
+    help.lines()
+        .skip_while(|l| l.trim() != "Commands:")
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| *c != "help")
+        .map(str::to_string)
+        .collect()
+}
+
+/// `gripsim --help` and the help of every subcommand, at every level (found by reading the
+/// "Commands:" lists, so a new command is checked without touching this test), show an
+/// example, with both `--help` and `-h`.
+#[test]
+fn every_command_help_shows_an_example() {
+    let mut todo: Vec<Vec<String>> = vec![vec![]];
+    let mut seen = Vec::new();
+    while let Some(path) = todo.pop() {
+        for flag in ["--help", "-h"] {
+            let out = gripsim().args(&path).arg(flag).output().unwrap();
+            let (stdout, stderr) = text(&out);
+            assert!(
+                out.status.success(),
+                "gripsim {} {flag}: {}\n{stderr}",
+                path.join(" "),
+                out.status
+            );
+            assert!(
+                stdout.contains("Example"),
+                "gripsim {} {flag} shows no example:\n{stdout}",
+                path.join(" ")
+            );
+            if flag == "--help" {
+                for c in subcommands(&stdout) {
+                    let mut next = path.clone();
+                    next.push(c);
+                    todo.push(next);
+                }
+            }
+        }
+        seen.push(path.join(" "));
+    }
+    for c in ["run", "validate", "scenarios", "bench"] {
+        assert!(seen.iter().any(|s| s == c), "{c} not found in {seen:?}");
+    }
+}
+
+/// A bare `gripsim` or a command without its file says what to type.
+#[test]
+fn missing_arguments_point_to_the_help() {
+    for args in [&[][..], &["run"][..], &["validate"][..]] {
+        let out = gripsim().args(args).output().unwrap();
+        let (_, stderr) = text(&out);
+        assert_eq!(out.status.code(), Some(2), "gripsim {args:?}");
+        assert!(
+            stderr.contains("Usage:") && stderr.contains("--help"),
+            "gripsim {args:?}:\n{stderr}"
+        );
+    }
+}
+
+/// A mistyped scenario path or a run from the wrong folder names the file and the fix.
+#[test]
+fn common_first_mistakes_suggest_the_fix() {
+    let out = gripsim()
+        .args(["run", "scenarios/seed-grasp-r6.toml", "--no-record"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr.contains("scenarios/seed-grasp-r6.toml")
+            && stderr.contains("hint: did you mean scenarios/seed-grasp-r")
+            && stderr.contains("gripsim scenarios"),
+        "{stderr}"
+    );
+    // A bare name: without the folder and without .toml.
+    let out = gripsim()
+        .args(["validate", "seed-grasp-r5"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr.contains("did you mean scenarios/seed-grasp-r5.toml?"),
+        "{stderr}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = gripsim()
+        .arg("scenarios")
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr.contains("--dir"), "{stderr}");
+
+    // The listing works from anywhere with --dir.
+    let out = gripsim()
+        .arg("scenarios")
+        .arg("--dir")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios"))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let (stdout, _) = text(&out);
+    assert!(out.status.success());
+    assert!(stdout.contains("seed-grasp-r5.toml"), "{stdout}");
+}
