@@ -259,3 +259,82 @@ normal = [-2.0336954367474103e-5, 9.999999997932042e-1]
         sim.stats.max_penetration
     );
 }
+
+/// With fixed stepping, the step after a back-off was announced as "proximity: all nodes are
+/// clear" with the nominal dt, while it took twice the backed-off dt. Every dt change now says
+/// what it is and gives the dt the next attempt takes. (Seen in the recordings of the folded
+/// rod above.)
+#[test]
+fn dt_changes_name_the_real_reason_and_the_next_dt() {
+    #[derive(Default)]
+    struct Dts {
+        announced: Option<(f64, &'static str)>,
+        t_end: f64,
+        checked: u32,
+        wrong: Vec<String>,
+    }
+    impl Observer for Dts {
+        fn wants_steps(&self) -> bool {
+            false
+        }
+        fn on_event(&mut self, e: &Event<'_>) {
+            match *e {
+                Event::DtChanged { new, reason, .. } => {
+                    if reason.starts_with("proximity") {
+                        self.wrong.push(format!("fixed stepping, but {reason:?}"));
+                    }
+                    self.announced = Some((
+                        new,
+                        if reason.contains("grows back") {
+                            "grow"
+                        } else {
+                            ""
+                        },
+                    ));
+                }
+                Event::StepBegin { dt, t, .. } => {
+                    if let Some((new, kind)) = self.announced.take() {
+                        // The last step is cut (or stretched by a sliver) to end at t_end.
+                        let last = (t + dt - self.t_end).abs() < 1e-12;
+                        if kind == "grow" {
+                            self.checked += 1;
+                            if dt != new && !last {
+                                self.wrong
+                                    .push(format!("announced dt {new:e}, took {dt:e}"));
+                            }
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    let text = r#"name = "prop"
+[solve]
+t_end = 3.961448366316674e-3
+dt = 7.474430879842782e-5
+gravity = [0.0, -5.785944535480814e0]
+[[rod]]
+name = "rod0"
+nodes = 29
+shape = { kind = "straight", start = [2.4599986773195998e-2, 3.5279948270547025e-5], end = [4.0844334254086095e-2, 3.6170714251694956e-2] }
+E = 2.632849139733576e4
+density = 3.014851568724064e3
+section = { kind = "circle", radius = 1.4115029843223587e-3 }
+velocity = [3.014759691927372e-1, -2.8040154624820217e0]
+[[obstacle]]
+kind = "plane"
+point = [0.0, -1.0734149642510003e-5]
+normal = [-0e0, 1e0]
+"#;
+    let sc = Scenario::from_str(text, "regression.toml", &[]).unwrap();
+    let mut sim = Simulation::new(&sc);
+    let mut dts = Dts {
+        t_end: sc.solve.t_end,
+        ..Dts::default()
+    };
+    let _ = sim.run(&mut dts);
+    assert!(sim.stats.backoffs > 0);
+    assert!(dts.checked > 0, "no dt grew back");
+    assert!(dts.wrong.is_empty(), "{:#?}", dts.wrong);
+}

@@ -255,23 +255,29 @@ impl Simulation {
         while self.t < t_end * (1.0 - 1e-12) {
             self.check_interrupt()?;
             let nominal = self.nominal_dt();
-            if prev_nominal.is_finite() && nominal != prev_nominal {
-                let reason = if nominal < prev_nominal {
-                    "proximity: a node is near an obstacle"
-                } else {
-                    "proximity: all nodes are clear"
+            // After a back-off the step grows back by 2x per accepted step, not at once.
+            let planned = nominal.min(recovery_cap);
+            if prev_nominal.is_finite() && planned != prev_nominal {
+                // Static texts: no allocation in the step loop.
+                let reason = match self.scenario.solve.stepping {
+                    _ if planned == recovery_cap => "dt grows back after a back-off",
+                    Stepping::Proximity if planned < prev_nominal => {
+                        "proximity: a node is near an obstacle"
+                    }
+                    Stepping::Proximity => "proximity: all nodes are clear",
+                    Stepping::Adaptive => "adaptive: the step the error estimate allows",
+                    Stepping::Fixed => "back to the nominal dt",
                 };
                 obs.on_event(&Event::DtChanged {
                     step: self.step + 1,
                     t: self.t,
                     old: prev_nominal,
-                    new: nominal,
+                    new: planned,
                     reason,
                 });
             }
-            prev_nominal = nominal;
-            // After a back-off the step grows back by 2x per accepted step, not at once.
-            let mut dt = nominal.min(recovery_cap).min(t_end - self.t);
+            prev_nominal = planned;
+            let mut dt = planned.min(t_end - self.t);
             // Avoid a sliver of a last step.
             if t_end - (self.t + dt) < 1e-9 * dt {
                 dt = t_end - self.t;
