@@ -338,3 +338,37 @@ normal = [-0e0, 1e0]
     assert!(dts.checked > 0, "no dt grew back");
     assert!(dts.wrong.is_empty(), "{:#?}", dts.wrong);
 }
+
+/// Fuzz finding (fuzz/fuzz_targets/replay_mcap.rs, 2026-11-22): a damaged recording whose
+/// record length field inside a chunk reads 8.4e18 made `gripsim replay` try to allocate that
+/// many bytes and abort (exit 134, "memory allocation of ... bytes failed"). It is now refused
+/// like any damaged file: exit 2, the file named, no panic. The input is the fuzzer's own,
+/// unminimised.
+#[test]
+fn fuzz_replay_mcap_a_huge_record_length_is_an_error_not_an_abort() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/fuzz/replay_mcap-crash-67e723f3.mcap");
+    for args in [&["check"][..], &["show", "--rrd", "/dev/null"][..]] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_gripsim"))
+            .arg("replay")
+            .arg(args[0])
+            .arg(&file)
+            .args(&args[1..])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.starts_with(&format!("error: {}: ", file.display()))
+                && stderr.contains("exceeds limit")
+                && !stderr.contains("panicked"),
+            "{stderr}"
+        );
+    }
+    // The library says the same, in process.
+    let err = gripsim::replay::Run::load(&file).unwrap_err();
+    assert!(
+        err.to_string().contains("not a readable MCAP file"),
+        "{err}"
+    );
+}

@@ -323,11 +323,7 @@ pub fn read_messages(
                 .into(),
         ));
     }
-    let records = mcap::read::ChunkFlattener::new_with_options(
-        &bytes,
-        mcap::read::Options::ValidateChunkCrcs.into(),
-    )
-    .map_err(|e| err(format!("not a readable MCAP file: {e}")))?;
+    let records = Records::new(&bytes);
 
     // id -> (name, encoding)
     let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
@@ -537,6 +533,52 @@ pub fn read_messages(
         status.truncated = Some("the file ends without a summary or footer".into());
     }
     Ok(status)
+}
+
+/// Every record of an MCAP file in file order, chunks decompressed and their CRCs checked: what
+/// `mcap::read::ChunkFlattener` does, but with a record length limit. Without one, a damaged
+/// length field inside a chunk made the reader allocate that many bytes (8e18) and abort the
+/// process (found by fuzz/fuzz_targets/replay_mcap.rs; tests/regressions.rs replays it).
+struct Records<'a> {
+    buf: &'a [u8],
+    reader: mcap::sans_io::LinearReader,
+}
+
+impl<'a> Records<'a> {
+    fn new(buf: &'a [u8]) -> Self {
+        // A record is a chunk (at most the file) or a message in one: no gripsim message is
+        // 64 times larger than its whole file compressed, nor larger than 64 MiB in a small one.
+        let limit = buf.len().saturating_mul(64).max(64 << 20);
+        let options = mcap::sans_io::LinearReaderOptions::default()
+            .with_validate_chunk_crcs(true)
+            .with_record_length_limit(limit);
+        Self {
+            buf,
+            reader: mcap::sans_io::LinearReader::new_with_options(options),
+        }
+    }
+}
+
+impl Iterator for Records<'_> {
+    type Item = mcap::McapResult<mcap::records::Record<'static>>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        while let Some(event) = self.reader.next_event() {
+            match event {
+                Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
+                    let len = need.min(self.buf.len());
+                    self.reader.insert(len).copy_from_slice(&self.buf[..len]);
+                    self.reader.notify_read(len);
+                    self.buf = &self.buf[len..];
+                }
+                Ok(mcap::sans_io::LinearReadEvent::Record { data, opcode }) => {
+                    return Some(mcap::read::parse_record(opcode, data).map(|r| r.into_owned()));
+                }
+                Err(e) => return Some(Err(e)),
+            }
+        }
+        None
+    }
 }
 
 /// How many obstacles `/sim/meta` lists (only the count is needed to check indices).
