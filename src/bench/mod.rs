@@ -544,7 +544,7 @@ pub fn scaling(
             s / it.max(1e-300)
         );
     }
-    std::fs::create_dir_all(&opt_.out).map_err(|e| e.to_string())?;
+    std::fs::create_dir_all(&opt_.out).map_err(|e| format!("{}: {e}", opt_.out.display()))?;
     crate::record::write_atomic(&opt_.out.join("scaling.csv"), csv.as_bytes())
         .map_err(|e| e.to_string())?;
     plot::panels(
@@ -730,7 +730,7 @@ pub fn stress(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Cell
             c.e, c.accel, c.nodes, c.dt, c.steps, c.contact, c.max_penetration, c.non_finite
         );
     }
-    std::fs::create_dir_all(&opt_.out).map_err(|e| e.to_string())?;
+    std::fs::create_dir_all(&opt_.out).map_err(|e| format!("{}: {e}", opt_.out.display()))?;
     crate::record::write_atomic(&opt_.out.join("stress.csv"), csv.as_bytes())
         .map_err(|e| e.to_string())?;
     // One map per node count: rows E, columns dt, colour = worst outcome over accelerations.

@@ -549,6 +549,7 @@ impl<'a> Records<'a> {
         // A record is a chunk (at most the file) or a message in one: no gripsim message is
         // 64 times larger than its whole file compressed, nor larger than 64 MiB in a small one.
         let limit = buf.len().saturating_mul(64).max(64 << 20);
+        let buf = &buf[..sound_prefix(buf)];
         let options = mcap::sans_io::LinearReaderOptions::default()
             .with_validate_chunk_crcs(true)
             .with_record_length_limit(limit);
@@ -579,6 +580,69 @@ impl Iterator for Records<'_> {
         }
         None
     }
+}
+
+/// The length of `buf` up to the first uncompressed chunk whose records do not fit in it
+/// (gripsim compresses every chunk; another writer may not). The mcap crate (0.26) subtracts
+/// such a record's length from what is left of the chunk unchecked: an overflow panic in a
+/// debug build (found by fuzz/fuzz_targets/replay_mcap.rs), a wrap in a release one. Reading
+/// stops there instead, as at any damaged chunk.
+fn sound_prefix(buf: &[u8]) -> usize {
+    const CHUNK: u8 = 0x06;
+    let mut pos = mcap::MAGIC.len();
+    while let Some(len) = u64_at(buf, pos + 1) {
+        let end = usize::try_from(len)
+            .ok()
+            .and_then(|l| (pos + 9).checked_add(l));
+        if buf[pos] == CHUNK {
+            let body = &buf[pos + 9..end.unwrap_or(usize::MAX).min(buf.len())];
+            if !chunk_records_fit(body) {
+                return pos;
+            }
+        }
+        match end {
+            Some(e) if e <= buf.len() => pos = e,
+            _ => break,
+        }
+    }
+    buf.len()
+}
+
+/// Whether every record of an uncompressed chunk ends within the chunk's records length, as far
+/// as `body` (the chunk record's body, perhaps cut short) shows. True for a compressed chunk.
+fn chunk_records_fit(body: &[u8]) -> bool {
+    // Start and end time, uncompressed size (8 bytes each), CRC (4), compression (4-byte
+    // length + text), records (8-byte length + bytes).
+    let Some(clen) = body.get(28..32) else {
+        return true;
+    };
+    if clen != [0; 4] {
+        return true;
+    }
+    let Some(records_len) = u64_at(body, 32) else {
+        return true;
+    };
+    let records = body.get(40..).unwrap_or(&[]);
+    let mut i = 0u64;
+    while i < records_len {
+        let Some(head_end) = i.checked_add(9).filter(|&h| h <= records_len) else {
+            return false;
+        };
+        let Some(len) = usize::try_from(i + 1).ok().and_then(|k| u64_at(records, k)) else {
+            // The file stops inside the chunk: a cut-short file, read up to there.
+            return true;
+        };
+        match head_end.checked_add(len) {
+            Some(next) if next <= records_len => i = next,
+            _ => return false,
+        }
+    }
+    true
+}
+
+fn u64_at(b: &[u8], i: usize) -> Option<u64> {
+    let bytes = b.get(i..i.checked_add(8)?)?;
+    Some(u64::from_le_bytes(bytes.try_into().ok()?))
 }
 
 /// How many obstacles `/sim/meta` lists (only the count is needed to check indices).
