@@ -400,3 +400,15 @@ fn fuzz_replay_mcap_a_huge_record_length_is_an_error_not_an_abort() {
         "{err}"
     );
 }
+
+/// Fuzz finding (fuzz/fuzz_targets/replay_mcap.rs, 2026-11-22): a 67-byte file whose first
+/// record is an attachment shorter than an attachment's fixed fields. The mcap crate slices it
+/// unchecked ("slice index starts at 39 but ends at 36"): `gripsim replay` panicked, exit 101,
+/// in release builds too. Attachments are now skipped unparsed (a replay has no use for them).
+#[test]
+fn fuzz_replay_mcap_a_short_attachment_record() {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/fuzz/replay_mcap-crash-d9c2e212.mcap");
+    let err = replay_refuses(&file);
+    assert!(err.contains("not a readable MCAP file"), "{err}");
+}
