@@ -1,0 +1,44 @@
+//! Fuzz the MCAP reader of `gripsim replay` with raw file bytes.
+//!
+//! The input is written to a file (the reader takes a path, as the CLI does) and read with
+//! `replay::check` (read + spike/sticking rules) and, when that succeeds, diffed against
+//! itself. Any `Err` is fine; a panic is a finding. A run that reads must diff clean against
+//! itself.
+//!
+//! The seeds (fuzz/seeds/replay_mcap/) are short real recordings, one as written (zstd
+//! chunks with CRCs) and the same messages unchunked and uncompressed, so that mutations reach
+//! the JSON messages and not only the container.
+
+#![no_main]
+
+use gripsim::replay::{self, diff, Thresholds, Tolerances};
+use libfuzzer_sys::fuzz_target;
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+fn scratch() -> &'static PathBuf {
+    static PATH: OnceLock<PathBuf> = OnceLock::new();
+    PATH.get_or_init(|| {
+        let dir = if std::path::Path::new("/dev/shm").is_dir() {
+            PathBuf::from("/dev/shm")
+        } else {
+            std::env::temp_dir()
+        };
+        dir.join(format!("gripsim-fuzz-{}.mcap", std::process::id()))
+    })
+}
+
+fuzz_target!(|data: &[u8]| {
+    let path = scratch();
+    std::fs::write(path, data).expect("write the scratch file");
+    let th = Thresholds::default();
+    let Ok((run, report)) = replay::check(path, &th) else {
+        return;
+    };
+    let _ = replay::format_check(&report);
+    let _ = run.warning();
+    let rep = diff::diff(&run, &run, &Tolerances::default(), &th)
+        .expect("a run that reads is comparable with itself");
+    let _ = diff::format_diff(&rep);
+    assert!(rep.within_tolerance, "a run differs from itself");
+});
