@@ -12,6 +12,23 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+/// `println!` that ignores a closed stdout (`gripsim run ... | head`): by then the run is over
+/// and its files are closed, and a "failed printing to stdout" panic would only hide that.
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `print!` likewise.
+macro_rules! say_part {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($t)*);
+    }};
+}
+
 #[derive(Parser)]
 #[command(
     name = "gripsim",
@@ -222,7 +239,7 @@ fn main() -> ExitCode {
         Command::Validate { scenario, sets } => match Scenario::load(&scenario, &sets) {
             Ok(sc) => {
                 let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
-                println!(
+                say!(
                     "{}: ok ({:?}, {} rod(s), {} node(s), {} obstacle(s))",
                     scenario.display(),
                     sc.name,
@@ -390,7 +407,7 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions) {
     if files.is_empty() {
         return;
     }
-    println!(
+    say!(
         "recordings      ({} detail, readable up to the last multiple of {} steps if the run dies)",
         opts.detail.as_str(),
         opts.flush_every
@@ -402,7 +419,7 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions) {
             "mcap" => "open in Foxglove: Open local file; 3D panel on /scene, Plot panel on /sim/step.rods[0].reaction_norm[i]".to_string(),
             _ => "tidy table: one row per step, rod and node".to_string(),
         };
-        println!(
+        say!(
             "  {:<5} {} ({:.1} MB{})  {how}",
             format,
             f.path.display(),
@@ -417,12 +434,15 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions) {
 }
 
 fn print_summary(s: &gripsim::record::summary::Summary) {
-    println!("scenario        {}", s.scenario);
-    println!(
+    say!("scenario        {}", s.scenario);
+    say!(
         "steps           {} ({} Newton iterations, {} corrector passes, {} dt back-offs)",
-        s.steps, s.newton_iterations, s.contact_passes, s.dt_backoffs
+        s.steps,
+        s.newton_iterations,
+        s.contact_passes,
+        s.dt_backoffs
     );
-    println!(
+    say!(
         "simulated       {:.6} s{}",
         s.simulated_time_s,
         if s.mode == "static" {
@@ -431,28 +451,30 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
             ""
         }
     );
-    println!("wall time       {:.3} s", s.wall_time_s);
+    say!("wall time       {:.3} s", s.wall_time_s);
     match &s.peak_reaction_node {
-        Some(n) => println!(
+        Some(n) => say!(
             "peak reaction   {:.4} N at rod {:?} node {} (t = {:.6} s)",
             s.peak_reaction_force_n,
             n.rod,
             n.node,
             s.peak_reaction_time_s.unwrap_or(0.0)
         ),
-        None => println!("peak reaction   none (no contact)"),
+        None => say!("peak reaction   none (no contact)"),
     }
     if let Some(t) = s.contact_onset_time_s {
-        println!("first contact   t = {t:.6} s");
+        say!("first contact   t = {t:.6} s");
     }
-    println!(
+    say!(
         "penetration     {:.3e} m max after the corrector",
         s.max_penetration_m
     );
     if let Some(n) = &s.max_bending_stress_node {
-        println!(
+        say!(
             "bending stress  {:.4e} Pa max at rod {:?} node {}",
-            s.max_bending_stress_pa, n.rod, n.node
+            s.max_bending_stress_pa,
+            n.rod,
+            n.node
         );
     }
     for r in &s.rods {
@@ -463,16 +485,16 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
             .enumerate()
             .max_by_key(|(i, c)| (**c, std::cmp::Reverse(*i)))
             .filter(|(_, c)| **c > 0);
-        print!(
+        say_part!(
             "rod {:<11} tip at ({:.6}, {:.6}) m",
             format!("{:?}", r.name),
             tip[0],
             tip[1]
         );
         if let Some((i, c)) = busiest {
-            print!(", most contact steps: node {i} ({c})");
+            say_part!(", most contact steps: node {i} ({c})");
         }
-        println!();
+        say!();
     }
 }
 
@@ -501,9 +523,9 @@ fn list_scenarios(dir: &Path) -> ExitCode {
                     .unwrap_or("")
                     .trim()
                     .to_string();
-                println!("{:<44} {}", p.display(), first);
+                say!("{:<44} {}", p.display(), first);
             }
-            Err(e) => println!("{:<44} INVALID: {e}", p.display()),
+            Err(e) => say!("{:<44} INVALID: {e}", p.display()),
         }
     }
     ExitCode::SUCCESS

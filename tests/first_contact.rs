@@ -129,3 +129,38 @@ fn common_first_mistakes_suggest_the_fix() {
     assert!(out.status.success());
     assert!(stdout.contains("seed-grasp-r5.toml"), "{stdout}");
 }
+
+/// `gripsim run ... | head -2` (or `gripsim scenarios | head`): the reader goes away before the
+/// summary is printed. That panicked ("failed printing to stdout: Broken pipe", exit 101); the
+/// output is now simply cut, and the exit status is the run's.
+#[test]
+fn a_closed_stdout_is_not_a_panic() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for args in [
+        vec![
+            "run".to_string(),
+            root.join("scenarios/seed-grasp-r5.toml")
+                .display()
+                .to_string(),
+            "--no-record".to_string(),
+        ],
+        vec![
+            "scenarios".to_string(),
+            "--dir".to_string(),
+            root.join("scenarios").display().to_string(),
+        ],
+    ] {
+        let mut child = gripsim()
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Close the reading end before anything is printed.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let (_, stderr) = text(&out);
+        assert!(!stderr.contains("panicked"), "gripsim {args:?}:\n{stderr}");
+        assert_eq!(out.status.code(), Some(0), "gripsim {args:?}:\n{stderr}");
+    }
+}
