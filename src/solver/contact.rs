@@ -76,7 +76,7 @@ pub fn deepest_other(
             continue;
         }
         let q = o.query(p);
-        if q.distance < below && best.map_or(true, |(_, b)| q.distance < b.distance) {
+        if q.distance < below && best.is_none_or(|(_, b)| q.distance < b.distance) {
             best = Some((k, q));
         }
     }
