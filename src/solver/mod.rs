@@ -567,8 +567,10 @@ impl Simulation {
                                 )
                             };
                             if rn < 0.0 && !c.locked {
-                                // In a corner the node stays on the other surface.
-                                w.contact[i] = c.second.map(|s| contact::Constraint {
+                                // In a corner the node stays on the other surface, unless that
+                                // one pulls too.
+                                let keep = c.second.filter(|_| rn2 >= 0.0);
+                                w.contact[i] = keep.map(|s| contact::Constraint {
                                     obstacle: s.obstacle,
                                     normal: s.normal,
                                     target: s.target,
@@ -577,6 +579,9 @@ impl Simulation {
                                 });
                                 changed = true;
                                 obs.on_event(&release(c.obstacle, c.normal));
+                                if let (None, Some(s)) = (keep, c.second) {
+                                    obs.on_event(&release(s.obstacle, s.normal));
+                                }
                                 // Mark so that a re-penetration in this step locks it.
                                 w.contact_saved_mark(i);
                             } else if let (true, Some(s)) = (rn2 < 0.0, c.second) {
