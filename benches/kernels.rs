@@ -6,8 +6,8 @@
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use gripsim::bench::SEED_R5;
+use gripsim::contact::{self, Surfaces};
 use gripsim::events::NullObserver;
-use gripsim::solver::contact;
 use gripsim::solver::newton::assemble;
 use gripsim::{Scenario, Simulation};
 
@@ -64,7 +64,9 @@ fn kernels(c: &mut Criterion) {
             b.iter(|| {
                 let mut hits = 0;
                 for i in 0..rod.n {
-                    if contact::deepest(&obstacles, [q[2 * i], q[2 * i + 1]], 0.0).is_some() {
+                    if contact::deepest(&Surfaces::fixed(&obstacles), [q[2 * i], q[2 * i + 1]], 0.0)
+                        .is_some()
+                    {
                         hits += 1;
                     }
                 }

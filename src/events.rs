@@ -45,6 +45,10 @@ pub struct RunInfo<'a> {
     pub scenario_text: &'a str,
     pub rods: &'a [RodInfo],
     pub obstacles: &'a [crate::obstacle::Obstacle],
+    /// The obstacles' names (`obstacle.<i>` unless named).
+    pub obstacle_names: &'a [String],
+    /// Free bodies (fruit): which obstacle each carries, its mass and inertia.
+    pub bodies: &'a [crate::world::body::BodySpec],
     pub mode: crate::scenario::Mode,
 }
 
@@ -116,6 +120,67 @@ pub struct ContactChange {
     pub z: f64,
 }
 
+/// A contact switched between stick and slip (decided from its eq. 2 reaction).
+#[derive(Debug, Clone, Copy)]
+pub struct FrictionChange {
+    pub step: u64,
+    pub t: f64,
+    /// Corrector pass that the change leads into.
+    pub pass: u32,
+    /// The rod, or `usize::MAX` for a free body's own contact (then `node` is the body).
+    pub rod: usize,
+    pub node: usize,
+    pub obstacle: usize,
+    /// True for slip → stick, false for stick → slip.
+    pub stuck: bool,
+    /// Normal and tangential reaction when it switched (N).
+    pub normal_force: f64,
+    pub tangential_force: f64,
+    /// Slip velocity along the contact tangent, relative to the surface (m/s).
+    pub slip_velocity: f64,
+}
+
+/// One active contact at the end of a step, with its friction state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactView {
+    /// The rod, or `usize::MAX` for a free body's own contact with a fixed obstacle (then
+    /// `node` is the body's index).
+    pub rod: usize,
+    pub node: usize,
+    pub obstacle: usize,
+    /// The free body the surface belongs to (`usize::MAX` for a fixed obstacle).
+    pub body: usize,
+    pub point: [f64; 2],
+    pub normal: [f64; 2],
+    /// Normal reaction (N, ≥ 0 when pressed) and tangential (friction) reaction along
+    /// t = (−n_y, n_x) (N).
+    pub normal_force: f64,
+    pub friction_force: f64,
+    /// Slip velocity along t relative to the surface (m/s).
+    pub slip_velocity: f64,
+    pub stuck: bool,
+    /// |R_t| / (μ_s R_n); 0 when frictionless.
+    pub utilisation: f64,
+    pub mu_s: f64,
+}
+
+/// A free body at the end of a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyView<'a> {
+    pub name: &'a str,
+    pub obstacle: usize,
+    /// Centroid (m) and rotation from the shape as given (rad).
+    pub position: [f64; 2],
+    pub angle: f64,
+    pub velocity: [f64; 2],
+    pub angular_velocity: f64,
+    /// Net contact force (N) and torque about the centroid (N·m) on the body over the step:
+    /// from the prongs and from fixed obstacles.
+    pub contact_force: [f64; 2],
+    pub contact_torque: f64,
+    pub mass: f64,
+}
+
 /// One event of the run.
 #[derive(Debug, Clone, Copy)]
 pub enum Event<'a> {
@@ -144,6 +209,32 @@ pub enum Event<'a> {
     },
     ConstraintAdded(ContactChange),
     ConstraintReleased(ContactChange, ReleaseReason),
+    /// A contact switched between stick and slip.
+    FrictionChanged(FrictionChange),
+    /// A free body's own contact with a fixed obstacle was added or released.
+    BodyContactChanged {
+        step: u64,
+        t: f64,
+        pass: u32,
+        body: usize,
+        obstacle: usize,
+        /// The body's contact point (a polygon vertex index; 0 for round shapes).
+        feature: usize,
+        added: bool,
+        normal: [f64; 2],
+        /// Normal and tangential reaction when released (N).
+        reaction: [f64; 2],
+    },
+    /// An actuation program moved to its next phase (`to` = None: the program ended).
+    PhaseChanged {
+        step: u64,
+        t: f64,
+        actuator: usize,
+        from: usize,
+        to: Option<usize>,
+        name: &'a str,
+        reason: &'a str,
+    },
     /// The step size changed (proximity switch, back-off after a failure, or recovery).
     DtChanged {
         step: u64,
@@ -179,6 +270,10 @@ pub enum Event<'a> {
         /// Corrector passes spent on this step.
         passes: u32,
         rods: &'a [RodStepView<'a>],
+        /// Free bodies (fruit).
+        bodies: &'a [BodyView<'a>],
+        /// Every active contact, with its forces and friction state.
+        contacts: &'a [ContactView],
     },
     /// The run ended; `error` is set when it stopped on a failure.
     RunEnd {
@@ -251,5 +346,77 @@ impl<T: Observer + ?Sized> Observer for &mut T {
     }
     fn on_event(&mut self, event: &Event<'_>) {
         (**self).on_event(event)
+    }
+}
+
+impl Event<'_> {
+    /// A one-line text for the events of friction, the bodies' own contacts and actuation
+    /// phases (the sinks log them as text).
+    pub fn describe(&self) -> Option<(u64, f64, String)> {
+        match *self {
+            Event::FrictionChanged(f) => {
+                let who = if f.rod == usize::MAX {
+                    format!("body {}", f.node)
+                } else {
+                    format!("rod {} node {}", f.rod, f.node)
+                };
+                Some((
+                    f.step,
+                    f.t,
+                    format!(
+                        "step {}: {who} on obstacle.{} {} (R_n {:.4} N, R_t {:.4} N, slip {:.3e} m/s)",
+                        f.step,
+                        f.obstacle,
+                        if f.stuck { "slip → stick" } else { "stick → slip" },
+                        f.normal_force,
+                        f.tangential_force,
+                        f.slip_velocity
+                    ),
+                ))
+            }
+            Event::BodyContactChanged {
+                step,
+                t,
+                body,
+                obstacle,
+                feature,
+                added,
+                reaction,
+                ..
+            } => Some((
+                step,
+                t,
+                format!(
+                    "step {step}: body {body} point {feature} {} obstacle.{obstacle}{}",
+                    if added { "touches" } else { "leaves" },
+                    if added {
+                        String::new()
+                    } else {
+                        format!(" (R_n {:.4} N)", reaction[0])
+                    }
+                ),
+            )),
+            Event::PhaseChanged {
+                step,
+                t,
+                actuator,
+                from,
+                to,
+                name,
+                reason,
+            } => Some((
+                step,
+                t,
+                match to {
+                    Some(k) => format!(
+                        "step {step}: actuator {actuator} phase {from} → {k} ({name}): {reason}"
+                    ),
+                    None => format!(
+                        "step {step}: actuator {actuator} phase {from} ended, program complete: {reason}"
+                    ),
+                },
+            )),
+            _ => None,
+        }
     }
 }

@@ -7,6 +7,7 @@
 //! [`events::Observer`], and every sink in [`record`] is one observer.
 
 pub mod bench;
+pub mod contact;
 pub mod energy;
 pub mod events;
 pub mod model;
@@ -16,6 +17,7 @@ pub mod replay;
 pub mod scenario;
 pub mod solver;
 pub mod study;
+pub mod world;
 
 pub use scenario::Scenario;
 pub use solver::Simulation;

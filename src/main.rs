@@ -433,6 +433,37 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions) {
     }
 }
 
+fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
+    let verdict = match (g.lift_start_time_s, g.held, g.dropped) {
+        (None, ..) => "no lift".to_string(),
+        (Some(_), true, _) => "HELD".to_string(),
+        (Some(_), _, true) => "DROPPED".to_string(),
+        (Some(_), false, false) => format!("SLIPPED beyond {:.3e} m", g.hold_tolerance_m),
+    };
+    say!(
+        "fruit           {:?} ({:.4} kg): {verdict}",
+        g.fruit,
+        g.fruit_mass_kg
+    );
+    say!(
+        "grip force      {:.4} N peak per prong, {:.4} N peak total",
+        g.peak_grip_force_n,
+        g.peak_total_grip_force_n
+    );
+    let opt = |x: Option<f64>| x.map_or("-".to_string(), |m| format!("{m:.4}"));
+    say!(
+        "safety margin   {} at lift, {} min during the lift (mu_s * sum N / m g)",
+        opt(g.safety_margin_at_lift),
+        opt(g.min_safety_margin)
+    );
+    say!(
+        "slip            {:.3e} m max relative to the gripper, first slip {}",
+        g.max_slip_m,
+        g.first_slip_time_s
+            .map_or("never".to_string(), |t| format!("at t = {t:.6} s"))
+    );
+}
+
 fn print_summary(s: &gripsim::record::summary::Summary) {
     say!("scenario        {}", s.scenario);
     say!(
@@ -464,6 +495,9 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
     }
     if let Some(t) = s.contact_onset_time_s {
         say!("first contact   t = {t:.6} s");
+    }
+    if let Some(g) = &s.grasp {
+        print_grasp(g);
     }
     say!(
         "penetration     {:.3e} m max after the corrector",

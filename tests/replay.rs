@@ -177,6 +177,8 @@ fn synthetic(path: &Path, inject: Inject) {
         scenario_text: &sc.text,
         rods: &infos,
         obstacles: &sc.obstacles,
+        obstacle_names: &sc.obstacle_names,
+        bodies: &sc.bodies,
         mode: sc.solve.mode,
     }));
     let change = |step: u64, rod: usize, node: usize| ContactChange {
@@ -302,6 +304,8 @@ fn synthetic(path: &Path, inject: Inject) {
             newton_iterations: 1,
             passes: 0,
             rods: &views,
+            bodies: &[],
+            contacts: &[],
         });
     }
     sink.on_event(&Event::RunEnd {

@@ -411,6 +411,19 @@ impl Observer for McapSink {
                 message: message.to_string(),
                 ..EventMsg::default()
             }),
+            Event::FrictionChanged(_)
+            | Event::BodyContactChanged { .. }
+            | Event::PhaseChanged { .. } => {
+                if let Some((step, t, message)) = event.describe() {
+                    self.event(EventMsg {
+                        kind: "contact_state",
+                        step,
+                        t,
+                        message,
+                        ..EventMsg::default()
+                    })
+                }
+            }
             Event::StepEnd {
                 step,
                 t,
@@ -418,6 +431,7 @@ impl Observer for McapSink {
                 newton_iterations,
                 passes,
                 rods,
+                ..
             } => self.step_end(StepEnd {
                 step,
                 t,

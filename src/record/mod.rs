@@ -10,6 +10,7 @@
 //! completed) and the [`Recording`] trait (finish the file and say where it is).
 
 pub mod csv;
+pub mod grasp;
 pub mod mcap;
 pub mod rerun;
 pub mod summary;

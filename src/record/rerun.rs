@@ -715,6 +715,13 @@ impl Observer for RerunSink {
             Event::Warning { step, t, message } => {
                 self.text(step, t, TextLogLevelName::WARN, message.to_string())
             }
+            Event::FrictionChanged(_)
+            | Event::BodyContactChanged { .. }
+            | Event::PhaseChanged { .. } => {
+                if let Some((step, t, text)) = event.describe() {
+                    self.text(step, t, TextLogLevelName::INFO, text)
+                }
+            }
             Event::StepEnd {
                 step,
                 t,
@@ -722,6 +729,7 @@ impl Observer for RerunSink {
                 newton_iterations,
                 passes,
                 rods,
+                ..
             } => self.step_end(step, t, dt, newton_iterations, passes, rods),
             Event::RunEnd { steps, t, error } => {
                 self.completed = error.is_none();

@@ -63,6 +63,9 @@ pub struct Summary {
     pub max_bending_stress_pa: f64,
     pub max_bending_stress_node: Option<NodeRef>,
     pub rods: Vec<RodSummary>,
+    /// Grip, slip and drop of the first free body (absent without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<super::grasp::GraspSummary>,
 }
 
 /// Cumulative contact impulse of one node as a piecewise-linear function of time, trimmed
@@ -134,6 +137,7 @@ pub struct SummaryCollector {
     ended: bool,
     /// Per rod: (tip node, first clamped node) and their initial positions.
     tips: Vec<(usize, Option<usize>, Option<([f64; 2], [f64; 2])>)>,
+    grasp: super::grasp::GraspTracker,
 }
 
 impl SummaryCollector {
@@ -178,12 +182,14 @@ impl SummaryCollector {
             max_bending_stress_pa: self.stress,
             max_bending_stress_node: self.stress_at.map(node),
             rods: self.rods.clone(),
+            grasp: self.grasp.summary(),
         }
     }
 }
 
 impl Observer for SummaryCollector {
     fn on_event(&mut self, event: &Event<'_>) {
+        self.grasp.on_event(event);
         match event {
             Event::RunStart(info) => {
                 self.scenario = info.scenario_name.to_string();

@@ -127,6 +127,8 @@ fn drive(
                     scenario_text: &meta.scenario_text,
                     rods: &infos,
                     obstacles: &sc.obstacles,
+                    obstacle_names: &sc.obstacle_names,
+                    bodies: &sc.bodies,
                     mode: sc.solve.mode,
                 };
                 k.on_event(&Event::RunStart(&info));
@@ -148,6 +150,8 @@ fn drive(
                     newton_iterations: st.newton_iterations,
                     passes: st.passes,
                     rods: &views,
+                    bodies: &[],
+                    contacts: &[],
                 });
                 steps += 1;
                 last = Some((st.step, st.t));

@@ -2,10 +2,15 @@
 //!
 //! See `docs/scenario-format.md` for every key.
 
+pub mod friction;
+pub mod geometry;
+pub mod obstacle;
 pub mod overrides;
 pub mod reader;
 
+use crate::contact::friction::FrictionTable;
 use crate::obstacle::Obstacle;
+use crate::world::body::BodySpec;
 pub use reader::ScenarioError;
 use reader::TableReader;
 use toml::Value;
@@ -217,6 +222,12 @@ pub struct Scenario {
     pub solve: Solve,
     pub rods: Vec<RodSpec>,
     pub obstacles: Vec<Obstacle>,
+    /// Each obstacle's name (`obstacle.<i>` unless named).
+    pub obstacle_names: Vec<String>,
+    /// The obstacles that are free rigid bodies (fruit).
+    pub bodies: Vec<BodySpec>,
+    /// Coulomb coefficients (frictionless unless `[friction]` says otherwise).
+    pub friction: FrictionTable,
     /// Flush recordings every this many steps.
     pub flush_every: u64,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
@@ -234,6 +245,7 @@ const TOP_KEYS: &[&str] = &[
     "rod",
     "particle",
     "obstacle",
+    "friction",
     "output",
 ];
 const SOLVE_KEYS: &[&str] = &[
@@ -360,7 +372,7 @@ impl Scenario {
         let mut sc = parse_root(&root, file)?;
         sc.text = text;
         sc.file = file.to_string();
-        crate::model::validate_geometry(&sc)?;
+        geometry::validate(&sc)?;
         Ok(sc)
     }
 }
@@ -440,17 +452,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             ))
         }
     };
-    if rods_v.is_empty() && particles_v.is_empty() {
-        if let Some(e) = top.typo_error("rod").or_else(|| top.typo_error("particle")) {
-            return Err(e);
-        }
-        return Err(top.err_hint(
-            "rod",
-            None,
-            "missing required key",
-            "add at least one [[rod]] (or [[particle]]) table",
-        ));
-    }
+
     let mut rods: Vec<RodSpec> = Vec::new();
     let tables = rods_v
         .iter()
@@ -488,13 +490,24 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         rods.push(rod);
     }
 
-    let mut obstacles = Vec::new();
+    let (mut obstacles, mut obstacle_names, mut bodies) = (Vec::new(), Vec::new(), Vec::new());
     match top.get("obstacle") {
         None => {}
         Some(Value::Array(a)) => {
             for (i, v) in a.iter().enumerate() {
                 let r = top.table_value(&format!("obstacle.{i}"), v, &[])?;
-                obstacles.push(crate::obstacle::parse(&r)?);
+                let (o, name, body) = obstacle::parse(&r, i, solve.mode, solve.gravity)?;
+                if obstacle_names.contains(&name) || rods.iter().any(|x| x.name == name) {
+                    return Err(r.err_hint(
+                        "name",
+                        r.get("name"),
+                        format!("duplicate name {name:?}"),
+                        "give every rod, particle and obstacle its own name",
+                    ));
+                }
+                obstacles.push(o);
+                obstacle_names.push(name);
+                bodies.extend(body);
             }
         }
         Some(other) => {
@@ -506,6 +519,31 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         }
     }
 
+    if rods.is_empty() && bodies.is_empty() {
+        if let Some(e) = top.typo_error("rod").or_else(|| top.typo_error("particle")) {
+            return Err(e);
+        }
+        return Err(top.err_hint(
+            "rod",
+            None,
+            "missing required key",
+            "add at least one [[rod]] (or [[particle]]) table, or a free obstacle",
+        ));
+    }
+    let names: Vec<&str> = rods
+        .iter()
+        .map(|r| r.name.as_str())
+        .chain(obstacle_names.iter().map(String::as_str))
+        .collect();
+    let friction = friction::parse(&top, &names)?;
+    if friction.any() && solve.mode == Mode::Static {
+        return Err(top.err_hint(
+            "friction",
+            top.get("friction"),
+            "friction needs a dynamic run (stick and slip are decided from velocities)",
+            "use mode = \"dynamic\", or remove [friction]",
+        ));
+    }
     let mut flush_every = 100;
     if let Some(o) = top.opt_table("output", OUTPUT_KEYS)? {
         if let Some(n) = o.opt_usize("flush_every")? {
@@ -523,6 +561,9 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         solve,
         rods,
         obstacles,
+        obstacle_names,
+        bodies,
+        friction,
         flush_every,
         text: String::new(),
         file: file.into(),

@@ -85,6 +85,22 @@ impl BandLu {
         }
     }
 
+    /// Replace rows `a`, `a + 1` (one node) by `L` times them: the node's equations become
+    /// L r = 0 (a kinetic-friction row, see `contact::friction`).
+    pub fn transform_rows(&mut self, a: usize, l: [[f64; 2]; 2]) {
+        let lo = a.saturating_sub(self.kl.min(4));
+        let hi = (a + 5).min(self.n - 1);
+        for c in lo..=hi {
+            let (x, y) = (self.get(a, c), self.get(a + 1, c));
+            if a <= c + self.kl && c <= a + self.ku {
+                self.set(a, c, l[0][0] * x + l[0][1] * y);
+            }
+            if a + 1 <= c + self.kl && c <= a + 1 + self.ku {
+                self.set(a + 1, c, l[1][0] * x + l[1][1] * y);
+            }
+        }
+    }
+
     pub fn filter_cols(&mut self, a: usize, nrm: [f64; 2], s: f64) {
         let lo = a.saturating_sub(self.ku.min(4));
         let hi = (a + 5).min(self.n - 1);

@@ -3,16 +3,21 @@
 //! reported through [`crate::events::Observer`].
 
 pub mod banded;
-pub mod contact;
+mod contacts;
+pub mod coupled;
 pub mod newton;
+mod outputs;
+mod step;
 
-use crate::events::{
-    ContactChange, Event, Observer, Phase, ReleaseReason, RodInfo, RodStepView, RunInfo,
-};
+use crate::contact::{self, friction::Coulomb};
+use crate::events::{ContactView, Event, Observer, RodInfo, RunInfo};
 use crate::model::Rod;
 use crate::obstacle::Obstacle;
 use crate::scenario::{Mode, Scenario, Stepping};
-use newton::{NewtonFailure, NewtonOptions, RodWork};
+use crate::world::body::Pose;
+use crate::world::Body;
+use coupled::{BodyScratch, RodCoupling};
+use newton::{NewtonFailure, RodWork};
 
 /// Why a run stopped early.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -140,6 +145,32 @@ pub struct Simulation {
     pub next_dt: f64,
     /// Checked between steps; when it returns true the run stops with [`SimError::Interrupted`].
     pub interrupt: Option<Box<dyn Fn() -> bool + Send>>,
+    /// Free rigid bodies (fruit).
+    pub bodies: Vec<Body>,
+    /// Per obstacle: the free body that carries it (`usize::MAX` when fixed).
+    body_of: Vec<usize>,
+    /// Per obstacle: where detection sees it (None: fixed; a body at its start or trial pose).
+    placement: Vec<Option<([f64; 2], Pose)>>,
+    /// Coulomb coefficients per rod and obstacle, and per body and obstacle.
+    rod_coulomb: Vec<Vec<Coulomb>>,
+    body_coulomb: Vec<Vec<Coulomb>>,
+    coupling: Vec<RodCoupling>,
+    scratch: BodyScratch,
+    /// Rods whose constraint set changed (re-solved in the next pass); rods solved with the
+    /// bodies; whether the body group must be re-solved.
+    dirty: Vec<bool>,
+    is_member: Vec<bool>,
+    group_dirty: bool,
+    /// Step-end outputs of the contacts and bodies.
+    contact_out: Vec<ContactView>,
+    body_out: Vec<BodyOut>,
+}
+
+/// Step-end outputs of one body.
+#[derive(Debug, Clone, Copy, Default)]
+struct BodyOut {
+    force: [f64; 2],
+    torque: f64,
 }
 
 impl Simulation {
@@ -149,7 +180,33 @@ impl Simulation {
         let work = rods.iter().map(|r| RodWork::new(r, g)).collect();
         let out = rods.iter().map(|r| RodOut::new(r.n)).collect();
         let infos = rods.iter().map(|r| r.info()).collect();
-        Self {
+        let bodies: Vec<Body> = scenario.bodies.iter().map(|b| Body::new(b, g)).collect();
+        let mut body_of = vec![usize::MAX; scenario.obstacles.len()];
+        for (i, b) in scenario.bodies.iter().enumerate() {
+            body_of[b.obstacle] = i;
+        }
+        let names = &scenario.obstacle_names;
+        let rod_coulomb = rods
+            .iter()
+            .map(|r| {
+                names
+                    .iter()
+                    .map(|o| scenario.friction.between(&r.name, o))
+                    .collect()
+            })
+            .collect();
+        let body_coulomb = scenario
+            .bodies
+            .iter()
+            .map(|b| {
+                names
+                    .iter()
+                    .map(|o| scenario.friction.between(&b.name, o))
+                    .collect()
+            })
+            .collect();
+        let n_rods = rods.len();
+        let mut sim = Self {
             scenario: scenario.clone(),
             obstacles: scenario.obstacles.clone(),
             drive_warned: vec![false; rods.len()],
@@ -163,7 +220,21 @@ impl Simulation {
             last_dt: scenario.solve.dt,
             next_dt: scenario.solve.dt,
             interrupt: None,
-        }
+            body_out: vec![BodyOut::default(); bodies.len()],
+            bodies,
+            body_of,
+            placement: vec![None; scenario.obstacles.len()],
+            rod_coulomb,
+            body_coulomb,
+            coupling: vec![RodCoupling::default(); n_rods],
+            scratch: BodyScratch::default(),
+            dirty: vec![false; n_rods],
+            is_member: vec![false; n_rods],
+            group_dirty: false,
+            contact_out: Vec::new(),
+        };
+        sim.place_bodies(true);
+        sim
     }
 
     pub fn rod_infos(&self) -> &[RodInfo] {
@@ -179,6 +250,8 @@ impl Simulation {
             scenario_text: &text,
             rods: &self.infos.clone(),
             obstacles: &self.obstacles.clone(),
+            obstacle_names: &self.scenario.obstacle_names.clone(),
+            bodies: &self.scenario.bodies.clone(),
             mode: self.scenario.solve.mode,
         };
         obs.on_event(&Event::RunStart(&info));
@@ -187,6 +260,7 @@ impl Simulation {
             for r in 0..self.rods.len() {
                 self.fill_outputs(r, 0.0, true);
             }
+            self.fill_contact_outputs(0.0);
             self.emit_step_end(obs, 0.0, 0, 0);
         }
         let result = match self.scenario.solve.mode {
@@ -217,8 +291,26 @@ impl Simulation {
         }
     }
 
-    /// Whether any non-driven node is within `d` of an obstacle.
+    /// Whether any non-driven node is within `d` of an obstacle (or a free body within `d` of
+    /// a fixed obstacle).
     pub fn any_node_within(&self, d: f64) -> bool {
+        let s = self.surfaces();
+        for b in &self.bodies {
+            let placed = crate::world::body::Placed {
+                shape: &self.obstacles[b.spec.obstacle],
+                c0: b.spec.centroid,
+                pose: b.pose,
+            };
+            let mut found = Vec::new();
+            for (k, o) in self.obstacles.iter().enumerate() {
+                if self.body_of[k] == usize::MAX {
+                    contact::body::points(&placed, o, d, &mut found);
+                    if !found.is_empty() {
+                        return true;
+                    }
+                }
+            }
+        }
         for (r, rod) in self.rods.iter().enumerate() {
             let q = &self.work[r].q;
             for i in 0..rod.n {
@@ -226,8 +318,8 @@ impl Simulation {
                     continue;
                 }
                 let p = [q[2 * i], q[2 * i + 1]];
-                for o in &self.obstacles {
-                    if o.lower_bound(p) < d && o.query(p).distance < d {
+                for k in 0..s.len() {
+                    if s.lower_bound(k, p) < d && s.query(k, p).distance < d {
                         return true;
                     }
                 }
@@ -249,7 +341,6 @@ impl Simulation {
 
     fn run_dynamic<O: Observer>(&mut self, obs: &mut O) -> Result<(), SimError> {
         let t_end = self.scenario.solve.t_end;
-        let max_backoff = self.scenario.solve.max_backoff;
         let mut prev_nominal = f64::NAN;
         let mut recovery_cap = f64::INFINITY;
         while self.t < t_end * (1.0 - 1e-12) {
@@ -282,86 +373,115 @@ impl Simulation {
             if t_end - (self.t + dt) < 1e-9 * dt {
                 dt = t_end - self.t;
             }
-            let mut attempt = 0u32;
-            let mut allow_split = self.scenario.solve.time_of_impact;
-            loop {
-                match self.try_step(dt, 0.0, allow_split, obs) {
-                    Ok(()) => {
-                        recovery_cap = if attempt > 0 {
-                            2.0 * dt
-                        } else if recovery_cap < nominal {
-                            2.0 * recovery_cap
-                        } else {
-                            f64::INFINITY
-                        };
-                        break;
-                    }
-                    Err(StepError::Split { theta, .. }) => {
-                        // Static texts: no allocation in the step loop when nobody listens.
-                        obs.on_event(&Event::DtChanged {
-                            step: self.step + 1,
-                            t: self.t,
-                            old: dt,
-                            new: dt * theta,
-                            reason:
-                                "time of impact: a free node reaches an obstacle inside the step",
-                        });
-                        dt *= theta;
-                        allow_split = false;
-                        prev_nominal = dt;
-                    }
-                    Err(StepError::Reject { dt: retry, .. }) => {
-                        obs.on_event(&Event::DtChanged {
-                            step: self.step + 1,
-                            t: self.t,
-                            old: dt,
-                            new: retry,
-                            reason:
-                                "adaptive: the error estimate exceeds the tolerance, step rejected",
-                        });
-                        self.stats.rejected_steps += 1;
-                        dt = retry;
-                        prev_nominal = dt;
-                    }
-                    Err(StepError::Newton { rod, fail }) => {
-                        obs.on_event(&Event::NewtonFailed {
-                            step: self.step + 1,
-                            t: self.t,
-                            dt,
-                            rod,
-                            node: fail.node,
-                            residual: fail.residual,
-                            reason: fail.reason,
-                        });
-                        if attempt >= max_backoff {
-                            return Err(SimError::Diverged {
-                                step: self.step + 1,
-                                t: self.t,
-                                rod: self.rods[rod].name.clone(),
-                                node: fail.node,
-                                residual: fail.residual,
-                                reason: fail.reason.to_string(),
-                                backoffs: attempt,
-                                dt,
-                            });
-                        }
-                        attempt += 1;
-                        self.stats.backoffs += 1;
-                        obs.on_event(&Event::DtChanged {
-                            step: self.step + 1,
-                            t: self.t,
-                            old: dt,
-                            new: dt * 0.5,
-                            reason: "back-off after a Newton failure",
-                        });
-                        dt *= 0.5;
-                        self.next_dt = dt;
-                        prev_nominal = dt;
-                    }
-                }
-            }
+            let attempts = self.take_step(&mut dt, &mut prev_nominal, obs)?;
+            recovery_cap = if attempts > 0 {
+                2.0 * dt
+            } else if recovery_cap < nominal {
+                2.0 * recovery_cap
+            } else {
+                f64::INFINITY
+            };
+            self.after_step(obs)?;
         }
         Ok(())
+    }
+
+    /// Take one step starting at `dt`: split at a time of impact, shrink on rejection, back
+    /// off on a Newton failure. Returns the number of back-offs (`dt` ends as the size taken).
+    fn take_step<O: Observer>(
+        &mut self,
+        dt: &mut f64,
+        prev_nominal: &mut f64,
+        obs: &mut O,
+    ) -> Result<u32, SimError> {
+        let mut attempt = 0u32;
+        let mut allow_split = self.scenario.solve.time_of_impact;
+        loop {
+            let (new_dt, reason) = match self.try_step(*dt, 0.0, allow_split, obs) {
+                Ok(()) => return Ok(attempt),
+                Err(StepError::Split { theta, .. }) => {
+                    allow_split = false;
+                    (
+                        *dt * theta,
+                        "time of impact: a free node reaches an obstacle inside the step",
+                    )
+                }
+                Err(StepError::Reject { dt: retry, .. }) => {
+                    self.stats.rejected_steps += 1;
+                    (
+                        retry,
+                        "adaptive: the error estimate exceeds the tolerance, step rejected",
+                    )
+                }
+                Err(StepError::Newton { rod, fail }) => {
+                    self.newton_failed(*dt, rod, &fail, attempt, obs)?;
+                    attempt += 1;
+                    self.stats.backoffs += 1;
+                    self.next_dt = *dt * 0.5;
+                    (*dt * 0.5, "back-off after a Newton failure")
+                }
+            };
+            // Static texts: no allocation in the step loop when nobody listens.
+            obs.on_event(&Event::DtChanged {
+                step: self.step + 1,
+                t: self.t,
+                old: *dt,
+                new: new_dt,
+                reason,
+            });
+            *dt = new_dt;
+            *prev_nominal = new_dt;
+        }
+    }
+
+    /// Report a Newton failure; stop the run when the back-offs are used up.
+    fn newton_failed<O: Observer>(
+        &self,
+        dt: f64,
+        rod: usize,
+        fail: &NewtonFailure,
+        attempt: u32,
+        obs: &mut O,
+    ) -> Result<(), SimError> {
+        obs.on_event(&Event::NewtonFailed {
+            step: self.step + 1,
+            t: self.t,
+            dt,
+            rod,
+            node: fail.node,
+            residual: fail.residual,
+            reason: fail.reason,
+        });
+        if attempt >= self.scenario.solve.max_backoff {
+            return Err(SimError::Diverged {
+                step: self.step + 1,
+                t: self.t,
+                rod: self.part_name(rod),
+                node: fail.node,
+                residual: fail.residual,
+                reason: fail.reason.to_string(),
+                backoffs: attempt,
+                dt,
+            });
+        }
+        Ok(())
+    }
+
+    /// What happens between accepted steps (the actuation programs advance here).
+    fn after_step<O: Observer>(&mut self, _obs: &mut O) -> Result<(), SimError> {
+        Ok(())
+    }
+
+    /// The name of a rod, or of the free body when `rod` is `usize::MAX` (a body's failure).
+    fn part_name(&self, rod: usize) -> String {
+        match self.rods.get(rod) {
+            Some(r) => r.name.clone(),
+            None => self
+                .bodies
+                .first()
+                .map(|b| format!("free body {}", b.spec.name))
+                .unwrap_or_default(),
+        }
     }
 
     fn run_static<O: Observer>(&mut self, obs: &mut O) -> Result<(), SimError> {
@@ -394,7 +514,7 @@ impl Simulation {
                         return Err(SimError::Diverged {
                             step: self.step + 1,
                             t: target,
-                            rod: self.rods[f.rod].name.clone(),
+                            rod: self.part_name(f.rod),
                             node: f.fail.node,
                             residual: f.fail.residual,
                             reason: format!("static solve: {}", f.fail.reason),
@@ -404,356 +524,6 @@ impl Simulation {
                     }
                 }
             }
-        }
-        Ok(())
-    }
-
-    /// One step (dynamic: size dt; static: load factor `lambda`). Transactional: on failure the
-    /// state is as before.
-    fn try_step<O: Observer>(
-        &mut self,
-        dt: f64,
-        lambda: f64,
-        allow_split: bool,
-        obs: &mut O,
-    ) -> Result<(), StepError> {
-        let solve = &self.scenario.solve;
-        let dynamic = solve.mode == Mode::Dynamic;
-        let t1 = if dynamic { self.t + dt } else { lambda };
-        let step = self.step + 1;
-        let opt = NewtonOptions {
-            c: if dynamic { 1.0 / (dt * dt) } else { 0.0 },
-            dt: if dynamic { dt } else { 0.0 },
-            lambda: if dynamic { 1.0 } else { lambda },
-            force_tol: solve.force_tol,
-            step_tol: solve.step_tol,
-            max_iterations: solve.max_newton_iterations,
-        };
-        let max_passes = solve
-            .max_contact_passes
-            .max(3 * self.rods.iter().map(|r| r.n as u32).max().unwrap_or(1));
-        obs.on_event(&Event::StepBegin {
-            step,
-            t: self.t,
-            dt,
-        });
-        let wants_iter = obs.wants_iterations();
-        let wants_steps = obs_wants_steps(obs);
-        let mut newton_iterations = 0u32;
-        let mut passes_total = 0u32;
-
-        for r in 0..self.rods.len() {
-            let rod = &self.rods[r];
-            let w = &mut self.work[r];
-            w.contact_saved.copy_from_slice(&w.contact);
-            w.step_dt = if dynamic { dt } else { 0.0 };
-            // Prescribed displacement of driven nodes; initial guess for the rest.
-            let (d1, _) = rod.drive.motion(t1.max(0.0));
-            for i in 0..rod.n {
-                for a in 0..2 {
-                    let k = 2 * i + a;
-                    if rod.clamped[i] {
-                        w.dq[k] = if dynamic {
-                            rod.q0[k] + d1[a] - w.q[k]
-                        } else {
-                            0.0
-                        };
-                    } else if dynamic {
-                        w.dq[k] = dt * w.u[k] + dt * dt * w.a[k];
-                    } else {
-                        w.dq[k] = 0.0;
-                    }
-                }
-            }
-            // Carried-over constraints: re-linearise at the current position.
-            for i in 0..rod.n {
-                if let Some(c) = w.contact[i] {
-                    let p = [w.q[2 * i], w.q[2 * i + 1]];
-                    let prox = self.obstacles[c.obstacle].query(p);
-                    let mut nc = contact::constraint_at(c.obstacle, &prox);
-                    nc.second = c.second.map(|s| {
-                        contact::corner_at(s.obstacle, &self.obstacles[s.obstacle].query(p))
-                    });
-                    w.contact[i] = Some(nc);
-                }
-            }
-        }
-
-        for r in 0..self.rods.len() {
-            let mut pass = 0u32;
-            loop {
-                let phase = if pass == 0 {
-                    Phase::Predictor
-                } else {
-                    Phase::Corrector
-                };
-                let rod = &self.rods[r];
-                let res = {
-                    let w = &mut self.work[r];
-                    if wants_iter {
-                        let t = self.t;
-                        let mut cb = |it: newton::IterationReport<'_>| {
-                            obs.on_event(&Event::Iteration {
-                                step,
-                                t,
-                                phase: if dynamic { phase } else { Phase::Static },
-                                pass,
-                                iteration: it.iteration,
-                                rod: r,
-                                residual: it.residual,
-                                update: it.update,
-                                q: it.q,
-                            });
-                        };
-                        newton::solve(rod, w, &opt, Some(&mut cb))
-                    } else {
-                        newton::solve(rod, w, &opt, None)
-                    }
-                };
-                match res {
-                    Ok(it) => newton_iterations += it,
-                    Err(fail) => {
-                        self.rollback();
-                        return Err(StepError::Newton { rod: r, fail });
-                    }
-                }
-                if pass == 0 && wants_steps {
-                    let w = &self.work[r];
-                    let o = &mut self.out[r];
-                    o.q_pred.copy_from_slice(&w.qn);
-                }
-                if pass == 0 && allow_split && dynamic {
-                    if let Some((theta, node)) = self.impact_fraction(r) {
-                        if theta * dt >= self.min_split_dt(dt) {
-                            self.rollback();
-                            return Err(StepError::Split {
-                                theta,
-                                rod: r,
-                                node,
-                            });
-                        }
-                    }
-                }
-                // Release adhesive constraints, detect new penetrations, re-linearise.
-                let mut changed = false;
-                let rod = &self.rods[r];
-                let w = &mut self.work[r];
-                let relin_tol = 1e-10 * rod.length;
-                for i in 0..rod.n {
-                    if rod.clamped[i] {
-                        continue;
-                    }
-                    let p = [w.qn[2 * i], w.qn[2 * i + 1]];
-                    match w.contact[i] {
-                        Some(c) => {
-                            let reaction = [w.r[2 * i], w.r[2 * i + 1]];
-                            // The reaction's normal parts: along n, or on n₁ and n₂ in a corner.
-                            let (rn, rn2) = contact::normal_parts(&c, reaction);
-                            let release = |k: usize, normal: [f64; 2]| {
-                                Event::ConstraintReleased(
-                                    ContactChange {
-                                        step,
-                                        t: t1,
-                                        pass: pass + 1,
-                                        rod: r,
-                                        node: i,
-                                        obstacle: k,
-                                        normal,
-                                        gap: self.obstacles[k].query(p).distance,
-                                        reaction,
-                                        z: 0.0,
-                                    },
-                                    ReleaseReason::Adhesive,
-                                )
-                            };
-                            if rn < 0.0 && !c.locked {
-                                // In a corner the node stays on the other surface, unless that
-                                // one pulls too.
-                                let keep = c.second.filter(|_| rn2 >= 0.0);
-                                w.contact[i] = keep.map(|s| contact::Constraint {
-                                    obstacle: s.obstacle,
-                                    normal: s.normal,
-                                    target: s.target,
-                                    locked: false,
-                                    second: None,
-                                });
-                                changed = true;
-                                obs.on_event(&release(c.obstacle, c.normal));
-                                if let (None, Some(s)) = (keep, c.second) {
-                                    obs.on_event(&release(s.obstacle, s.normal));
-                                }
-                                // Mark so that a re-penetration in this step locks it.
-                                w.contact_saved_mark(i);
-                            } else if let (true, Some(s)) = (rn2 < 0.0, c.second) {
-                                w.contact[i] = Some(contact::Constraint { second: None, ..c });
-                                changed = true;
-                                obs.on_event(&release(s.obstacle, s.normal));
-                            } else {
-                                let mut nc = c;
-                                let prox = self.obstacles[c.obstacle].query(p);
-                                if prox.distance < -relin_tol {
-                                    nc = contact::constraint_at(c.obstacle, &prox);
-                                    nc.locked = c.locked;
-                                    nc.second = c.second;
-                                }
-                                if let Some(s) = c.second {
-                                    let prox = self.obstacles[s.obstacle].query(p);
-                                    if prox.distance < -relin_tol {
-                                        nc.second = Some(contact::corner_at(s.obstacle, &prox));
-                                    }
-                                } else if let Some((k, prox)) = contact::deepest_other(
-                                    &self.obstacles,
-                                    p,
-                                    c.obstacle,
-                                    -relin_tol,
-                                ) {
-                                    // Held on one obstacle but inside another: a corner (or,
-                                    // for nearly parallel surfaces, the other one instead).
-                                    let (held, corner) = contact::add_surface(&nc, k, &prox);
-                                    nc = held;
-                                    let un =
-                                        |n: [f64; 2]| n[0] * w.u[2 * i] + n[1] * w.u[2 * i + 1];
-                                    let qk = [w.q[2 * i], w.q[2 * i + 1]];
-                                    let z = if dynamic {
-                                        (corner.target
-                                            - (corner.normal[0] * qk[0] + corner.normal[1] * qk[1]))
-                                            / dt
-                                            - un(corner.normal)
-                                    } else {
-                                        0.0
-                                    };
-                                    obs.on_event(&Event::ConstraintAdded(ContactChange {
-                                        step,
-                                        t: t1,
-                                        pass: pass + 1,
-                                        rod: r,
-                                        node: i,
-                                        obstacle: k,
-                                        normal: corner.normal,
-                                        gap: prox.distance,
-                                        reaction: [0.0; 2],
-                                        z,
-                                    }));
-                                }
-                                if nc != c {
-                                    w.contact[i] = Some(nc);
-                                    changed = true;
-                                }
-                            }
-                        }
-                        None => {
-                            if let Some((k, prox)) = contact::deepest(&self.obstacles, p, 0.0) {
-                                let mut c = contact::constraint_at(k, &prox);
-                                c.locked = w.was_released(i);
-                                w.contact[i] = Some(c);
-                                changed = true;
-                                let qk = [w.q[2 * i], w.q[2 * i + 1]];
-                                let un = c.normal[0] * w.u[2 * i] + c.normal[1] * w.u[2 * i + 1];
-                                let z = if dynamic {
-                                    (c.target - (c.normal[0] * qk[0] + c.normal[1] * qk[1])) / dt
-                                        - un
-                                } else {
-                                    0.0
-                                };
-                                obs.on_event(&Event::ConstraintAdded(ContactChange {
-                                    step,
-                                    t: t1,
-                                    pass: pass + 1,
-                                    rod: r,
-                                    node: i,
-                                    obstacle: k,
-                                    normal: c.normal,
-                                    gap: prox.distance,
-                                    reaction: [0.0; 2],
-                                    z,
-                                }));
-                            }
-                        }
-                    }
-                }
-                if !changed {
-                    break;
-                }
-                pass += 1;
-                passes_total += 1;
-                if pass > max_passes {
-                    self.rollback();
-                    return Err(StepError::Newton {
-                        rod: r,
-                        fail: NewtonFailure {
-                            node: 0,
-                            residual: 0.0,
-                            reason: "the contact set did not settle",
-                            iterations: 0,
-                        },
-                    });
-                }
-            }
-        }
-
-        if dynamic && solve.stepping == Stepping::Adaptive {
-            let err = self.error_estimate(dt);
-            let factor = if err > 0.0 {
-                (0.9 / err.sqrt()).clamp(0.2, 2.0)
-            } else {
-                2.0
-            };
-            let (dt_min, dt_max) = (solve.dt_min, solve.dt_max);
-            if err > 1.0 && dt > dt_min * (1.0 + 1e-12) {
-                self.rollback();
-                return Err(StepError::Reject {
-                    dt: (dt * factor).max(dt_min),
-                });
-            }
-            self.next_dt = (dt * factor).clamp(dt_min, dt_max);
-        }
-
-        // Accept: advance the state.
-        let mut max_pen = self.stats.max_penetration;
-        for r in 0..self.rods.len() {
-            let rod = &self.rods[r];
-            let w = &mut self.work[r];
-            for k in 0..2 * rod.n {
-                let qn = w.q[k] + w.dq[k];
-                if dynamic {
-                    let un = w.dq[k] / dt;
-                    w.a[k] = (un - w.u[k]) / dt;
-                    w.u[k] = un;
-                } else {
-                    w.u[k] = 0.0;
-                }
-                w.q[k] = qn;
-            }
-            w.clear_release_marks();
-            for i in 0..rod.n {
-                if rod.clamped[i] {
-                    continue;
-                }
-                let p = [w.q[2 * i], w.q[2 * i + 1]];
-                for o in &self.obstacles {
-                    if o.lower_bound(p) < 0.0 {
-                        let d = o.query(p).distance;
-                        if -d > max_pen {
-                            max_pen = -d;
-                        }
-                    }
-                }
-            }
-        }
-        self.stats.max_penetration = max_pen;
-        self.stats.steps += 1;
-        self.stats.newton_iterations += newton_iterations as u64;
-        self.stats.contact_passes += passes_total as u64;
-        self.step = step;
-        self.t = t1;
-        self.stats.t = t1;
-        self.last_dt = dt;
-        self.check_drives(obs);
-        if wants_steps {
-            for r in 0..self.rods.len() {
-                self.fill_outputs(r, if dynamic { dt } else { 0.0 }, false);
-            }
-            self.emit_step_end(obs, dt, newton_iterations, passes_total);
         }
         Ok(())
     }
@@ -780,9 +550,13 @@ impl Simulation {
                 continue;
             }
             let p1 = [w.qn[2 * i], w.qn[2 * i + 1]];
-            let Some((k, _)) = contact::deepest(&self.obstacles, p1, 0.0) else {
+            let Some((k, _)) = contact::deepest(&self.surfaces(), p1, 0.0) else {
                 continue;
             };
+            if self.body_of[k] != usize::MAX {
+                // A body moves inside the step: its contact starts where the step ends.
+                continue;
+            }
             let o = &self.obstacles[k];
             // Backward Euler over a sub-step θ dt with the predictor's acceleration:
             // p(θ) = p₀ + θ (dt u) + θ² (Δq − dt u), which is p₁ at θ = 1.
@@ -853,13 +627,6 @@ impl Simulation {
         err
     }
 
-    fn rollback(&mut self) {
-        for w in &mut self.work {
-            w.contact.copy_from_slice(&w.contact_saved);
-            w.clear_release_marks();
-        }
-    }
-
     /// Warn (once per rod) when a driven node enters an obstacle: driven nodes are not
     /// contact-constrained.
     fn check_drives<O: Observer>(&mut self, obs: &mut O) {
@@ -873,7 +640,7 @@ impl Simulation {
                     continue;
                 }
                 let p = [self.work[r].q[2 * i], self.work[r].q[2 * i + 1]];
-                if let Some((k, prox)) = contact::deepest(&self.obstacles, p, 0.0) {
+                if let Some((k, prox)) = contact::deepest(&self.surfaces(), p, 0.0) {
                     let msg = format!(
                         "driven node {i} of rod {:?} entered obstacle.{k} ({}) by {:.3e} m at t = {:.6} s: driven nodes follow \
                          their drive and are not contact-constrained; give the drive a stop_travel or stop_time",
@@ -894,88 +661,6 @@ impl Simulation {
         }
     }
 
-    fn fill_outputs(&mut self, r: usize, dt: f64, initial: bool) {
-        let rod = &self.rods[r];
-        let w = &self.work[r];
-        let o = &mut self.out[r];
-        for i in 0..rod.n {
-            let c = if initial { None } else { w.contact[i] };
-            let (rx, ry) = if initial {
-                (0.0, 0.0)
-            } else {
-                (w.r[2 * i], w.r[2 * i + 1])
-            };
-            if rod.clamped[i] {
-                o.reaction[2 * i] = 0.0;
-                o.reaction[2 * i + 1] = 0.0;
-                o.drive_force[2 * i] = rx;
-                o.drive_force[2 * i + 1] = ry;
-            } else {
-                o.drive_force[2 * i] = 0.0;
-                o.drive_force[2 * i + 1] = 0.0;
-                let (gx, gy) = if c.is_some() { (rx, ry) } else { (0.0, 0.0) };
-                o.reaction[2 * i] = gx;
-                o.reaction[2 * i + 1] = gy;
-            }
-            o.impulse[2 * i] = o.reaction[2 * i] * dt;
-            o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
-            match c {
-                Some(c) if !rod.clamped[i] => {
-                    o.normal[2 * i] = c.normal[0];
-                    o.normal[2 * i + 1] = c.normal[1];
-                    o.obstacle[i] = c.obstacle;
-                    o.in_contact[i] = true;
-                }
-                _ => {
-                    o.normal[2 * i] = 0.0;
-                    o.normal[2 * i + 1] = 0.0;
-                    o.obstacle[i] = usize::MAX;
-                    o.in_contact[i] = false;
-                }
-            }
-            o.gap[i] = contact::gap(&self.obstacles, [w.q[2 * i], w.q[2 * i + 1]], rod.length);
-        }
-        if initial {
-            o.q_pred.copy_from_slice(&w.q);
-        }
-        rod.bending_stress(&w.q, &mut o.stress);
-    }
-
-    fn emit_step_end<O: Observer>(
-        &self,
-        obs: &mut O,
-        dt: f64,
-        newton_iterations: u32,
-        passes: u32,
-    ) {
-        let views: Vec<RodStepView<'_>> = self
-            .out
-            .iter()
-            .zip(&self.work)
-            .map(|(o, w)| RodStepView {
-                q: &w.q,
-                u: &w.u,
-                reaction: &o.reaction,
-                impulse: &o.impulse,
-                drive_force: &o.drive_force,
-                normal: &o.normal,
-                contact_obstacle: &o.obstacle,
-                in_contact: &o.in_contact,
-                bending_stress: &o.stress,
-                gap: &o.gap,
-                q_predictor: &o.q_pred,
-            })
-            .collect();
-        obs.on_event(&Event::StepEnd {
-            step: self.step,
-            t: self.t,
-            dt,
-            newton_iterations,
-            passes,
-            rods: &views,
-        });
-    }
-
     /// Take exactly one dynamic step of size `dt` (no time-of-impact split, no error
     /// control, no back-off): for library users who drive the clock themselves, and for the
     /// kernel benchmarks.
@@ -987,7 +672,7 @@ impl Simulation {
                 Err(SimError::Diverged {
                     step: self.step + 1,
                     t: self.t,
-                    rod: self.rods[f.rod].name.clone(),
+                    rod: self.part_name(f.rod),
                     node: f.fail.node,
                     residual: f.fail.residual,
                     reason: f.fail.reason.to_string(),

@@ -17,43 +17,9 @@
 //! tangent lines, S = 0, and its whole residual is the reaction.
 
 use super::banded::BandLu;
+pub use crate::contact::{Constraint, Corner};
 use crate::energy::{bend::bend, stretch::stretch};
 use crate::model::Rod;
-
-/// An active contact constraint on one node.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Constraint {
-    pub obstacle: usize,
-    pub normal: [f64; 2],
-    /// Target normal coordinate n·q_{k+1}.
-    pub target: f64,
-    /// Released once in this step and re-added: may not be released again in this step.
-    pub locked: bool,
-    /// A second obstacle touched at the same time: the node is held at the corner.
-    pub second: Option<Corner>,
-}
-
-/// The second surface of a node held in a corner between two obstacles.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Corner {
-    pub obstacle: usize,
-    pub normal: [f64; 2],
-    pub target: f64,
-}
-
-impl Constraint {
-    /// Where a node in a corner is held: n₁·p = h₁ and n₂·p = h₂ (the caller only makes
-    /// corners of surfaces that are not nearly parallel).
-    pub fn corner_point(&self) -> Option<[f64; 2]> {
-        let s = self.second?;
-        let (a, b) = (self.normal, s.normal);
-        let det = a[0] * b[1] - a[1] * b[0];
-        Some([
-            (self.target * b[1] - a[1] * s.target) / det,
-            (a[0] * s.target - self.target * b[0]) / det,
-        ])
-    }
-}
 
 /// Per-rod solver state and scratch space, allocated once.
 #[derive(Debug, Clone)]
@@ -272,72 +238,21 @@ pub struct NewtonOptions {
 }
 
 /// Solve one rod's step with its current constraint set, starting from `w.dq`.
-/// `on_iter` is called after every update when `Some`.
+/// `on_iter` is called after every update when `Some`. The rod must hold no contact on a free
+/// body (those rods are solved with the body, in `coupled`).
 pub fn solve(
     rod: &Rod,
     w: &mut RodWork,
     opt: &NewtonOptions,
     mut on_iter: Option<&mut dyn FnMut(IterationReport<'_>)>,
 ) -> Result<u32, NewtonFailure> {
-    let n = rod.n;
-    // Put constrained nodes exactly on their targets.
-    for i in 0..n {
-        if let Some(p) = w.contact[i].and_then(|c| c.corner_point()) {
-            w.dq[2 * i] = p[0] - w.q[2 * i];
-            w.dq[2 * i + 1] = p[1] - w.q[2 * i + 1];
-        } else if let Some(c) = w.contact[i] {
-            let d = c.normal[0] * (w.q[2 * i] + w.dq[2 * i])
-                + c.normal[1] * (w.q[2 * i + 1] + w.dq[2 * i + 1])
-                - c.target;
-            w.dq[2 * i] -= d * c.normal[0];
-            w.dq[2 * i + 1] -= d * c.normal[1];
-        }
-    }
+    place_on_targets(rod, w, &[]);
     let ftol = opt.force_tol * w.force_scale;
     let stol = opt.step_tol * w.length_scale;
     let mut iterations = 0u32;
     loop {
-        for k in 0..2 * n {
-            w.qn[k] = w.q[k] + w.dq[k];
-        }
         let want_hessian = iterations < opt.max_iterations;
-        assemble(
-            rod,
-            &w.free_index,
-            &w.qn,
-            &mut w.grad,
-            if want_hessian {
-                Some(&mut w.band)
-            } else {
-                None
-            },
-        );
-        // Residual on every DOF (on driven nodes it is the drive force).
-        let mut res = 0.0f64;
-        let mut worst = 0usize;
-        eq2_residual(rod, w, opt);
-        for i in 0..n {
-            if w.free_index[i] == usize::MAX {
-                continue;
-            }
-            let (rx, ry) = tangential(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
-            let v = rx.abs().max(ry.abs());
-            if !v.is_finite() {
-                return Err(NewtonFailure {
-                    node: i,
-                    residual: res,
-                    reason: "non-finite residual",
-                    iterations,
-                });
-            }
-            if v > res {
-                res = v;
-                worst = i;
-            }
-            let fi = w.free_index[i];
-            w.rhs[2 * fi] = -rx;
-            w.rhs[2 * fi + 1] = -ry;
-        }
+        let (res, worst) = residual(rod, w, opt, want_hessian, iterations)?;
         if res <= ftol {
             return all_finite(w, res, iterations);
         }
@@ -349,89 +264,13 @@ pub fn solve(
                 iterations,
             });
         }
-        // Jacobian: c M + ∇²E, filtered at constrained nodes.
-        for i in 0..n {
-            let fi = w.free_index[i];
-            if fi == usize::MAX {
-                continue;
-            }
-            let cm = opt.c * rod.mass[i];
-            w.band.add(2 * fi, 2 * fi, cm);
-            w.band.add(2 * fi + 1, 2 * fi + 1, cm);
-        }
-        let s = (opt.c * w.filter_scale).max(rod.ea / rod.length);
-        // A node in a corner: filtering with n and then with n⊥ gives S = 0.
-        let perp = |n: [f64; 2]| [-n[1], n[0]];
-        for i in 0..n {
-            if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
-                if fi != usize::MAX {
-                    w.band.filter_rows(2 * fi, c.normal);
-                    if c.second.is_some() {
-                        w.band.filter_rows(2 * fi, perp(c.normal));
-                    }
-                }
-            }
-        }
-        for i in 0..n {
-            if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
-                if fi != usize::MAX {
-                    w.band.filter_cols(2 * fi, c.normal, s);
-                    if c.second.is_some() {
-                        w.band.filter_cols(2 * fi, perp(c.normal), s);
-                    }
-                }
-            }
-        }
-        if let Err(col) = w.band.factor() {
-            let node = free_node(&w.free_index, col / 2);
-            return Err(NewtonFailure {
-                node,
-                residual: res,
-                reason: "singular Jacobian",
-                iterations,
-            });
-        }
+        jacobian(rod, w, opt);
+        factor(w, res, iterations)?;
         w.band.solve(&mut w.rhs);
         iterations += 1;
-        // A damped step when the full Newton update would move a node by more than half the
-        // shortest rest edge: large updates are where an undamped Newton step can fold the rod
-        // and diverge. The direction is kept; convergence near the solution is unchanged.
-        let mut full = 0.0f64;
-        for i in 0..n {
-            let fi = w.free_index[i];
-            if fi == usize::MAX {
-                continue;
-            }
-            let (dx, dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], w.contact[i]);
-            if !(dx.is_finite() && dy.is_finite()) {
-                return Err(NewtonFailure {
-                    node: i,
-                    residual: res,
-                    reason: "non-finite Newton update",
-                    iterations,
-                });
-            }
-            full = full.max(dx.abs()).max(dy.abs());
-        }
-        let scale = if w.max_update > 0.0 && full > w.max_update {
-            w.max_update / full
-        } else {
-            1.0
-        };
-        let mut upd = 0.0f64;
-        for i in 0..n {
-            let fi = w.free_index[i];
-            if fi == usize::MAX {
-                continue;
-            }
-            let (dx, dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], w.contact[i]);
-            let (dx, dy) = (dx * scale, dy * scale);
-            w.dq[2 * i] += dx;
-            w.dq[2 * i + 1] += dy;
-            upd = upd.max(dx.abs()).max(dy.abs());
-        }
+        let upd = update(rod, w, None, &[], res, iterations)?;
         if let Some(cb) = on_iter.as_deref_mut() {
-            for k in 0..2 * n {
+            for k in 0..2 * rod.n {
                 w.qn[k] = w.q[k] + w.dq[k];
             }
             cb(IterationReport {
@@ -443,14 +282,265 @@ pub fn solve(
         }
         if upd <= stol {
             // The update is at the round-off floor: accept, with the residual of the final iterate.
-            for k in 0..2 * n {
-                w.qn[k] = w.q[k] + w.dq[k];
-            }
-            assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
-            eq2_residual(rod, w, opt);
+            finish_residual(rod, w, opt);
             return all_finite(w, res, iterations);
         }
     }
+}
+
+/// Put constrained nodes exactly on their targets (given the bodies' displacements).
+pub fn place_on_targets(rod: &Rod, w: &mut RodWork, body_dx: &[[f64; 3]]) {
+    for i in 0..rod.n {
+        let Some(c) = w.contact[i] else { continue };
+        if let Some(p) = c.held_point(body_dx) {
+            w.dq[2 * i] = p[0] - w.q[2 * i];
+            w.dq[2 * i + 1] = p[1] - w.q[2 * i + 1];
+        } else {
+            let d = c.normal[0] * (w.q[2 * i] + w.dq[2 * i])
+                + c.normal[1] * (w.q[2 * i + 1] + w.dq[2 * i + 1])
+                - c.normal_target(body_dx);
+            w.dq[2 * i] -= d * c.normal[0];
+            w.dq[2 * i + 1] -= d * c.normal[1];
+        }
+    }
+}
+
+/// Assemble the energy (and the Hessian into the band when `hessian`), the eq. 2 residual on
+/// every DOF, and the filtered right-hand side −L r on the free DOFs. Returns the max-norm of
+/// the filtered residual and the node where it is largest.
+pub fn residual(
+    rod: &Rod,
+    w: &mut RodWork,
+    opt: &NewtonOptions,
+    hessian: bool,
+    iterations: u32,
+) -> Result<(f64, usize), NewtonFailure> {
+    let n = rod.n;
+    for k in 0..2 * n {
+        w.qn[k] = w.q[k] + w.dq[k];
+    }
+    assemble(
+        rod,
+        &w.free_index,
+        &w.qn,
+        &mut w.grad,
+        if hessian { Some(&mut w.band) } else { None },
+    );
+    // Residual on every DOF (on driven nodes it is the drive force).
+    let mut res = 0.0f64;
+    let mut worst = 0usize;
+    eq2_residual(rod, w, opt);
+    for i in 0..n {
+        if w.free_index[i] == usize::MAX {
+            continue;
+        }
+        let (rx, ry) = rows(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
+        let v = rx.abs().max(ry.abs());
+        if !v.is_finite() {
+            return Err(NewtonFailure {
+                node: i,
+                residual: res,
+                reason: "non-finite residual",
+                iterations,
+            });
+        }
+        if v > res {
+            res = v;
+            worst = i;
+        }
+        let fi = w.free_index[i];
+        w.rhs[2 * fi] = -rx;
+        w.rhs[2 * fi + 1] = -ry;
+    }
+    Ok((res, worst))
+}
+
+/// Jacobian c M + ∇²E (the Hessian already in the band), filtered at constrained nodes: the
+/// rows become L J (L = S, or the kinetic-friction row), the columns of held directions
+/// s·I, so the solution has no part along them.
+pub fn jacobian(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
+    add_mass(rod, w, opt);
+    filter_rows(rod, w);
+    filter_cols(rod, w, opt);
+}
+
+/// c M on the band's diagonal.
+pub fn add_mass(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
+    for i in 0..rod.n {
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let cm = opt.c * rod.mass[i];
+        w.band.add(2 * fi, 2 * fi, cm);
+        w.band.add(2 * fi + 1, 2 * fi + 1, cm);
+    }
+}
+
+/// A node held whole: filtering with n and then with n⊥ gives S = 0.
+#[inline]
+fn perp(n: [f64; 2]) -> [f64; 2] {
+    [-n[1], n[0]]
+}
+
+pub fn filter_rows(rod: &Rod, w: &mut RodWork) {
+    for i in 0..rod.n {
+        if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
+            if fi == usize::MAX {
+                continue;
+            }
+            let k = c.kinetic();
+            if c.holds_whole_node() {
+                w.band.filter_rows(2 * fi, c.normal);
+                w.band.filter_rows(2 * fi, perp(c.normal));
+            } else if k == 0.0 {
+                w.band.filter_rows(2 * fi, c.normal);
+            } else {
+                w.band.transform_rows(2 * fi, friction_rows(&c, k));
+            }
+        }
+    }
+}
+
+pub fn filter_cols(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
+    let s = filter_scale(rod, w, opt);
+    for i in 0..rod.n {
+        if let (Some(c), fi) = (w.contact[i], w.free_index[i]) {
+            if fi != usize::MAX {
+                w.band.filter_cols(2 * fi, c.normal, s);
+                if c.holds_whole_node() {
+                    w.band.filter_cols(2 * fi, perp(c.normal), s);
+                }
+            }
+        }
+    }
+}
+
+/// The diagonal put on filtered directions.
+#[inline]
+pub fn filter_scale(rod: &Rod, w: &RodWork, opt: &NewtonOptions) -> f64 {
+    (opt.c * w.filter_scale).max(rod.ea / rod.length)
+}
+
+/// L = t (t + k n)ᵀ: the one equation a sliding node with kinetic friction keeps,
+/// t·r + k (n·r) = 0 (k = μ_k × slip sign), written in its tangential row.
+#[inline]
+pub fn friction_rows(c: &Constraint, k: f64) -> [[f64; 2]; 2] {
+    let (n, t) = (c.normal, c.tangent());
+    let v = [t[0] + k * n[0], t[1] + k * n[1]];
+    [[t[0] * v[0], t[0] * v[1]], [t[1] * v[0], t[1] * v[1]]]
+}
+
+/// Factor the band, naming the node of a zero pivot.
+pub fn factor(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFailure> {
+    w.band.factor().map_err(|col| NewtonFailure {
+        node: free_node(&w.free_index, col / 2),
+        residual: res,
+        reason: "singular Jacobian",
+        iterations,
+    })
+}
+
+/// Apply the solved update in `w.rhs` (plus, on nodes held against a body, the body's motion
+/// `body` = (ΔX update per body) through their constraint), damped when the full update would
+/// move a node by more than half the shortest rest edge (where an undamped Newton step can
+/// fold the rod and diverge; the direction is kept, convergence near the solution unchanged).
+/// `scale` overrides the damping (the coupled solve damps all bodies and rods alike). Returns
+/// the largest update.
+pub fn update(
+    rod: &Rod,
+    w: &mut RodWork,
+    scale: Option<f64>,
+    body: &[[f64; 3]],
+    res: f64,
+    iterations: u32,
+) -> Result<f64, NewtonFailure> {
+    let scale = match scale {
+        Some(s) => s,
+        None => {
+            let full = largest_update(rod, w, body, res, iterations)?;
+            if w.max_update > 0.0 && full > w.max_update {
+                w.max_update / full
+            } else {
+                1.0
+            }
+        }
+    };
+    let mut upd = 0.0f64;
+    for i in 0..rod.n {
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let (dx, dy) = node_update(w, i, fi, body);
+        let (dx, dy) = (dx * scale, dy * scale);
+        w.dq[2 * i] += dx;
+        w.dq[2 * i + 1] += dy;
+        upd = upd.max(dx.abs()).max(dy.abs());
+    }
+    Ok(upd)
+}
+
+/// The undamped update of free node i: its part of the band solution with held directions
+/// removed, plus the motion a body gives it through its constraint.
+#[inline]
+fn node_update(w: &RodWork, i: usize, fi: usize, body: &[[f64; 3]]) -> (f64, f64) {
+    let c = w.contact[i];
+    let (mut dx, mut dy) = tangential(w.rhs[2 * fi], w.rhs[2 * fi + 1], c);
+    let Some(c) = c else { return (dx, dy) };
+    if let Some((b, g)) = c.body_columns() {
+        let d = body[b];
+        let m = [
+            g[0][0] * d[0] + g[1][0] * d[1] + g[2][0] * d[2],
+            g[0][1] * d[0] + g[1][1] * d[1] + g[2][1] * d[2],
+        ];
+        if c.holds_whole_node() {
+            dx += m[0];
+            dy += m[1];
+        } else {
+            let mn = c.normal[0] * m[0] + c.normal[1] * m[1];
+            dx += mn * c.normal[0];
+            dy += mn * c.normal[1];
+        }
+    }
+    (dx, dy)
+}
+
+/// Largest component of the undamped update (checked finite).
+pub fn largest_update(
+    rod: &Rod,
+    w: &RodWork,
+    body: &[[f64; 3]],
+    res: f64,
+    iterations: u32,
+) -> Result<f64, NewtonFailure> {
+    let mut full = 0.0f64;
+    for i in 0..rod.n {
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let (dx, dy) = node_update(w, i, fi, body);
+        if !(dx.is_finite() && dy.is_finite()) {
+            return Err(NewtonFailure {
+                node: i,
+                residual: res,
+                reason: "non-finite Newton update",
+                iterations,
+            });
+        }
+        full = full.max(dx.abs()).max(dy.abs());
+    }
+    Ok(full)
+}
+
+/// The eq. 2 residual of the final iterate (after an update at the round-off floor).
+pub fn finish_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
+    for k in 0..2 * rod.n {
+        w.qn[k] = w.q[k] + w.dq[k];
+    }
+    assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
+    eq2_residual(rod, w, opt);
 }
 
 /// r = c M (Δq − dt u) + ∇E − λ F on every DOF: eq. 2's reaction (the drive force on driven
@@ -467,7 +557,7 @@ fn eq2_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
 /// constrained nodes included: a rod folded onto itself (two nodes at one point) can meet the
 /// update tolerance with NaN forces, and such a step must be retried, not recorded.
 #[inline]
-fn all_finite(w: &RodWork, res: f64, iterations: u32) -> Result<u32, NewtonFailure> {
+pub fn all_finite(w: &RodWork, res: f64, iterations: u32) -> Result<u32, NewtonFailure> {
     match w.r.iter().position(|x| !x.is_finite()) {
         None => Ok(iterations),
         Some(k) => Err(NewtonFailure {
@@ -479,12 +569,32 @@ fn all_finite(w: &RodWork, res: f64, iterations: u32) -> Result<u32, NewtonFailu
     }
 }
 
+/// The equations a node keeps, L r: all of r when free; S r = r − n (n·r) when sliding
+/// frictionless; t (t·r + k n·r) when sliding with kinetic friction; nothing when held whole.
+#[inline(always)]
+pub fn rows(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
+    match c {
+        Some(c) if c.holds_whole_node() => (0.0, 0.0),
+        Some(c) => {
+            let k = c.kinetic();
+            if k == 0.0 {
+                tangential(x, y, Some(c))
+            } else {
+                let (n, t) = (c.normal, c.tangent());
+                let e = t[0] * x + t[1] * y + k * (n[0] * x + n[1] * y);
+                (t[0] * e, t[1] * e)
+            }
+        }
+        None => (x, y),
+    }
+}
+
 /// The part of (x, y) along the surface of a constrained node: S v with S = I − n nᵀ
-/// (nothing for a node held in a corner).
+/// (nothing for a node held whole).
 #[inline(always)]
 fn tangential(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
     match c {
-        Some(c) if c.second.is_some() => (0.0, 0.0),
+        Some(c) if c.holds_whole_node() => (0.0, 0.0),
         Some(c) => {
             let d = c.normal[0] * x + c.normal[1] * y;
             (x - d * c.normal[0], y - d * c.normal[1])

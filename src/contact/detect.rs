@@ -1,35 +1,26 @@
 //! Collision detection for the modified mass method: every non-driven node against every
-//! obstacle, with a cheap lower bound first.
+//! surface, with a cheap lower bound first.
 
-pub use super::newton::{Constraint, Corner};
-use crate::obstacle::{Obstacle, Proximity};
+use super::constraint::{Constraint, Corner};
+use super::Surfaces;
+use crate::obstacle::Proximity;
 
-/// The deepest penetration of point `p` among all obstacles, if any (signed distance < `below`).
+/// The deepest penetration of point `p` among all surfaces, if any (signed distance < `below`).
 /// Returns the obstacle index and its proximity answer.
 #[inline]
-pub fn deepest(obstacles: &[Obstacle], p: [f64; 2], below: f64) -> Option<(usize, Proximity)> {
-    let mut best: Option<(usize, Proximity)> = None;
-    for (k, o) in obstacles.iter().enumerate() {
-        if o.lower_bound(p) >= below {
-            continue;
-        }
-        let q = o.query(p);
-        if q.distance < below && best.map_or(true, |(_, b)| q.distance < b.distance) {
-            best = Some((k, q));
-        }
-    }
-    best
+pub fn deepest(s: &Surfaces, p: [f64; 2], below: f64) -> Option<(usize, Proximity)> {
+    deepest_other(s, p, usize::MAX, below)
 }
 
-/// Signed distance to the nearest obstacle (∞ when there are none). Exact only where a lower
+/// Signed distance to the nearest surface (∞ when there are none). Exact only where a lower
 /// bound says the node may be within `exact_within`; elsewhere the bound is returned.
 #[inline]
-pub fn gap(obstacles: &[Obstacle], p: [f64; 2], exact_within: f64) -> f64 {
+pub fn gap(s: &Surfaces, p: [f64; 2], exact_within: f64) -> f64 {
     let mut g = f64::INFINITY;
-    for o in obstacles {
-        let lb = o.lower_bound(p);
+    for k in 0..s.len() {
+        let lb = s.lower_bound(k, p);
         let d = if lb < exact_within {
-            o.query(p).distance
+            s.query(k, p).distance
         } else {
             lb
         };
@@ -42,13 +33,7 @@ pub fn gap(obstacles: &[Obstacle], p: [f64; 2], exact_within: f64) -> f64 {
 #[inline]
 pub fn constraint_at(obstacle: usize, prox: &Proximity) -> Constraint {
     let n = prox.normal;
-    Constraint {
-        obstacle,
-        normal: n,
-        target: n[0] * prox.closest[0] + n[1] * prox.closest[1],
-        locked: false,
-        second: None,
-    }
+    Constraint::on_surface(obstacle, n, n[0] * prox.closest[0] + n[1] * prox.closest[1])
 }
 
 /// The second surface of a corner, linearised like [`constraint_at`].
@@ -62,20 +47,20 @@ pub fn corner_at(obstacle: usize, prox: &Proximity) -> Corner {
     }
 }
 
-/// The deepest penetration of `p` below `below` among the obstacles other than `skip`.
+/// The deepest penetration of `p` below `below` among the surfaces other than `skip`.
 #[inline]
 pub fn deepest_other(
-    obstacles: &[Obstacle],
+    s: &Surfaces,
     p: [f64; 2],
     skip: usize,
     below: f64,
 ) -> Option<(usize, Proximity)> {
     let mut best: Option<(usize, Proximity)> = None;
-    for (k, o) in obstacles.iter().enumerate() {
-        if k == skip || o.lower_bound(p) >= below {
+    for k in 0..s.len() {
+        if k == skip || s.lower_bound(k, p) >= below {
             continue;
         }
-        let q = o.query(p);
+        let q = s.query(k, p);
         if q.distance < below && best.is_none_or(|(_, b)| q.distance < b.distance) {
             best = Some((k, q));
         }

@@ -1,0 +1,232 @@
+//! What a step reports: the rods' step-end arrays, every active contact with its friction
+//! state, the free bodies' poses and the net contact wrench on them.
+
+use super::{BodyOut, Simulation};
+use crate::contact::{self, friction, Grip};
+use crate::events::{BodyView, ContactView, Event, Observer, RodStepView};
+
+impl Simulation {
+    pub(super) fn fill_outputs(&mut self, r: usize, dt: f64, initial: bool) {
+        let rod = &self.rods[r];
+        let w = &self.work[r];
+        let surfaces = contact::Surfaces {
+            obstacles: &self.obstacles,
+            placement: &self.placement,
+        };
+        let o = &mut self.out[r];
+        for i in 0..rod.n {
+            let c = if initial { None } else { w.contact[i] };
+            let (rx, ry) = if initial {
+                (0.0, 0.0)
+            } else {
+                (w.r[2 * i], w.r[2 * i + 1])
+            };
+            if rod.clamped[i] {
+                o.reaction[2 * i] = 0.0;
+                o.reaction[2 * i + 1] = 0.0;
+                o.drive_force[2 * i] = rx;
+                o.drive_force[2 * i + 1] = ry;
+            } else {
+                o.drive_force[2 * i] = 0.0;
+                o.drive_force[2 * i + 1] = 0.0;
+                let (gx, gy) = if c.is_some() { (rx, ry) } else { (0.0, 0.0) };
+                o.reaction[2 * i] = gx;
+                o.reaction[2 * i + 1] = gy;
+            }
+            o.impulse[2 * i] = o.reaction[2 * i] * dt;
+            o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
+            match c {
+                Some(c) if !rod.clamped[i] => {
+                    o.normal[2 * i] = c.normal[0];
+                    o.normal[2 * i + 1] = c.normal[1];
+                    o.obstacle[i] = c.obstacle;
+                    o.in_contact[i] = true;
+                }
+                _ => {
+                    o.normal[2 * i] = 0.0;
+                    o.normal[2 * i + 1] = 0.0;
+                    o.obstacle[i] = usize::MAX;
+                    o.in_contact[i] = false;
+                }
+            }
+            o.gap[i] = contact::gap(&surfaces, [w.q[2 * i], w.q[2 * i + 1]], rod.length);
+        }
+        if initial {
+            o.q_pred.copy_from_slice(&w.q);
+        }
+        rod.bending_stress(&w.q, &mut o.stress);
+    }
+
+    pub(super) fn emit_step_end<O: Observer>(
+        &self,
+        obs: &mut O,
+        dt: f64,
+        newton_iterations: u32,
+        passes: u32,
+    ) {
+        let views: Vec<RodStepView<'_>> = self
+            .out
+            .iter()
+            .zip(&self.work)
+            .map(|(o, w)| RodStepView {
+                q: &w.q,
+                u: &w.u,
+                reaction: &o.reaction,
+                impulse: &o.impulse,
+                drive_force: &o.drive_force,
+                normal: &o.normal,
+                contact_obstacle: &o.obstacle,
+                in_contact: &o.in_contact,
+                bending_stress: &o.stress,
+                gap: &o.gap,
+                q_predictor: &o.q_pred,
+            })
+            .collect();
+        let names: Vec<&str> = self.bodies.iter().map(|b| b.spec.name.as_str()).collect();
+        let bodies: Vec<BodyView<'_>> = self
+            .bodies
+            .iter()
+            .zip(&self.body_out)
+            .zip(&names)
+            .map(|((b, o), name)| BodyView {
+                name,
+                obstacle: b.spec.obstacle,
+                position: b.pose.c,
+                angle: b.pose.theta,
+                velocity: [b.v[0], b.v[1]],
+                angular_velocity: b.v[2],
+                contact_force: o.force,
+                contact_torque: o.torque,
+                mass: b.spec.mass,
+            })
+            .collect();
+        obs.on_event(&Event::StepEnd {
+            step: self.step,
+            t: self.t,
+            dt,
+            newton_iterations,
+            passes,
+            rods: &views,
+            bodies: &bodies,
+            contacts: &self.contact_out,
+        });
+    }
+
+    /// Every active contact (rod nodes, then the bodies' own), and the net contact wrench on
+    /// each body: minus the reactions of the nodes held on it, plus its own contacts' forces.
+    pub(super) fn fill_contact_outputs(&mut self, dt: f64) {
+        self.contact_out.clear();
+        self.body_out
+            .iter_mut()
+            .for_each(|o| *o = BodyOut::default());
+        for r in 0..self.rods.len() {
+            for i in 0..self.rods[r].n {
+                if self.rods[r].clamped[i] {
+                    continue;
+                }
+                if let Some(c) = self.work[r].contact[i] {
+                    let v = self.node_contact_view(r, i, &c, dt);
+                    if let Some(l) = c.body {
+                        let o = &mut self.body_out[l.body];
+                        let f = [
+                            -(v.normal_force * c.normal[0] + v.friction_force * c.tangent()[0]),
+                            -(v.normal_force * c.normal[1] + v.friction_force * c.tangent()[1]),
+                        ];
+                        let lever = [
+                            v.point[0] - self.bodies[l.body].pose.c[0],
+                            v.point[1] - self.bodies[l.body].pose.c[1],
+                        ];
+                        o.force[0] += f[0];
+                        o.force[1] += f[1];
+                        o.torque += lever[0] * f[1] - lever[1] * f[0];
+                    }
+                    self.contact_out.push(v);
+                }
+            }
+        }
+        for bi in 0..self.bodies.len() {
+            self.body_contact_views(bi, dt);
+        }
+    }
+
+    fn node_contact_view(
+        &self,
+        r: usize,
+        i: usize,
+        c: &contact::Constraint,
+        dt: f64,
+    ) -> ContactView {
+        let w = &self.work[r];
+        let reaction = [w.r[2 * i], w.r[2 * i + 1]];
+        let (rn, rt) = friction::split(c, reaction);
+        let mut slip = [w.dq[2 * i], w.dq[2 * i + 1]];
+        if let Some((b, g)) = c.body_columns() {
+            let x = self.bodies[b].last_dx;
+            for a in 0..2 {
+                slip[a] -= g[0][a] * x[0] + g[1][a] * x[1] + g[2][a] * x[2];
+            }
+        }
+        let t = c.tangent();
+        ContactView {
+            rod: r,
+            node: i,
+            obstacle: c.obstacle,
+            body: c.body.map_or(usize::MAX, |l| l.body),
+            point: [w.q[2 * i], w.q[2 * i + 1]],
+            normal: c.normal,
+            normal_force: rn,
+            friction_force: rt,
+            slip_velocity: if dt > 0.0 {
+                (t[0] * slip[0] + t[1] * slip[1]) / dt
+            } else {
+                0.0
+            },
+            stuck: matches!(c.grip, Grip::Stick { .. }) || c.second.is_some(),
+            utilisation: friction::utilisation(c, reaction),
+            mu_s: c.coulomb.mu_s,
+        }
+    }
+
+    fn body_contact_views(&mut self, bi: usize, dt: f64) {
+        let b = &self.bodies[bi];
+        for (j, c) in b.contacts.iter().enumerate() {
+            let lam = b.reaction.get(j).copied().unwrap_or([0.0; 2]);
+            let rt = match c.grip {
+                Grip::Slide { sign } => -c.coulomb.mu_k * sign * lam[0],
+                Grip::Stick { .. } => lam[1],
+            };
+            let t = c.tangent();
+            let f = [
+                lam[0] * c.normal[0] + rt * t[0],
+                lam[0] * c.normal[1] + rt * t[1],
+            ];
+            let o = &mut self.body_out[bi];
+            o.force[0] += f[0];
+            o.force[1] += f[1];
+            o.torque += c.lever[0] * f[1] - c.lever[1] * f[0];
+            let slip = if dt > 0.0 {
+                (crate::contact::body::dot3(&c.row(t), &b.last_dx) - c.stick_target) / dt
+            } else {
+                0.0
+            };
+            self.contact_out.push(ContactView {
+                rod: usize::MAX,
+                node: bi,
+                obstacle: c.obstacle,
+                body: usize::MAX,
+                point: [b.pose.c[0] + c.lever[0], b.pose.c[1] + c.lever[1]],
+                normal: c.normal,
+                normal_force: lam[0],
+                friction_force: rt,
+                slip_velocity: slip,
+                stuck: c.is_stuck(),
+                utilisation: if c.coulomb.mu_s > 0.0 && lam[0] > 0.0 {
+                    rt.abs() / (c.coulomb.mu_s * lam[0])
+                } else {
+                    0.0
+                },
+                mu_s: c.coulomb.mu_s,
+            });
+        }
+    }
+}

@@ -1,0 +1,422 @@
+//! One step of the modified mass method, in the order it happens: begin (carried constraints,
+//! driven nodes, initial guesses), solve with the current constraint sets (predictor, then
+//! corrector passes), update the sets (contact::* decides), accept.
+
+use super::coupled::Coupled;
+use super::newton::{self, IterationReport, NewtonFailure, NewtonOptions};
+use super::{Simulation, StepError};
+use crate::events::{Event, Observer, Phase};
+use crate::scenario::{Mode, Stepping};
+
+/// What every part of one step needs to know.
+pub(super) struct StepCtx {
+    pub dt: f64,
+    pub t1: f64,
+    pub step: u64,
+    pub dynamic: bool,
+    pub opt: NewtonOptions,
+    pub max_passes: u32,
+    pub wants_iter: bool,
+    pub wants_steps: bool,
+}
+
+impl Simulation {
+    pub(super) fn step_ctx(
+        &self,
+        dt: f64,
+        lambda: f64,
+        wants_iter: bool,
+        wants_steps: bool,
+    ) -> StepCtx {
+        let solve = &self.scenario.solve;
+        let dynamic = solve.mode == Mode::Dynamic;
+        StepCtx {
+            dt,
+            t1: if dynamic { self.t + dt } else { lambda },
+            step: self.step + 1,
+            dynamic,
+            opt: NewtonOptions {
+                c: if dynamic { 1.0 / (dt * dt) } else { 0.0 },
+                dt: if dynamic { dt } else { 0.0 },
+                lambda: if dynamic { 1.0 } else { lambda },
+                force_tol: solve.force_tol,
+                step_tol: solve.step_tol,
+                max_iterations: solve.max_newton_iterations,
+            },
+            max_passes: solve
+                .max_contact_passes
+                .max(3 * self.rods.iter().map(|r| r.n as u32).max().unwrap_or(1)),
+            wants_iter,
+            wants_steps,
+        }
+    }
+
+    /// One step (dynamic: size dt; static: load factor `lambda`). Transactional: on failure the
+    /// state is as before.
+    pub(super) fn try_step<O: Observer>(
+        &mut self,
+        dt: f64,
+        lambda: f64,
+        allow_split: bool,
+        obs: &mut O,
+    ) -> Result<(), StepError> {
+        let ctx = self.step_ctx(dt, lambda, obs.wants_iterations(), obs.wants_steps());
+        obs.on_event(&Event::StepBegin {
+            step: ctx.step,
+            t: self.t,
+            dt,
+        });
+        self.begin_step(&ctx);
+        let (mut newton_iterations, mut passes_total, mut pass) = (0u32, 0u32, 0u32);
+        self.dirty.iter_mut().for_each(|d| *d = true);
+        self.group_dirty = true;
+        loop {
+            newton_iterations += self.solve_pass(&ctx, pass, obs)?;
+            if pass == 0 {
+                self.after_predictor(&ctx, allow_split)?;
+            }
+            let changed = self.update_contacts(&ctx, pass, obs);
+            if changed == 0 {
+                break;
+            }
+            pass += 1;
+            passes_total += changed;
+            if pass > ctx.max_passes {
+                self.rollback();
+                return Err(StepError::Newton {
+                    rod: self.dirty.iter().position(|d| *d).unwrap_or(0),
+                    fail: NewtonFailure {
+                        node: 0,
+                        residual: 0.0,
+                        reason: "the contact set did not settle",
+                        iterations: 0,
+                    },
+                });
+            }
+        }
+        if ctx.dynamic && self.scenario.solve.stepping == Stepping::Adaptive {
+            self.adapt(dt)?;
+        }
+        self.accept(&ctx, obs, newton_iterations, passes_total);
+        Ok(())
+    }
+
+    /// Save the constraint sets, prescribe the driven nodes, guess the rest, re-linearise the
+    /// constraints carried over from the last step at the current positions.
+    fn begin_step(&mut self, ctx: &StepCtx) {
+        for r in 0..self.rods.len() {
+            let rod = &self.rods[r];
+            let w = &mut self.work[r];
+            w.contact_saved.copy_from_slice(&w.contact);
+            w.step_dt = if ctx.dynamic { ctx.dt } else { 0.0 };
+            // Prescribed displacement of driven nodes; initial guess for the rest.
+            let (d1, _) = rod.drive.motion(ctx.t1.max(0.0));
+            for i in 0..rod.n {
+                for a in 0..2 {
+                    let k = 2 * i + a;
+                    if rod.clamped[i] {
+                        w.dq[k] = if ctx.dynamic {
+                            rod.q0[k] + d1[a] - w.q[k]
+                        } else {
+                            0.0
+                        };
+                    } else if ctx.dynamic {
+                        w.dq[k] = ctx.dt * w.u[k] + ctx.dt * ctx.dt * w.a[k];
+                    } else {
+                        w.dq[k] = 0.0;
+                    }
+                }
+            }
+        }
+        for b in &mut self.bodies {
+            b.contacts_saved.clone_from(&b.contacts);
+            b.released.clear();
+            for k in 0..3 {
+                b.dx[k] = ctx.dt * b.v[k] + ctx.dt * ctx.dt * b.a[k];
+            }
+        }
+        self.place_bodies(false);
+        self.relinearise_carried(ctx);
+    }
+
+    /// Carried-over constraints: re-linearise at the positions at the start of the step.
+    fn relinearise_carried(&mut self, ctx: &StepCtx) {
+        self.place_bodies(true);
+        for r in 0..self.rods.len() {
+            for i in 0..self.rods[r].n {
+                if let Some(c) = self.work[r].contact[i] {
+                    let p = [self.work[r].q[2 * i], self.work[r].q[2 * i + 1]];
+                    let nc = self.relinearised(r, i, &c, p, true);
+                    self.work[r].contact[i] = Some(nc);
+                }
+            }
+        }
+        for bi in 0..self.bodies.len() {
+            self.relinearise_body_contacts(bi, ctx, true);
+        }
+        self.place_bodies(false);
+    }
+
+    /// Solve every rod (and body group) whose constraint set changed. Returns the Newton
+    /// iterations spent.
+    fn solve_pass<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        pass: u32,
+        obs: &mut O,
+    ) -> Result<u32, StepError> {
+        let phase = match (ctx.dynamic, pass) {
+            (false, _) => Phase::Static,
+            (true, 0) => Phase::Predictor,
+            _ => Phase::Corrector,
+        };
+        let mut iterations = 0u32;
+        self.update_members();
+        for r in 0..self.rods.len() {
+            if !self.dirty[r] || self.is_member[r] {
+                continue;
+            }
+            iterations += self.solve_rod(ctx, r, phase, pass, obs)?;
+        }
+        if !self.bodies.is_empty() && self.group_dirty {
+            iterations += self.solve_group(ctx, phase, pass, obs)?;
+            self.place_bodies(false);
+        }
+        self.dirty.iter_mut().for_each(|d| *d = false);
+        self.group_dirty = false;
+        Ok(iterations)
+    }
+
+    fn solve_rod<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        r: usize,
+        phase: Phase,
+        pass: u32,
+        obs: &mut O,
+    ) -> Result<u32, StepError> {
+        let rod = &self.rods[r];
+        let w = &mut self.work[r];
+        let res = if ctx.wants_iter {
+            let (t, step) = (self.t, ctx.step);
+            let mut cb = |it: IterationReport<'_>| {
+                obs.on_event(&Event::Iteration {
+                    step,
+                    t,
+                    phase,
+                    pass,
+                    iteration: it.iteration,
+                    rod: r,
+                    residual: it.residual,
+                    update: it.update,
+                    q: it.q,
+                });
+            };
+            newton::solve(rod, w, &ctx.opt, Some(&mut cb))
+        } else {
+            newton::solve(rod, w, &ctx.opt, None)
+        };
+        res.map_err(|fail| {
+            self.rollback();
+            StepError::Newton { rod: r, fail }
+        })
+    }
+
+    /// The rods that touch a free body, solved with the bodies.
+    fn solve_group<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        phase: Phase,
+        pass: u32,
+        obs: &mut O,
+    ) -> Result<u32, StepError> {
+        let members: Vec<usize> = (0..self.rods.len())
+            .filter(|&r| self.is_member[r])
+            .collect();
+        let mut group = Coupled {
+            rods: &self.rods,
+            work: &mut self.work,
+            coupling: &mut self.coupling,
+            members: &members,
+            bodies: &mut self.bodies,
+            scratch: &mut self.scratch,
+        };
+        let res = if ctx.wants_iter {
+            let (t, step) = (self.t, ctx.step);
+            let mut cb = |r: usize, it: IterationReport<'_>| {
+                obs.on_event(&Event::Iteration {
+                    step,
+                    t,
+                    phase,
+                    pass,
+                    iteration: it.iteration,
+                    rod: r,
+                    residual: it.residual,
+                    update: it.update,
+                    q: it.q,
+                });
+            };
+            group.solve(&ctx.opt, Some(&mut cb))
+        } else {
+            group.solve(&ctx.opt, None)
+        };
+        res.map_err(|(rod, fail)| {
+            self.rollback();
+            StepError::Newton { rod, fail }
+        })
+    }
+
+    /// Rods holding any node against a free body join the body group.
+    fn update_members(&mut self) {
+        for r in 0..self.rods.len() {
+            let m = self.work[r]
+                .contact
+                .iter()
+                .any(|c| c.is_some_and(|c| c.body.is_some()));
+            if m != self.is_member[r] {
+                self.is_member[r] = m;
+                self.group_dirty = true;
+            }
+            if m && self.dirty[r] {
+                self.group_dirty = true;
+            }
+        }
+    }
+
+    /// After the predictor: keep its positions for the recordings; split the step at the time
+    /// of impact when asked.
+    fn after_predictor(&mut self, ctx: &StepCtx, allow_split: bool) -> Result<(), StepError> {
+        for r in 0..self.rods.len() {
+            if ctx.wants_steps {
+                self.out[r].q_pred.copy_from_slice(&self.work[r].qn);
+            }
+            if allow_split && ctx.dynamic {
+                if let Some((theta, node)) = self.impact_fraction(r) {
+                    if theta * ctx.dt >= self.min_split_dt(ctx.dt) {
+                        self.rollback();
+                        return Err(StepError::Split {
+                            theta,
+                            rod: r,
+                            node,
+                        });
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Adaptive stepping: reject the step when the error estimate exceeds the tolerance, or
+    /// propose the next step size.
+    fn adapt(&mut self, dt: f64) -> Result<(), StepError> {
+        let err = self.error_estimate(dt);
+        let factor = if err > 0.0 {
+            (0.9 / err.sqrt()).clamp(0.2, 2.0)
+        } else {
+            2.0
+        };
+        let (dt_min, dt_max) = (self.scenario.solve.dt_min, self.scenario.solve.dt_max);
+        if err > 1.0 && dt > dt_min * (1.0 + 1e-12) {
+            self.rollback();
+            return Err(StepError::Reject {
+                dt: (dt * factor).max(dt_min),
+            });
+        }
+        self.next_dt = (dt * factor).clamp(dt_min, dt_max);
+        Ok(())
+    }
+
+    pub(super) fn rollback(&mut self) {
+        for w in &mut self.work {
+            w.contact.copy_from_slice(&w.contact_saved);
+            w.clear_release_marks();
+        }
+        for b in &mut self.bodies {
+            b.contacts.clone_from(&b.contacts_saved);
+            b.released.clear();
+        }
+        self.is_member.iter_mut().for_each(|m| *m = false);
+        self.place_bodies(true);
+    }
+
+    /// Accept: advance the state, emit the step's end.
+    fn accept<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        obs: &mut O,
+        newton_iterations: u32,
+        passes: u32,
+    ) {
+        let mut max_pen = self.stats.max_penetration;
+        for r in 0..self.rods.len() {
+            let rod = &self.rods[r];
+            let w = &mut self.work[r];
+            for k in 0..2 * rod.n {
+                let qn = w.q[k] + w.dq[k];
+                if ctx.dynamic {
+                    let un = w.dq[k] / ctx.dt;
+                    w.a[k] = (un - w.u[k]) / ctx.dt;
+                    w.u[k] = un;
+                } else {
+                    w.u[k] = 0.0;
+                }
+                w.q[k] = qn;
+            }
+            w.clear_release_marks();
+        }
+        self.accept_bodies(ctx);
+        for r in 0..self.rods.len() {
+            max_pen = max_pen.max(self.penetration(r));
+        }
+        self.stats.max_penetration = max_pen;
+        self.stats.steps += 1;
+        self.stats.newton_iterations += newton_iterations as u64;
+        self.stats.contact_passes += passes as u64;
+        self.step = ctx.step;
+        self.t = ctx.t1;
+        self.stats.t = ctx.t1;
+        self.last_dt = ctx.dt;
+        self.check_drives(obs);
+        if ctx.wants_steps {
+            for r in 0..self.rods.len() {
+                self.fill_outputs(r, if ctx.dynamic { ctx.dt } else { 0.0 }, false);
+            }
+            self.fill_contact_outputs(ctx.dt);
+            self.emit_step_end(obs, ctx.dt, newton_iterations, passes);
+        }
+    }
+
+    fn accept_bodies(&mut self, ctx: &StepCtx) {
+        for b in &mut self.bodies {
+            for k in 0..3 {
+                let v = b.dx[k] / ctx.dt;
+                b.a[k] = (v - b.v[k]) / ctx.dt;
+                b.v[k] = v;
+            }
+            b.pose = b.pose.moved(&b.dx);
+            b.last_dx = b.dx;
+            b.dx = [0.0; 3];
+        }
+        self.place_bodies(true);
+    }
+
+    /// Deepest penetration of any free node of rod `r` into any surface (m, ≥ 0).
+    fn penetration(&self, r: usize) -> f64 {
+        let rod = &self.rods[r];
+        let w = &self.work[r];
+        let s = self.surfaces();
+        let mut pen = 0.0f64;
+        for i in 0..rod.n {
+            if rod.clamped[i] {
+                continue;
+            }
+            let p = [w.q[2 * i], w.q[2 * i + 1]];
+            for k in 0..s.len() {
+                if s.lower_bound(k, p) < 0.0 {
+                    pen = pen.max(-s.query(k, p).distance);
+                }
+            }
+        }
+        pen
+    }
+}
