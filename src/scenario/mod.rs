@@ -2,10 +2,12 @@
 //!
 //! See `docs/scenario-format.md` for every key.
 
+pub mod actuation;
 pub mod overrides;
 pub mod reader;
 
 use crate::obstacle::Obstacle;
+pub use actuation::ActuatorSpec;
 pub use reader::ScenarioError;
 use reader::TableReader;
 use toml::Value;
@@ -207,6 +209,11 @@ pub struct RodSpec {
     pub velocity: [f64; 2],
     /// A `[[particle]]`: one node, no elasticity.
     pub particle: bool,
+    /// The `[[actuator]]` that moves the clamped nodes (index into `Scenario::actuators`);
+    /// None: the rod's own `drive`.
+    pub actuator: Option<usize>,
+    /// Follows the actuator's motion mirrored in its line x = `mirror_x`.
+    pub mirror: bool,
 }
 
 /// A whole scenario.
@@ -217,6 +224,8 @@ pub struct Scenario {
     pub solve: Solve,
     pub rods: Vec<RodSpec>,
     pub obstacles: Vec<Obstacle>,
+    /// `[[actuator]]`s: programs of phases for groups of rods.
+    pub actuators: Vec<ActuatorSpec>,
     /// Flush recordings every this many steps.
     pub flush_every: u64,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
@@ -235,6 +244,7 @@ const TOP_KEYS: &[&str] = &[
     "particle",
     "obstacle",
     "output",
+    "actuator",
 ];
 const SOLVE_KEYS: &[&str] = &[
     "mode",
@@ -268,6 +278,8 @@ const ROD_KEYS: &[&str] = &[
     "drive",
     "loads",
     "velocity",
+    "actuator",
+    "mirror",
 ];
 const PARTICLE_KEYS: &[&str] = &["name", "position", "velocity", "mass", "force"];
 const OUTPUT_KEYS: &[&str] = &["flush_every"];
@@ -451,6 +463,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "add at least one [[rod]] (or [[particle]]) table",
         ));
     }
+    let actuators = actuation::parse_actuators(&top)?;
     let mut rods: Vec<RodSpec> = Vec::new();
     let tables = rods_v
         .iter()
@@ -468,7 +481,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             (parse_particle(&r, solve.mode)?, r)
         } else {
             let r = top.table_value(&path, v, ROD_KEYS)?;
-            (parse_rod(&r, solve.mode)?, r)
+            (parse_rod(&r, solve.mode, &actuators)?, r)
         };
         if let Some(j) = rods.iter().position(|o: &RodSpec| o.name == rod.name) {
             return Err(r.err_hint(
@@ -523,6 +536,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         solve,
         rods,
         obstacles,
+        actuators,
         flush_every,
         text: String::new(),
         file: file.into(),
@@ -715,7 +729,11 @@ const DRIVE_KEYS: &[&str] = &[
     "stop_travel",
 ];
 
-fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
+fn parse_rod(
+    r: &TableReader,
+    mode: Mode,
+    actuators: &[ActuatorSpec],
+) -> Result<RodSpec, ScenarioError> {
     let name = r.str("name")?.to_string();
     if name.trim().is_empty() {
         return Err(r.err("name", r.get("name"), "must not be empty"));
@@ -871,6 +889,7 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
         ));
     }
 
+    let (actuator, mirror) = actuation::parse_rod_keys(r, actuators, !clamped.is_empty())?;
     let drive = match r.opt_table("drive", DRIVE_KEYS)? {
         None => Drive::Fixed,
         Some(d) => {
@@ -959,6 +978,8 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
         loads,
         velocity,
         particle: false,
+        actuator,
+        mirror,
     })
 }
 
@@ -999,5 +1020,7 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
         },
         velocity,
         particle: true,
+        actuator: None,
+        mirror: false,
     })
 }
