@@ -548,7 +548,7 @@ fn check_ends(
     }
     let ends = limit || grip || end.width.is_some();
     let hold = matches!(movement, Movement::Hold);
-    if !ends && !(hold && last) {
+    if !(ends || hold && last) {
         let what = match movement {
             Movement::Hold => "a hold that is not the last phase".to_string(),
             Movement::Translate { law, .. } | Movement::Rotate { law, .. } => {
@@ -877,7 +877,7 @@ end = { travel = 0.2, width = 0.3 }
             closed,
             Pose {
                 theta: 0.0,
-                d: [-1.0 * (0.05 * 0.2), 0.0]
+                d: [-(0.05 * 0.2), 0.0]
             }
         );
         // Hold 0.1 s, then the lift: at its middle (0.2 s in) half the distance, up.
