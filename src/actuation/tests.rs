@@ -686,3 +686,50 @@ fn an_empty_program_holds_still() {
     assert_eq!(m.position_of([0.1, -0.2], None), [0.1, -0.2]);
     assert_eq!(act.next_end_after(0.0), None);
 }
+
+#[test]
+fn unreachable_grip_torque_message_in_rotation_units() {
+    let ph = Phase::new(
+        Some("pinch".into()),
+        Movement::Rotate {
+            pivot: [0.0, 0.0],
+            sense: 1.0,
+            law: Law::ConstantVelocity { speed: 2.0 },
+        },
+        Ends {
+            grip_torque: Some(0.25),
+            travel: Some(0.5),
+            ..Ends::default()
+        },
+    );
+    let mut act = Actuator::new(program(vec![ph], None), [0.0; 2]);
+    let tq = |t| Measure {
+        drive_force: [0.0; 2],
+        drive_torque: t,
+    };
+    act.commit(0.1, &tq(0.125)).unwrap();
+    let err = act.commit(0.3, &tq(0.0)).unwrap_err();
+    assert_eq!(err.t, 0.25);
+    assert_eq!(
+        err.to_string(),
+        "phase 0 'pinch' reached its travel limit 0.5 rad at t = 0.25 s before \
+         grip_torque = 0.25 N·m (peak 0.125 N·m)"
+    );
+    // A phase that no step ended inside says so.
+    let ph = translate(
+        Law::ConstantVelocity { speed: 1.0 },
+        Ends {
+            grip_force: Some(1.0),
+            duration: Some(0.01),
+            ..Ends::default()
+        },
+    );
+    let mut act = Actuator::new(program(vec![ph], None), [0.0; 2]);
+    let err = act.commit(0.02, &Measure::default()).unwrap_err();
+    assert_eq!(err.peak, None);
+    assert!(
+        err.to_string()
+            .ends_with("(no step ended inside the phase)"),
+        "{err}"
+    );
+}

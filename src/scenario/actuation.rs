@@ -942,4 +942,29 @@ end = { travel = 0.2, width = 0.3 }
             e.message
         );
     }
+
+    /// The example of docs/scenario-format.md parses, with the phases it describes.
+    #[test]
+    fn the_documented_example_is_valid() {
+        let doc = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/scenario-format.md"),
+        )
+        .unwrap();
+        let from = doc.find("### Example: a two-prong gripper").unwrap();
+        let block = &doc[from..];
+        let start = block.find("```toml\n").unwrap() + 8;
+        let block = &block[start..];
+        let block = &block[..block.find("```").unwrap()];
+        let head = "name = \"doc\"\n[solve]\nt_end = 1.0\ndt = 1e-4\n";
+        let sc = Scenario::from_str(&format!("{head}{block}"), "doc.toml", &[]).unwrap();
+        let p = &sc.actuators[0].program;
+        let names: Vec<&str> = p
+            .phases
+            .iter()
+            .map(|ph| ph.name.as_deref().unwrap())
+            .collect();
+        assert_eq!(names, ["close", "hold", "lift", "open"]);
+        assert_eq!(p.phases[0].end.grip_force, Some(2.0));
+        assert_eq!(groups(&sc).1, vec![(0, None), (0, Some(-0.05))]);
+    }
 }
