@@ -6,6 +6,7 @@
 //! [`model`], [`solver`]) does no I/O; it reports what happens through
 //! [`events::Observer`], and every sink in [`record`] is one observer.
 
+pub mod actuation;
 pub mod bench;
 pub mod contact;
 pub mod energy;

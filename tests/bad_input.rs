@@ -1678,3 +1678,334 @@ fn run_rejects_bad_set() {
     has(&err, &[&kv("rod.2", "1e9"), "index out of range"]);
     case.assert_untouched();
 }
+
+// ---------------------------------------------------------------------------------------------
+// Actuation programs: [[actuator]] tables and the rod keys `actuator`, `mirror`.
+
+const DRIVE_LINE: &str =
+    "drive = { kind = \"constant_velocity\", velocity = [0.0, -0.01], stop_time = 0.001 }";
+
+/// A phase that is valid on its own.
+const GOOD_PHASE: &str = "[[actuator.phase]]
+kind = \"translate\"
+direction = [0.0, -1.0]
+law = \"constant_velocity\"
+speed = 0.01
+end = { duration = 0.001 }
+";
+
+/// BASE with the rod's drive replaced by `rod_keys` and `actuator` appended.
+fn with_actuator(rod_keys: &str, actuator: &str) -> String {
+    format!("{}\n{actuator}\n", edit(DRIVE_LINE, rod_keys))
+}
+
+/// BASE with the rod moved by actuator "grip" (mirror line x = 0.2) running `phases`.
+fn actuator(phases: &str) -> String {
+    with_actuator(
+        "actuator = \"grip\"",
+        &format!("[[actuator]]\nname = \"grip\"\nmirror_x = 0.2\n{phases}"),
+    )
+}
+
+/// GOOD_PHASE with `from` replaced by `to`.
+fn phase(from: &str, to: &str) -> String {
+    actuator(&edit_text(GOOD_PHASE, from, to))
+}
+
+#[test]
+fn actuator_base_is_valid() {
+    for text in [
+        actuator(GOOD_PHASE),
+        with_actuator(
+            "actuator = \"grip\"\nmirror = true",
+            &format!("[[actuator]]\nname = \"grip\"\nmirror_x = 0.2\n{GOOD_PHASE}"),
+        ),
+    ] {
+        let case = Case::new(text.as_bytes());
+        let out = case.run("validate", &[], &[]);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        case.assert_untouched();
+    }
+}
+
+#[test]
+fn phase_that_never_ends() {
+    let err = phase("end = { duration = 0.001 }\n", "");
+    has(
+        &reject(&err),
+        &[
+            &k("actuator.0.phase.0.end"),
+            "the phase never ends",
+            "\"constant_velocity\"",
+        ],
+    );
+    // A hold that is not the last phase must end too (a final one may last forever).
+    let hold = format!("[[actuator.phase]]\nkind = \"hold\"\n{GOOD_PHASE}");
+    has(
+        &reject(&actuator(&hold)),
+        &[&k("actuator.0.phase.0.end"), "never ends", "a hold"],
+    );
+    let last_hold = format!("{GOOD_PHASE}[[actuator.phase]]\nkind = \"hold\"\n");
+    let case = Case::new(actuator(&last_hold).as_bytes());
+    assert_eq!(case.run("validate", &[], &[]).status.code(), Some(0));
+}
+
+#[test]
+fn grip_force_without_a_safety_limit() {
+    let err = reject(&phase(
+        "end = { duration = 0.001 }",
+        "end = { grip_force = 5.0 }",
+    ));
+    has(
+        &err,
+        &[
+            &kv("actuator.0.phase.0.end.grip_force", "5.0"),
+            "no safety limit",
+            "add duration or travel",
+        ],
+    );
+}
+
+#[test]
+fn grip_force_in_a_rotation_and_width_without_mirror_line() {
+    let rot = "[[actuator.phase]]\nkind = \"rotate\"\npivot = [0.0, 0.0]\nlaw = \"constant_velocity\"\nspeed = 1.0\nend = { grip_force = 1.0, duration = 0.001 }\n";
+    has(
+        &reject(&actuator(rot)),
+        &[
+            &kv("actuator.0.phase.0.end.grip_force", "1.0"),
+            "not used in a rotate phase",
+            "grip_torque",
+        ],
+    );
+    let no_line = with_actuator(
+        "actuator = \"grip\"",
+        &format!(
+            "[[actuator]]\nname = \"grip\"\n{}",
+            edit_text(GOOD_PHASE, "duration = 0.001", "width = 0.01")
+        ),
+    );
+    has(
+        &reject(&no_line),
+        &[
+            &kv("actuator.0.phase.0.end.width", "0.01"),
+            "needs the actuator's mirror_x",
+        ],
+    );
+}
+
+#[test]
+fn unknown_actuator_name_did_you_mean() {
+    let text = edit_text(
+        &actuator(GOOD_PHASE),
+        "actuator = \"grip\"",
+        "actuator = \"gripp\"",
+    );
+    has(
+        &reject(&text),
+        &[
+            &kv("rod.0.actuator", "\"gripp\""),
+            "unknown actuator \"gripp\"",
+            "did you mean \"grip\"?",
+        ],
+    );
+}
+
+#[test]
+fn drive_and_actuator_together() {
+    let text = edit_text(
+        &actuator(GOOD_PHASE),
+        "actuator = \"grip\"",
+        &format!("actuator = \"grip\"\n{DRIVE_LINE}"),
+    );
+    has(
+        &reject(&text),
+        &[
+            &kv("rod.0.actuator", "\"grip\""),
+            "may not also have `drive`",
+        ],
+    );
+}
+
+#[test]
+fn mirror_without_mirror_x() {
+    let text = with_actuator(
+        "actuator = \"grip\"\nmirror = true",
+        &format!("[[actuator]]\nname = \"grip\"\n{GOOD_PHASE}"),
+    );
+    has(
+        &reject(&text),
+        &[
+            &kv("rod.0.mirror", "true"),
+            "actuator \"grip\" has no mirror_x",
+        ],
+    );
+    // And mirror without an actuator at all.
+    has(
+        &reject(&edit(DRIVE_LINE, &format!("{DRIVE_LINE}\nmirror = true"))),
+        &[&kv("rod.0.mirror", "true"), "needs `actuator`"],
+    );
+}
+
+#[test]
+fn direction_of_zero_length() {
+    let err = reject(&phase("direction = [0.0, -1.0]", "direction = [0.0, 0.0]"));
+    has(
+        &err,
+        &[
+            &kv("actuator.0.phase.0.direction", "[0.0, 0.0]"),
+            "has zero length",
+        ],
+    );
+    let err = reject(&phase(
+        "direction = [0.0, -1.0]\nlaw = \"constant_velocity\"\nspeed = 0.01",
+        "law = \"constant_velocity\"\nvelocity = [0.0, 0.0]",
+    ));
+    has(
+        &err,
+        &[
+            &kv("actuator.0.phase.0.velocity", "[0.0, 0.0]"),
+            "has zero length",
+        ],
+    );
+}
+
+#[test]
+fn negative_or_non_finite_rates_and_durations() {
+    for (from, to, key, value, msg) in [
+        (
+            "speed = 0.01",
+            "speed = -0.01",
+            "speed",
+            "-0.01",
+            "greater than zero",
+        ),
+        ("speed = 0.01", "speed = nan", "speed", "nan", "finite"),
+        ("speed = 0.01", "speed = inf", "speed", "inf", "finite"),
+        (
+            "law = \"constant_velocity\"\nspeed = 0.01",
+            "law = \"constant_acceleration\"\nacceleration = -2.0",
+            "acceleration",
+            "-2.0",
+            "greater than zero",
+        ),
+        (
+            "law = \"constant_velocity\"\nspeed = 0.01",
+            "law = \"s_curve\"\ndistance = 0.01\nduration = 0.0",
+            "duration",
+            "0.0",
+            "greater than zero",
+        ),
+        (
+            "duration = 0.001",
+            "duration = -0.001",
+            "end.duration",
+            "-0.001",
+            "greater than zero",
+        ),
+        (
+            "duration = 0.001",
+            "travel = nan",
+            "end.travel",
+            "nan",
+            "finite",
+        ),
+    ] {
+        let err = reject(&phase(from, to));
+        has(
+            &err,
+            &[&kv(&format!("actuator.0.phase.0.{key}"), value), msg],
+        );
+    }
+}
+
+#[test]
+fn table_times_must_start_at_zero_and_increase() {
+    let table = |pts: &str| {
+        phase(
+            "law = \"constant_velocity\"\nspeed = 0.01",
+            &format!("law = \"table\"\npoints = {pts}"),
+        )
+    };
+    has(
+        &reject(&table("[[0.1, 0.0], [0.2, 0.01]]")),
+        &[
+            &kv("actuator.0.phase.0.points.0", "[0.1, 0.0]"),
+            "the first time must be 0",
+        ],
+    );
+    has(
+        &reject(&table("[[0.0, 0.0], [0.2, 0.01], [0.2, 0.02]]")),
+        &[
+            &kv("actuator.0.phase.0.points.2", "[0.2, 0.02]"),
+            "times must increase strictly",
+        ],
+    );
+}
+
+#[test]
+fn missing_table_file_is_named() {
+    let err = reject(&phase(
+        "law = \"constant_velocity\"\nspeed = 0.01",
+        "law = \"table\"\nfile = \"no-such-profile.csv\"",
+    ));
+    has(
+        &err,
+        &[
+            &kv("actuator.0.phase.0.file", "\"no-such-profile.csv\""),
+            "cannot read the profile",
+            "no-such-profile.csv",
+        ],
+    );
+}
+
+#[test]
+fn unknown_law_kind_and_keys_did_you_mean() {
+    has(
+        &reject(&phase(
+            "law = \"constant_velocity\"",
+            "law = \"constant_velocty\"",
+        )),
+        &[
+            &kv("actuator.0.phase.0.law", "\"constant_velocty\""),
+            "unknown law",
+            "did you mean \"constant_velocity\"?",
+        ],
+    );
+    has(
+        &reject(&phase("kind = \"translate\"", "kind = \"translat\"")),
+        &[
+            &kv("actuator.0.phase.0.kind", "\"translat\""),
+            "unknown phase kind",
+            "did you mean \"translate\"?",
+        ],
+    );
+    has(
+        &reject(&phase("speed = 0.01", "speed = 0.01\nsped = 0.02")),
+        &[
+            &kv("actuator.0.phase.0.sped", "0.02"),
+            "unknown key",
+            &did_you_mean("speed"),
+        ],
+    );
+    has(
+        &reject(&phase("duration = 0.001", "duraton = 0.001")),
+        &[
+            &kv("actuator.0.phase.0.end.duraton", "0.001"),
+            "unknown key",
+            &did_you_mean("duration"),
+        ],
+    );
+    // A parameter of another law.
+    has(
+        &reject(&phase("speed = 0.01", "speed = 0.01\ndistance = 0.02")),
+        &[
+            &kv("actuator.0.phase.0.distance", "0.02"),
+            "not used with law = \"constant_velocity\"",
+        ],
+    );
+}

@@ -2,6 +2,7 @@
 //!
 //! See `docs/scenario-format.md` for every key.
 
+pub mod actuation;
 pub mod friction;
 pub mod geometry;
 pub mod obstacle;
@@ -11,6 +12,7 @@ pub mod reader;
 use crate::contact::friction::FrictionTable;
 use crate::obstacle::Obstacle;
 use crate::world::body::BodySpec;
+pub use actuation::ActuatorSpec;
 pub use reader::ScenarioError;
 use reader::TableReader;
 use toml::Value;
@@ -212,6 +214,11 @@ pub struct RodSpec {
     pub velocity: [f64; 2],
     /// A `[[particle]]`: one node, no elasticity.
     pub particle: bool,
+    /// The `[[actuator]]` that moves the clamped nodes (index into `Scenario::actuators`);
+    /// None: the rod's own `drive`.
+    pub actuator: Option<usize>,
+    /// Follows the actuator's motion mirrored in its line x = `mirror_x`.
+    pub mirror: bool,
 }
 
 /// A whole scenario.
@@ -228,6 +235,8 @@ pub struct Scenario {
     pub bodies: Vec<BodySpec>,
     /// Coulomb coefficients (frictionless unless `[friction]` says otherwise).
     pub friction: FrictionTable,
+    /// `[[actuator]]`s: programs of phases for groups of rods.
+    pub actuators: Vec<ActuatorSpec>,
     /// Flush recordings every this many steps.
     pub flush_every: u64,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
@@ -247,6 +256,7 @@ const TOP_KEYS: &[&str] = &[
     "obstacle",
     "friction",
     "output",
+    "actuator",
 ];
 const SOLVE_KEYS: &[&str] = &[
     "mode",
@@ -280,6 +290,8 @@ const ROD_KEYS: &[&str] = &[
     "drive",
     "loads",
     "velocity",
+    "actuator",
+    "mirror",
 ];
 const PARTICLE_KEYS: &[&str] = &["name", "position", "velocity", "mass", "force"];
 const OUTPUT_KEYS: &[&str] = &["flush_every"];
@@ -452,7 +464,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             ))
         }
     };
-
+    let actuators = actuation::parse_actuators(&top)?;
     let mut rods: Vec<RodSpec> = Vec::new();
     let tables = rods_v
         .iter()
@@ -470,7 +482,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             (parse_particle(&r, solve.mode)?, r)
         } else {
             let r = top.table_value(&path, v, ROD_KEYS)?;
-            (parse_rod(&r, solve.mode)?, r)
+            (parse_rod(&r, solve.mode, &actuators)?, r)
         };
         if let Some(j) = rods.iter().position(|o: &RodSpec| o.name == rod.name) {
             return Err(r.err_hint(
@@ -564,6 +576,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         obstacle_names,
         bodies,
         friction,
+        actuators,
         flush_every,
         text: String::new(),
         file: file.into(),
@@ -756,7 +769,11 @@ const DRIVE_KEYS: &[&str] = &[
     "stop_travel",
 ];
 
-fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
+fn parse_rod(
+    r: &TableReader,
+    mode: Mode,
+    actuators: &[ActuatorSpec],
+) -> Result<RodSpec, ScenarioError> {
     let name = r.str("name")?.to_string();
     if name.trim().is_empty() {
         return Err(r.err("name", r.get("name"), "must not be empty"));
@@ -912,6 +929,7 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
         ));
     }
 
+    let (actuator, mirror) = actuation::parse_rod_keys(r, actuators, !clamped.is_empty())?;
     let drive = match r.opt_table("drive", DRIVE_KEYS)? {
         None => Drive::Fixed,
         Some(d) => {
@@ -1000,6 +1018,8 @@ fn parse_rod(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError> {
         loads,
         velocity,
         particle: false,
+        actuator,
+        mirror,
     })
 }
 
@@ -1040,5 +1060,7 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
         },
         velocity,
         particle: true,
+        actuator: None,
+        mirror: false,
     })
 }

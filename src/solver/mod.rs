@@ -9,6 +9,7 @@ pub mod newton;
 mod outputs;
 mod step;
 
+use crate::actuation::{clamp_centroid, Actuator, Measure};
 use crate::contact::{self, friction::Coulomb};
 use crate::events::{ContactView, Event, Observer, RodInfo, RunInfo};
 use crate::model::Rod;
@@ -38,6 +39,13 @@ pub enum SimError {
     },
     #[error("interrupted at step {step}, t = {t:.9} s")]
     Interrupted { step: u64, t: f64 },
+    #[error("actuator {actuator:?} at step {step}, t = {t:.9} s: {message}")]
+    Actuation {
+        step: u64,
+        t: f64,
+        actuator: String,
+        message: String,
+    },
 }
 
 /// Counters of a run.
@@ -147,6 +155,11 @@ pub struct Simulation {
     pub interrupt: Option<Box<dyn Fn() -> bool + Send>>,
     /// Free rigid bodies (fruit).
     pub bodies: Vec<Body>,
+    /// The actuation programs (the `[[actuator]]`s, then one per rod driven by its own
+    /// `drive`), and each rod's program and mirror line.
+    pub actuators: Vec<Actuator>,
+    actuator_names: Vec<String>,
+    rod_actuator: Vec<(usize, Option<f64>)>,
     /// Per obstacle: the free body that carries it (`usize::MAX` when fixed).
     body_of: Vec<usize>,
     /// Per obstacle: where detection sees it (None: fixed; a body at its start or trial pose).
@@ -206,6 +219,34 @@ impl Simulation {
             })
             .collect();
         let n_rods = rods.len();
+        let (programs, rod_actuator) = crate::scenario::actuation::groups(scenario);
+        let actuators: Vec<Actuator> = programs
+            .into_iter()
+            .enumerate()
+            .map(|(g, p)| {
+                let nodes = rods
+                    .iter()
+                    .zip(&rod_actuator)
+                    .filter(|(_, a)| a.0 == g)
+                    .flat_map(|(r, a)| {
+                        (0..r.n)
+                            .filter(|&i| r.clamped[i])
+                            .map(move |i| ([r.q0[2 * i], r.q0[2 * i + 1]], a.1.is_some()))
+                    });
+                let c0 = clamp_centroid(nodes, p.mirror_x);
+                Actuator::new(p, c0)
+            })
+            .collect();
+        let actuator_names = (0..actuators.len())
+            .map(|g| match scenario.actuators.get(g) {
+                Some(a) => a.name.clone(),
+                None => rod_actuator
+                    .iter()
+                    .position(|a| a.0 == g)
+                    .map(|r| format!("drive of rod {:?}", rods[r].name))
+                    .unwrap_or_default(),
+            })
+            .collect();
         let mut sim = Self {
             scenario: scenario.clone(),
             obstacles: scenario.obstacles.clone(),
@@ -221,6 +262,9 @@ impl Simulation {
             next_dt: scenario.solve.dt,
             interrupt: None,
             body_out: vec![BodyOut::default(); bodies.len()],
+            actuators,
+            actuator_names,
+            rod_actuator,
             bodies,
             body_of,
             placement: vec![None; scenario.obstacles.len()],
@@ -467,8 +511,48 @@ impl Simulation {
         Ok(())
     }
 
-    /// What happens between accepted steps (the actuation programs advance here).
-    fn after_step<O: Observer>(&mut self, _obs: &mut O) -> Result<(), SimError> {
+    /// What happens between accepted steps: the actuation programs measure their drive
+    /// forces and move on to their next phase when an end is reached.
+    fn after_step<O: Observer>(&mut self, obs: &mut O) -> Result<(), SimError> {
+        for g in 0..self.actuators.len() {
+            let pivot = self.actuators[g].pivot_world(self.t);
+            let mut m = Measure::default();
+            for (r, rod) in self.rods.iter().enumerate() {
+                let (a, mirror) = self.rod_actuator[r];
+                if a != g {
+                    continue;
+                }
+                let w = &self.work[r];
+                for i in (0..rod.n).filter(|&i| rod.clamped[i]) {
+                    let x = [w.q[2 * i], w.q[2 * i + 1]];
+                    m.add(x, [w.r[2 * i], w.r[2 * i + 1]], mirror, pivot);
+                }
+            }
+            let switches =
+                self.actuators[g]
+                    .commit(self.t, &m)
+                    .map_err(|e| SimError::Actuation {
+                        step: self.step,
+                        t: self.t,
+                        actuator: self.actuator_names[g].clone(),
+                        message: e.to_string(),
+                    })?;
+            for s in switches {
+                let label = match s.to {
+                    Some(k) => self.actuators[g].program().phases[k].label(),
+                    None => String::new(),
+                };
+                obs.on_event(&Event::PhaseChanged {
+                    step: self.step,
+                    t: s.t,
+                    actuator: g,
+                    from: s.from,
+                    to: s.to,
+                    name: &label,
+                    reason: s.reason,
+                });
+            }
+        }
         Ok(())
     }
 

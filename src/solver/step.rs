@@ -110,13 +110,15 @@ impl Simulation {
             w.contact_saved.copy_from_slice(&w.contact);
             w.step_dt = if ctx.dynamic { ctx.dt } else { 0.0 };
             // Prescribed displacement of driven nodes; initial guess for the rest.
-            let (d1, _) = rod.drive.motion(ctx.t1.max(0.0));
+            let (g, mirror) = self.rod_actuator[r];
+            let motion = self.actuators[g].motion(ctx.t1.max(0.0));
             for i in 0..rod.n {
+                let x0 = [rod.q0[2 * i], rod.q0[2 * i + 1]];
                 for a in 0..2 {
                     let k = 2 * i + a;
                     if rod.clamped[i] {
                         w.dq[k] = if ctx.dynamic {
-                            rod.q0[k] + d1[a] - w.q[k]
+                            motion.position_of(x0, mirror)[a] - w.q[k]
                         } else {
                             0.0
                         };
@@ -364,6 +366,7 @@ impl Simulation {
             }
             w.clear_release_marks();
         }
+        self.driven_velocities(ctx);
         self.accept_bodies(ctx);
         for r in 0..self.rods.len() {
             max_pen = max_pen.max(self.penetration(r));
@@ -383,6 +386,25 @@ impl Simulation {
             }
             self.fill_contact_outputs(ctx.dt);
             self.emit_step_end(obs, ctx.dt, newton_iterations, passes);
+        }
+    }
+
+    /// A driven node's velocity is its actuator's exact velocity (not the backward difference
+    /// of its positions, which depends on dt).
+    fn driven_velocities(&mut self, ctx: &StepCtx) {
+        if !ctx.dynamic {
+            return;
+        }
+        for r in 0..self.rods.len() {
+            let (g, mirror) = self.rod_actuator[r];
+            let motion = self.actuators[g].motion(ctx.t1);
+            let rod = &self.rods[r];
+            let w = &mut self.work[r];
+            for i in (0..rod.n).filter(|&i| rod.clamped[i]) {
+                let v = motion.velocity_of([rod.q0[2 * i], rod.q0[2 * i + 1]], mirror);
+                w.u[2 * i] = v[0];
+                w.u[2 * i + 1] = v[1];
+            }
         }
     }
 
