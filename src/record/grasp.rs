@@ -4,7 +4,9 @@
 //! - The gripper's position is the centroid of every rod's driven nodes; the fruit's position
 //!   relative to it is tracked every step.
 //! - The lift begins at the first step where that centroid has risen (against gravity) by more
-//!   than 1 µm from where it started; the fruit's relative position then is the reference.
+//!   than a quarter of the hold tolerance above where it was when a prong first touched the
+//!   fruit (a jaw that swings in about a pivot rises a little while it closes; that is not a
+//!   lift); the fruit's position relative to the gripper then is the reference.
 //! - The verdict is taken at the end of the lift: the last step before the gripper first moves
 //!   down again (to place the fruit), or the end of the run.
 //! - `held`: the lift happened and the fruit is then within its `hold_tolerance` of the
@@ -150,7 +152,6 @@ impl GraspTracker {
         let clamp = if n > 0.0 { [cx / n, cy / n] } else { [0.0; 2] };
         let rel = [pos[0] - clamp[0], pos[1] - clamp[1]];
         let height = clamp[0] * up[0] + clamp[1] * up[1];
-        let h0 = *self.start_height.get_or_insert(height);
         let mut per_rod = vec![0.0f64; rods.len()];
         let (mut total, mut mu_n) = (0.0, 0.0);
         self.touching = false;
@@ -168,7 +169,11 @@ impl GraspTracker {
         o.peak_grip_force_n = per_rod.iter().fold(o.peak_grip_force_n, |a, b| a.max(*b));
         o.peak_total_grip_force_n = o.peak_total_grip_force_n.max(total);
         let margin = if w > 0.0 { mu_n / w } else { f64::INFINITY };
-        if self.rel_ref.is_none() && n > 0.0 && height - h0 > 1e-6 {
+        if self.touching && self.start_height.is_none() {
+            self.start_height = Some(height);
+        }
+        let rise = self.start_height.map_or(0.0, |h0| height - h0);
+        if self.rel_ref.is_none() && n > 0.0 && rise > 0.25 * o.hold_tolerance_m {
             self.rel_ref = Some(rel);
             o.lift_start_time_s = Some(t);
             o.safety_margin_at_lift = Some(margin);

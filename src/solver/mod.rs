@@ -523,9 +523,13 @@ impl Simulation {
                     continue;
                 }
                 let w = &self.work[r];
+                // The force the prong's elasticity puts on its clamp, ∇E at the clamped nodes:
+                // what a force sensor at the prong's root reads. The clamped nodes' own
+                // inertia and weight belong to the actuator, so a jolt in the motion law is
+                // not read as grip.
                 for i in (0..rod.n).filter(|&i| rod.clamped[i]) {
                     let x = [w.q[2 * i], w.q[2 * i + 1]];
-                    m.add(x, [w.r[2 * i], w.r[2 * i + 1]], mirror, pivot);
+                    m.add(x, [w.grad[2 * i], w.grad[2 * i + 1]], mirror, pivot);
                 }
             }
             let switches =
