@@ -2009,3 +2009,105 @@ fn unknown_law_kind_and_keys_did_you_mean() {
         ],
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// Friction and free bodies (issue 10).
+
+#[test]
+fn friction_coefficients_negative_nan_or_kinetic_above_static() {
+    has(
+        &reject(&format!("{BASE}\n[friction]\nmu_s = -0.2\n")),
+        &[&kv("friction.mu_s", "-0.2"), "must not be negative"],
+    );
+    has(
+        &reject(&format!("{BASE}\n[friction]\nmu_s = nan\n")),
+        &[&kv("friction.mu_s", "nan"), "finite"],
+    );
+    has(
+        &reject(&format!("{BASE}\n[friction]\nmu_s = 0.3\nmu_k = 0.5\n")),
+        &[&kv("friction.mu_k", "0.5"), "exceeds the static one"],
+    );
+    has(
+        &reject(&format!(
+            "{BASE}\n[friction]\nmu_s = 0.3\n[[friction.pair]]\nbetween = [\"prong\", \"fruit\"]\nmu_s = 0.4\n"
+        )),
+        &[&kv("friction.pair.0.between.1", "\"fruit\""), "no rod, particle or obstacle"],
+    );
+    has(
+        &reject(&format!("{BASE}\n[friction]\nmu_s = 0.3\nmu_q = 0.5\n")),
+        &[&kv("friction.mu_q", "0.5"), "unknown key"],
+    );
+}
+
+#[test]
+fn free_bodies_need_a_mass_a_closed_shape_and_a_free_start() {
+    has(
+        &reject(&with_obstacle(
+            "kind = \"circle\"\ncenter = [0.3, 0.3]\nradius = 0.04\nfree = true",
+        )),
+        &[&k("obstacle.1.mass"), "a free body needs a mass"],
+    );
+    has(
+        &reject(&with_obstacle(
+            "kind = \"circle\"\ncenter = [0.3, 0.3]\nradius = 0.04\nfree = true\nmass = -1.0",
+        )),
+        &[&kv("obstacle.1.mass", "-1.0")],
+    );
+    has(
+        &reject(&with_obstacle(
+            "kind = \"plane\"\npoint = [0.0, -1.0]\nnormal = [0.0, 1.0]\nfree = true\nmass = 1.0",
+        )),
+        &[&kv("obstacle.1.free", "true"), "not a closed shape"],
+    );
+    has(
+        &reject(&with_obstacle(
+            "kind = \"circle\"\ncenter = [0.3, 0.3]\nradius = 0.04\nfree = true\ndensity = 1000.0",
+        )),
+        &[&k("obstacle.1.depth")],
+    );
+    has(
+        &reject(&with_obstacle(
+            "kind = \"circle\"\ncenter = [0.3, 0.3]\nradius = 0.04\nmass = 1.0",
+        )),
+        &[&kv("obstacle.1.mass", "1.0"), "only a free obstacle"],
+    );
+    // A fruit starting inside a prong (the prong's nodes inside the fruit).
+    has(
+        &reject(&with_obstacle(
+            "kind = \"circle\"\ncenter = [0.05, 0.0]\nradius = 0.02\nfree = true\nmass = 0.1",
+        )),
+        &["rod.0.shape", "starts", "inside obstacle.1"],
+    );
+    // A fruit starting inside the table.
+    has(
+        &reject(&format!(
+            "{BASE}\n[[obstacle]]\nkind = \"plane\"\npoint = [0.0, -0.5]\nnormal = [0.0, 1.0]\n[[obstacle]]\nkind = \"circle\"\ncenter = [0.3, -0.49]\nradius = 0.04\nfree = true\nmass = 0.1\n"
+        )),
+        &["obstacle.2", "starts", "inside obstacle.1"],
+    );
+}
+
+#[test]
+fn a_grip_force_that_is_never_reached_is_a_run_time_error_naming_the_phase() {
+    let text = edit(
+        "drive = { kind = \"constant_velocity\", velocity = [0.0, -0.01], stop_time = 0.001 }",
+        "actuator = \"hand\"",
+    );
+    let text = format!(
+        "{text}\n[[actuator]]\nname = \"hand\"\n[[actuator.phase]]\nname = \"squeeze\"\nkind = \"translate\"\ndirection = [0.0, -1.0]\nlaw = \"constant_velocity\"\nspeed = 0.01\nend = {{ grip_force = 50.0, travel = 0.00001 }}\n"
+    );
+    let case = Case::new(text.as_bytes());
+    let out = case.run("run", &["--no-record"], &[]);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    has(
+        &err,
+        &[
+            "error: actuator \"hand\"",
+            "phase 0 'squeeze'",
+            "travel limit",
+            "before grip_force = 50 N",
+        ],
+    );
+}
