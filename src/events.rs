@@ -141,14 +141,16 @@ pub struct FrictionChange {
 }
 
 /// One active contact at the end of a step, with its friction state.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ContactView {
     /// The rod, or `usize::MAX` for a free body's own contact with a fixed obstacle (then
-    /// `node` is the body's index).
+    /// `node` is the body's index); serialised as null then.
+    #[serde(serialize_with = "index_or_null")]
     pub rod: usize,
     pub node: usize,
     pub obstacle: usize,
-    /// The free body the surface belongs to (`usize::MAX` for a fixed obstacle).
+    /// The free body the surface belongs to (`usize::MAX` for a fixed obstacle: null).
+    #[serde(serialize_with = "index_or_null")]
     pub body: usize,
     pub point: [f64; 2],
     pub normal: [f64; 2],
@@ -164,8 +166,16 @@ pub struct ContactView {
     pub mu_s: f64,
 }
 
+fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Error> {
+    if *i == usize::MAX {
+        s.serialize_none()
+    } else {
+        s.serialize_u64(*i as u64)
+    }
+}
+
 /// A free body at the end of a step.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct BodyView<'a> {
     pub name: &'a str,
     pub obstacle: usize,

@@ -19,13 +19,15 @@
 
 use super::{
     node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording, RodStyle,
-    SceneStyle, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
+    SceneStyle, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
 };
 use crate::events::{
-    ContactChange, Event, Observer, Phase, ReleaseReason, RodInfo, RodStepView, RunInfo,
+    BodyView, ContactChange, ContactView, Event, Observer, Phase, ReleaseReason, RodInfo,
+    RodStepView, RunInfo,
 };
 use crate::obstacle::Obstacle;
 use crate::scenario::Mode;
+use crate::world::body::BodySpec;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -93,6 +95,8 @@ pub struct McapSink {
     last_time: u64,
     rods: Vec<RodInfo>,
     obstacles: Vec<Obstacle>,
+    /// Free bodies: drawn at their pose every step, not with the fixed obstacles.
+    bodies: Vec<BodySpec>,
     style: Option<SceneStyle>,
     /// The obstacles' scene entity as JSON (the same in every `/scene` message).
     obstacle_entity: String,
@@ -138,6 +142,7 @@ impl McapSink {
             last_time: 0,
             rods: Vec::new(),
             obstacles: Vec::new(),
+            bodies: Vec::new(),
             style: None,
             obstacle_entity: String::new(),
             completed: false,
@@ -197,6 +202,7 @@ impl McapSink {
         self.static_mode = info.mode == Mode::Static;
         self.rods = info.rods.to_vec();
         self.obstacles = info.obstacles.to_vec();
+        self.bodies = info.bodies.to_vec();
         let mode = match info.mode {
             Mode::Dynamic => "dynamic",
             Mode::Static => "static",
@@ -239,7 +245,7 @@ impl McapSink {
     fn step_end(&mut self, ev: StepEnd<'_, '_>) {
         if self.style.is_none() {
             let style = SceneStyle::new(&self.rods, ev.rods, &self.obstacles);
-            self.obstacle_entity = obstacle_entity(&self.obstacles, &style);
+            self.obstacle_entity = obstacle_entity(&self.obstacles, &self.bodies, &style);
             self.style = Some(style);
         }
         let time = self.time(ev.step, ev.t);
@@ -250,9 +256,11 @@ impl McapSink {
             newton_iterations: ev.newton_iterations,
             passes: ev.passes,
             rods: Rods(ev.rods),
+            bodies: ev.bodies,
+            contacts: ev.contacts,
         };
         self.send(STEP, time, &msg);
-        self.scene(time, ev.rods);
+        self.scene(time, ev.rods, ev.bodies);
         if ev.step.is_multiple_of(self.opts.flush_every) {
             if let Some(w) = self.writer.as_mut() {
                 if let Err(e) = w.flush() {
@@ -263,7 +271,7 @@ impl McapSink {
     }
 
     /// The `/scene` message: the obstacles (cached) and one entity per rod.
-    fn scene(&mut self, time: u64, rods: &[RodStepView<'_>]) {
+    fn scene(&mut self, time: u64, rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) {
         let Some(style) = self.style.as_ref() else {
             return;
         };
@@ -277,6 +285,16 @@ impl McapSink {
             self.buf.push(b',');
             if let Err(e) = serde_json::to_writer(&mut self.buf, &entity) {
                 return self.fail(e);
+            }
+        }
+        for b in bodies {
+            let mut e = Entity::new(format!("body/{}", b.name), stamp);
+            let pts = super::body_outline(&self.obstacles[b.obstacle], &self.bodies, b, style);
+            e.lines
+                .push(Line::strip(pts.into_iter(), 2.0, Color::rgb(BODY_COLOR)));
+            self.buf.push(b',');
+            if let Err(err) = serde_json::to_writer(&mut self.buf, &e) {
+                return self.fail(err);
             }
         }
         self.buf.extend_from_slice(b"]}");
@@ -322,6 +340,8 @@ struct StepEnd<'e, 'a> {
     newton_iterations: u32,
     passes: u32,
     rods: &'e [RodStepView<'a>],
+    bodies: &'e [BodyView<'a>],
+    contacts: &'e [ContactView],
 }
 
 impl Observer for McapSink {
@@ -431,7 +451,8 @@ impl Observer for McapSink {
                 newton_iterations,
                 passes,
                 rods,
-                ..
+                bodies,
+                contacts,
             } => self.step_end(StepEnd {
                 step,
                 t,
@@ -439,6 +460,8 @@ impl Observer for McapSink {
                 newton_iterations,
                 passes,
                 rods,
+                bodies,
+                contacts,
             }),
             Event::RunEnd { steps, t, error } => {
                 self.completed = error.is_none();
@@ -562,6 +585,10 @@ struct StepMsg<'a> {
     newton_iterations: u32,
     passes: u32,
     rods: Rods<'a, 'a>,
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    bodies: &'a [BodyView<'a>],
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    contacts: &'a [ContactView],
 }
 
 /// Serialises the rods' step views as [`RodMsg`]s.
@@ -880,9 +907,12 @@ impl Entity {
 }
 
 /// The obstacles as one entity of outlines, serialised once.
-fn obstacle_entity(obstacles: &[Obstacle], style: &SceneStyle) -> String {
+fn obstacle_entity(obstacles: &[Obstacle], bodies: &[BodySpec], style: &SceneStyle) -> String {
     let mut e = Entity::new("obstacles".into(), Stamp { sec: 0, nsec: 0 });
-    for o in obstacles {
+    for (k, o) in obstacles.iter().enumerate() {
+        if bodies.iter().any(|b| b.obstacle == k) {
+            continue;
+        }
         let outline = o.outline(style.lo, style.hi);
         e.lines.push(Line::strip(
             outline.into_iter(),

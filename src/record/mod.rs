@@ -19,6 +19,43 @@ use crate::events::{Observer, RodStepView};
 use crate::obstacle::Obstacle;
 use std::path::{Path, PathBuf};
 
+/// Colour of free bodies (fruit) in the scene.
+pub const BODY_COLOR: [u8; 3] = [214, 96, 45];
+/// Colour of friction force arrows.
+pub const FRICTION_COLOR: [u8; 3] = [250, 200, 40];
+
+/// The outline of a free body at its pose in a step (for drawing).
+pub fn body_outline(
+    shape: &Obstacle,
+    specs: &[crate::world::body::BodySpec],
+    b: &crate::events::BodyView<'_>,
+    style: &SceneStyle,
+) -> Vec<[f64; 2]> {
+    let c0 = specs
+        .iter()
+        .find(|s| s.obstacle == b.obstacle)
+        .map_or(b.position, |s| s.centroid);
+    let placed = crate::world::body::Placed {
+        shape,
+        c0,
+        pose: crate::world::body::Pose {
+            c: b.position,
+            theta: b.angle,
+        },
+    };
+    let mut pts: Vec<[f64; 2]> = shape
+        .outline(style.lo, style.hi)
+        .into_iter()
+        .map(|p| placed.to_world(p))
+        .collect();
+    // A spoke from the centre to the outline shows the body's rotation.
+    if let Some(first) = pts.first().copied() {
+        pts.push(b.position);
+        pts.push(first);
+    }
+    pts
+}
+
 /// Write a file atomically: to a temporary sibling, then rename, so a reader never sees half
 /// a file.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {

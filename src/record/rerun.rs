@@ -32,7 +32,9 @@ use super::{
     node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording, RodStyle,
     SceneStyle, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
 };
-use crate::events::{ContactChange, Event, Observer, ReleaseReason, RodInfo, RodStepView};
+use crate::events::{
+    BodyView, ContactChange, ContactView, Event, Observer, ReleaseReason, RodInfo, RodStepView,
+};
 use crate::obstacle::Obstacle;
 use crate::scenario::Scenario;
 use ::rerun::blueprint::components::PanelState;
@@ -57,6 +59,7 @@ pub struct RerunSink {
     opts: RecordOptions,
     rods: Vec<RodEntities>,
     obstacles: Vec<Obstacle>,
+    bodies: Vec<crate::world::body::BodySpec>,
     style: Option<SceneStyle>,
     /// The `iteration` timeline's next value.
     iteration: i64,
@@ -239,6 +242,7 @@ impl RerunSink {
             },
             rods: Vec::new(),
             obstacles: Vec::new(),
+            bodies: Vec::new(),
             style: None,
             iteration: 0,
             per_step: Series::default(),
@@ -290,6 +294,7 @@ impl RerunSink {
 
     fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
         self.obstacles = info.obstacles.to_vec();
+        self.bodies = info.bodies.to_vec();
         for r in info.rods {
             self.rods.push(RodEntities::new(&["scene"], r.clone()));
         }
@@ -330,7 +335,9 @@ impl RerunSink {
             let outlines: Vec<Vec<[f32; 2]>> = self
                 .obstacles
                 .iter()
-                .map(|o| {
+                .enumerate()
+                .filter(|(k, _)| !self.bodies.iter().any(|b| b.obstacle == *k))
+                .map(|(_, o)| {
                     o.outline(style.lo, style.hi)
                         .into_iter()
                         .map(|p| [p[0] as f32, p[1] as f32])
@@ -398,6 +405,81 @@ impl RerunSink {
         if step.is_multiple_of(self.opts.flush_every) {
             self.flush(&rec);
         }
+    }
+
+    /// The free bodies at their pose (with a spoke that shows the rotation), the friction
+    /// force at every contact (yellow arrows, 1 body radius per body weight), and the grasp
+    /// plots: each prong's grip force (Σ normal force on the body) and the safety margin
+    /// μ_s Σ N / (m g).
+    fn draw_bodies(&mut self, bodies: &[BodyView<'_>], contacts: &[ContactView]) {
+        let (Some(rec), Some(style)) = (self.rec.clone(), self.style.as_ref()) else {
+            return;
+        };
+        let strips: Vec<Vec<[f32; 2]>> = bodies
+            .iter()
+            .map(|b| {
+                super::body_outline(&self.obstacles[b.obstacle], &self.bodies, b, style)
+                    .into_iter()
+                    .map(|p| [p[0] as f32, p[1] as f32])
+                    .collect()
+            })
+            .collect();
+        let mut r = rec.log(
+            "scene/bodies",
+            &LineStrips2D::new(strips)
+                .with_colors([rgb(super::BODY_COLOR)])
+                .with_radii([Radius::new_ui_points(2.0)])
+                .with_draw_order(DRAW_OBSTACLES + 1.0),
+        );
+        let fruit = &self.bodies[0];
+        let scale = fruit.radius / fruit.weight[0].hypot(fruit.weight[1]).max(1e-300);
+        let (mut origins, mut vectors) = (Vec::new(), Vec::new());
+        for c in contacts.iter().filter(|c| c.friction_force != 0.0) {
+            let t = [-c.normal[1], c.normal[0]];
+            origins.push([c.point[0] as f32, c.point[1] as f32]);
+            vectors.push([
+                (c.friction_force * t[0] * scale) as f32,
+                (c.friction_force * t[1] * scale) as f32,
+            ]);
+        }
+        r = r.and_then(|_| {
+            rec.log(
+                "scene/friction",
+                &Arrows2D::from_vectors(vectors)
+                    .with_origins(origins)
+                    .with_colors([rgb(super::FRICTION_COLOR)])
+                    .with_draw_order(DRAW_OBSTACLES + 2.0),
+            )
+        });
+        let mut per_rod = vec![0.0f64; self.rods.len()];
+        let mut mu_n = 0.0;
+        let nrods = per_rod.len();
+        for c in contacts.iter().filter(|c| c.rod < nrods && c.body == 0) {
+            per_rod[c.rod] += c.normal_force.max(0.0);
+            mu_n += c.mu_s * c.normal_force.max(0.0);
+        }
+        for (k, f) in per_rod.iter().enumerate() {
+            let name = self.rods[k].info.name.clone();
+            r = r.and_then(|_| {
+                rec.log(
+                    path(&["plots", "grasp", "grip_force", &name]),
+                    &Scalars::single(*f),
+                )
+            });
+        }
+        let w = fruit.weight[0].hypot(fruit.weight[1]);
+        if w > 0.0 {
+            r = r.and_then(|_| rec.log("plots/grasp/safety_margin", &Scalars::single(mu_n / w)));
+        }
+        for b in bodies {
+            r = r.and_then(|_| {
+                rec.log(
+                    path(&["plots", "fruit", b.name, "height"]),
+                    &Scalars::single(b.position[1]),
+                )
+            });
+        }
+        self.check(r);
     }
 
     fn draw_rod(&mut self, r: usize, style: &RodStyle, v: &RodStepView<'_>, corrected: bool) {
@@ -729,8 +811,14 @@ impl Observer for RerunSink {
                 newton_iterations,
                 passes,
                 rods,
-                ..
-            } => self.step_end(step, t, dt, newton_iterations, passes, rods),
+                bodies,
+                contacts,
+            } => {
+                self.step_end(step, t, dt, newton_iterations, passes, rods);
+                if !bodies.is_empty() {
+                    self.draw_bodies(bodies, contacts);
+                }
+            }
             Event::RunEnd { steps, t, error } => {
                 self.completed = error.is_none();
                 match error {
