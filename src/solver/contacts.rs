@@ -28,6 +28,24 @@ impl Simulation {
         }
     }
 
+    /// Body `bi`'s shape at the start of the step and at the pose being solved.
+    fn placements(&self, bi: usize) -> (Placed<'_>, Placed<'_>) {
+        let b = &self.bodies[bi];
+        let (shape, c0) = (&self.obstacles[b.spec.obstacle], b.spec.centroid);
+        (
+            Placed {
+                shape,
+                c0,
+                pose: b.pose,
+            },
+            Placed {
+                shape,
+                c0,
+                pose: b.trial_pose(),
+            },
+        )
+    }
+
     /// The constraint holding rod `r`'s node on surface `k` where `prox` says, linearised at the
     /// body's current trial displacement (zero at the start of a step).
     fn constraint_on(&self, r: usize, k: usize, prox: &Proximity) -> Constraint {
@@ -411,18 +429,7 @@ impl Simulation {
         at_start: bool,
     ) -> bool {
         let b = &self.bodies[bi];
-        let c0 = b.spec.centroid;
-        let shape = &self.obstacles[b.spec.obstacle];
-        let start = Placed {
-            shape,
-            c0,
-            pose: b.pose,
-        };
-        let trial = Placed {
-            shape,
-            c0,
-            pose: b.trial_pose(),
-        };
+        let (start, trial) = self.placements(bi);
         let at = if at_start { start } else { trial };
         let dx = if at_start { [0.0; 3] } else { b.dx };
         let tol = 1e-10 * b.spec.radius;
@@ -461,18 +468,7 @@ impl Simulation {
         obs: &mut O,
     ) -> bool {
         let b = &self.bodies[bi];
-        let c0 = b.spec.centroid;
-        let shape = &self.obstacles[b.spec.obstacle];
-        let start = Placed {
-            shape,
-            c0,
-            pose: b.pose,
-        };
-        let trial = Placed {
-            shape,
-            c0,
-            pose: b.trial_pose(),
-        };
+        let (start, trial) = self.placements(bi);
         let mut found = Vec::new();
         let mut added = Vec::new();
         for (k, o) in self.obstacles.iter().enumerate() {

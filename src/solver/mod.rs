@@ -219,34 +219,7 @@ impl Simulation {
             })
             .collect();
         let n_rods = rods.len();
-        let (programs, rod_actuator) = crate::scenario::actuation::groups(scenario);
-        let actuators: Vec<Actuator> = programs
-            .into_iter()
-            .enumerate()
-            .map(|(g, p)| {
-                let nodes = rods
-                    .iter()
-                    .zip(&rod_actuator)
-                    .filter(|(_, a)| a.0 == g)
-                    .flat_map(|(r, a)| {
-                        (0..r.n)
-                            .filter(|&i| r.clamped[i])
-                            .map(move |i| ([r.q0[2 * i], r.q0[2 * i + 1]], a.1.is_some()))
-                    });
-                let c0 = clamp_centroid(nodes, p.mirror_x);
-                Actuator::new(p, c0)
-            })
-            .collect();
-        let actuator_names = (0..actuators.len())
-            .map(|g| match scenario.actuators.get(g) {
-                Some(a) => a.name.clone(),
-                None => rod_actuator
-                    .iter()
-                    .position(|a| a.0 == g)
-                    .map(|r| format!("drive of rod {:?}", rods[r].name))
-                    .unwrap_or_default(),
-            })
-            .collect();
+        let (actuators, actuator_names, rod_actuator) = build_actuators(scenario, &rods);
         let mut sim = Self {
             scenario: scenario.clone(),
             obstacles: scenario.obstacles.clone(),
@@ -799,6 +772,44 @@ impl Simulation {
             w
         };
     }
+}
+
+/// The actuators of a scenario (its `[[actuator]]`s, then one per rod driven by its own
+/// `drive`), their names for messages, and each rod's actuator and mirror line.
+#[allow(clippy::type_complexity)]
+fn build_actuators(
+    scenario: &Scenario,
+    rods: &[Rod],
+) -> (Vec<Actuator>, Vec<String>, Vec<(usize, Option<f64>)>) {
+    let (programs, rod_actuator) = crate::scenario::actuation::groups(scenario);
+    let actuators: Vec<Actuator> = programs
+        .into_iter()
+        .enumerate()
+        .map(|(g, p)| {
+            let nodes = rods
+                .iter()
+                .zip(&rod_actuator)
+                .filter(|(_, a)| a.0 == g)
+                .flat_map(|(r, a)| {
+                    (0..r.n)
+                        .filter(|&i| r.clamped[i])
+                        .map(move |i| ([r.q0[2 * i], r.q0[2 * i + 1]], a.1.is_some()))
+                });
+            let c0 = clamp_centroid(nodes, p.mirror_x);
+            Actuator::new(p, c0)
+        })
+        .collect();
+    let actuator_names = (0..actuators.len())
+        .map(|g| match scenario.actuators.get(g) {
+            Some(a) => a.name.clone(),
+            None => rod_actuator
+                .iter()
+                .position(|a| a.0 == g)
+                .map(|r| format!("drive of rod {:?}", rods[r].name))
+                .unwrap_or_default(),
+        })
+        .collect();
+    (actuators, actuator_names, rod_actuator)
 }
 
 fn obs_wants_steps<O: Observer>(obs: &O) -> bool {
