@@ -6,8 +6,14 @@
 
 use super::{node_norm, Finished, OutputFile, RecordError, RecordOptions, Recording};
 use crate::events::{Event, Observer};
-use std::io::BufWriter;
+use std::io::Write as _;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// Rows are collected in memory and written in whole lines: at every flush, and whenever this
+/// much is waiting (at a step's end). So a killed run's file ends with a whole row.
+const WRITE_AT: usize = 1 << 20;
 
 #[derive(serde::Serialize)]
 struct Row<'a> {
@@ -30,11 +36,16 @@ struct Row<'a> {
 /// Writes a CSV file.
 pub struct CsvSink {
     out: OutputFile,
-    writer: Option<::csv::Writer<BufWriter<std::fs::File>>>,
+    /// Whole rows not yet written to `file`.
+    buf: Vec<u8>,
+    /// None once writing failed.
+    file: Option<std::fs::File>,
+    header_written: bool,
     flush_every: u64,
     rods: Vec<String>,
     completed: bool,
     error: Option<RecordError>,
+    failed: Arc<AtomicBool>,
 }
 
 impl CsvSink {
@@ -43,19 +54,27 @@ impl CsvSink {
         let out = OutputFile::new(path);
         let file = out.create()?;
         Ok(Self {
-            writer: Some(::csv::Writer::from_writer(BufWriter::new(file))),
+            buf: Vec::with_capacity(WRITE_AT),
+            file: Some(file),
+            header_written: false,
             out,
             flush_every: opts.flush_every.max(1),
             rods: Vec::new(),
             completed: false,
             error: None,
+            failed: Arc::default(),
         })
     }
 
     fn write_step(&mut self, step: u64, t: f64, rods: &[crate::events::RodStepView<'_>]) {
-        let Some(w) = self.writer.as_mut() else {
+        if self.file.is_none() {
             return;
-        };
+        }
+        // The step's rows are formatted into memory, whole.
+        let mut w = ::csv::WriterBuilder::new()
+            .has_headers(!self.header_written)
+            .from_writer(std::mem::take(&mut self.buf));
+        self.header_written = true;
         let mut result = Ok(());
         'rods: for (name, v) in self.rods.iter().zip(rods) {
             for i in 0..v.in_contact.len() {
@@ -80,19 +99,37 @@ impl CsvSink {
                 }
             }
         }
-        if result.is_ok() && step.is_multiple_of(self.flush_every) {
-            result = w.flush().map_err(::csv::Error::from);
-        }
         if let Err(e) = result {
+            return self.fail(e);
+        }
+        match w.into_inner() {
+            Ok(buf) => self.buf = buf,
+            Err(e) => return self.fail(e.error()),
+        }
+        if step.is_multiple_of(self.flush_every) || self.buf.len() >= WRITE_AT {
+            self.write_out();
+        }
+    }
+
+    /// Write the buffered rows (whole lines) to the file.
+    fn write_out(&mut self) {
+        let Some(file) = self.file.as_mut() else {
+            return;
+        };
+        let r = file.write_all(&self.buf);
+        self.buf.clear();
+        if let Err(e) = r {
             self.fail(e);
         }
     }
 
     fn fail(&mut self, e: impl std::fmt::Display) {
         if self.error.is_none() {
-            self.error = Some(RecordError::write(&self.out.partial, e));
+            self.error = Some(RecordError::write(self.out.writing(), e));
         }
-        self.writer = None;
+        self.file = None;
+        self.buf = Vec::new();
+        self.failed.store(true, Ordering::Relaxed);
     }
 }
 
@@ -115,20 +152,15 @@ impl Recording for CsvSink {
     }
 
     fn finish(&mut self) -> Result<Finished, RecordError> {
-        if let Some(mut w) = self.writer.take() {
-            let closed = w
-                .flush()
-                .map_err(|e| e.to_string())
-                .and_then(|_| w.into_inner().map_err(|e| e.to_string()))
-                .and_then(|b| b.into_inner().map_err(|e| e.to_string()))
-                .map(drop);
-            if let Err(e) = closed {
-                self.fail(e);
-            }
-        }
+        self.write_out();
+        self.file = None;
         if let Some(e) = self.error.take() {
             return Err(e);
         }
         self.out.settle(self.completed)
+    }
+
+    fn failure(&self) -> Option<Arc<AtomicBool>> {
+        Some(self.failed.clone())
     }
 }

@@ -18,8 +18,8 @@
 //! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
 
 use super::{
-    node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording, RodStyle,
-    SceneStyle, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
+    error_chain, node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording,
+    RodStyle, SceneStyle, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
 };
 use crate::events::{
     BodyView, ContactChange, ContactView, Event, Observer, Phase, ReleaseReason, RodInfo,
@@ -103,6 +103,8 @@ pub struct McapSink {
     completed: bool,
     end: BTreeMap<String, String>,
     error: Option<RecordError>,
+    /// Set with `error`, for [`Recording::failure`].
+    failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl McapSink {
@@ -111,7 +113,7 @@ impl McapSink {
     pub fn create(path: &Path, opts: RecordOptions) -> Result<Self, RecordError> {
         let out = OutputFile::new(path);
         let file = out.create()?;
-        let err = |e: ::mcap::McapError| RecordError::write(&out.partial, e);
+        let err = |e: ::mcap::McapError| RecordError::write(out.writing(), error_chain(&e));
         let mut w = ::mcap::WriteOptions::new()
             .profile("")
             .library(LIBRARY)
@@ -148,6 +150,7 @@ impl McapSink {
             completed: false,
             end: BTreeMap::new(),
             error: None,
+            failed: Default::default(),
         })
     }
 
@@ -186,16 +189,18 @@ impl McapSink {
         };
         self.sequence[k] = self.sequence[k].wrapping_add(1);
         if let Err(e) = w.write_to_known_channel(&header, &self.buf) {
-            self.fail(e);
+            self.fail(error_chain(&e));
         }
     }
 
     fn fail(&mut self, e: impl std::fmt::Display) {
         if self.error.is_none() {
-            self.error = Some(RecordError::write(&self.out.partial, e));
+            self.error = Some(RecordError::write(self.out.writing(), e));
         }
         // Dropping the writer writes what it can of the summary; the file keeps .partial.
         self.writer = None;
+        self.failed
+            .store(true, std::sync::atomic::Ordering::Relaxed);
     }
 
     fn run_start(&mut self, info: &RunInfo<'_>) {
@@ -236,7 +241,7 @@ impl McapSink {
         };
         if let Some(w) = self.writer.as_mut() {
             if let Err(e) = w.write_metadata(&record) {
-                return self.fail(e);
+                return self.fail(error_chain(&e));
             }
         }
         self.send(META, 0, &meta);
@@ -264,7 +269,7 @@ impl McapSink {
         if ev.step.is_multiple_of(self.opts.flush_every) {
             if let Some(w) = self.writer.as_mut() {
                 if let Err(e) = w.flush() {
-                    self.fail(e);
+                    self.fail(error_chain(&e));
                 }
             }
         }
@@ -503,8 +508,12 @@ impl Recording for McapSink {
             let closed = w
                 .write_metadata(&record)
                 .and_then(|_| w.finish())
-                .map_err(|e| e.to_string())
-                .and_then(|_| w.into_inner().into_inner().map_err(|e| e.to_string()))
+                .map_err(|e| error_chain(&e))
+                .and_then(|_| {
+                    w.into_inner()
+                        .into_inner()
+                        .map_err(|e| error_chain(e.error()))
+                })
                 .map(drop);
             if let Err(e) = closed {
                 self.fail(e);
@@ -514,6 +523,10 @@ impl Recording for McapSink {
             return Err(e);
         }
         self.out.settle(self.completed)
+    }
+
+    fn failure(&self) -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+        Some(self.failed.clone())
     }
 }
 

@@ -57,20 +57,27 @@ pub fn body_outline(
 }
 
 /// Write a file atomically: to a temporary sibling, then rename, so a reader never sees half
-/// a file.
-pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    std::fs::create_dir_all(dir)?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.partial"));
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path)
+/// a file. A device or FIFO at `path` (e.g. `/dev/null`) is written through, never replaced; a
+/// symlink to a regular file keeps pointing at the new file; a directory is refused before
+/// anything is written. On a write error nothing is left behind.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let out = OutputFile::new(path);
+    let plain = |e: RecordError| match e {
+        RecordError::Io { source, .. } => source,
+        RecordError::Write { message, .. } => std::io::Error::other(message),
+    };
+    let mut file = out.create().map_err(plain)?;
+    let written = file.write_all(bytes).and_then(|_| file.flush());
+    drop(file);
+    if let Err(e) = written {
+        out.discard();
+        return Err(e);
+    }
+    out.settle(true).map(drop).map_err(|e| {
+        out.discard();
+        plain(e)
+    })
 }
 
 /// How much a recording holds.
@@ -158,6 +165,25 @@ pub trait Recording: Observer {
     /// Close the file (write its footer) and, when the run completed, give it its final name.
     /// Call once, after [`crate::Simulation::run`] returned.
     fn finish(&mut self) -> Result<Finished, RecordError>;
+    /// A flag the sink sets when writing failed (disk full, a write error): the caller polls
+    /// it to stop the run at once instead of computing steps that cannot be recorded.
+    fn failure(&self) -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+        None
+    }
+}
+
+/// What is at an output path before the run, and so how it is written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Target {
+    /// Nothing, or a regular file (possibly behind symlinks): write a `.partial` sibling of
+    /// the file and rename it onto the file when the run completed.
+    File,
+    /// A device or FIFO (possibly behind symlinks), e.g. `/dev/null`: written through, never
+    /// replaced, no `.partial` file and no rename.
+    Through,
+    /// Something that cannot take a recording (a directory, a socket, a dangling symlink):
+    /// refused before anything is written, with this reason.
+    Refused(String),
 }
 
 /// A recording's path while it is written and after it is complete.
@@ -168,53 +194,181 @@ pub trait Recording: Observer {
 /// under the name of a whole one. An older file at the final path is removed when the new run
 /// starts, so the final path never holds a recording of an earlier run next to this run's
 /// partial file.
+///
+/// Only a regular file (or nothing) at the path is ever removed or renamed onto: a symlink is
+/// followed (the new file replaces the file it points at, the link stays), a device or FIFO
+/// (`/dev/null`, a named pipe) is written through, and a directory, socket or dangling
+/// symlink is refused with a clear error before the run starts ([`OutputFile::check`]).
 #[derive(Debug, Clone)]
 pub struct OutputFile {
+    /// The path as given.
     pub path: PathBuf,
+    /// The `.partial` file written while the run lasts (beside the file a symlink points at).
+    /// Never created when the path is a device or FIFO.
     pub partial: PathBuf,
+    /// The regular file the partial file becomes (`path` with its symlinks resolved).
+    final_path: PathBuf,
+    target: Target,
+}
+
+/// `NAME.EXT` → `NAME.partial.EXT` in the same folder.
+fn partial_name(path: &Path) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "recording".into());
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}.partial.{}", ext.to_string_lossy()),
+        None => format!("{stem}.partial"),
+    };
+    path.with_file_name(name)
+}
+
+/// What is at `path`: its kind, and the regular file path it stands for.
+fn classify(path: &Path) -> (Target, PathBuf) {
+    use std::os::unix::fs::FileTypeExt;
+    let Ok(link) = std::fs::symlink_metadata(path) else {
+        return (Target::File, path.to_path_buf());
+    };
+    let resolved = if link.file_type().is_symlink() {
+        match std::fs::canonicalize(path) {
+            Ok(p) => p,
+            Err(e) => {
+                // A link to a file not made yet, in a folder that exists: the new file is made
+                // there (as writing through the link would). Else refused.
+                let target = std::fs::read_link(path).ok().map(|t| {
+                    path.parent()
+                        .filter(|_| t.is_relative())
+                        .map_or(t.clone(), |dir| dir.join(&t))
+                });
+                let in_a_folder = target.as_ref().and_then(|t| {
+                    let dir = std::fs::canonicalize(t.parent()?).ok()?;
+                    Some(dir.join(t.file_name()?))
+                });
+                return match in_a_folder {
+                    Some(t) if std::fs::symlink_metadata(&t).is_err() => (Target::File, t),
+                    _ => (
+                        Target::Refused(format!(
+                            "is a symlink that leads nowhere ({e}); remove it or point it at a file"
+                        )),
+                        path.to_path_buf(),
+                    ),
+                };
+            }
+        }
+    } else {
+        path.to_path_buf()
+    };
+    let Ok(meta) = std::fs::metadata(&resolved) else {
+        return (Target::File, resolved);
+    };
+    let ft = meta.file_type();
+    let target = if ft.is_file() {
+        Target::File
+    } else if ft.is_dir() {
+        Target::Refused("is a directory; give a file name".into())
+    } else if ft.is_char_device() || ft.is_block_device() || ft.is_fifo() {
+        Target::Through
+    } else {
+        Target::Refused("is a socket; give a file name".into())
+    };
+    (target, resolved)
 }
 
 impl OutputFile {
     pub fn new(path: &Path) -> Self {
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_else(|| "recording".into());
-        let name = match path.extension() {
-            Some(ext) => format!("{stem}.partial.{}", ext.to_string_lossy()),
-            None => format!("{stem}.partial"),
+        let (target, final_path) = classify(path);
+        let partial = match target {
+            Target::File => partial_name(&final_path),
+            // Never created; named for callers that clean up after a failed run.
+            _ => partial_name(path),
         };
         Self {
             path: path.to_path_buf(),
-            partial: path.with_file_name(name),
+            partial,
+            final_path,
+            target,
         }
     }
 
-    /// Make the directory, remove an older final file, and create the partial file.
+    /// Where the bytes go while the run lasts: the partial file, or the device itself.
+    pub fn writing(&self) -> &Path {
+        match self.target {
+            Target::Through => &self.path,
+            _ => &self.partial,
+        }
+    }
+
+    /// True when the path is a device or FIFO that is written through.
+    pub fn is_through(&self) -> bool {
+        self.target == Target::Through
+    }
+
+    /// The error for a path that cannot take the file (a directory, a socket, a dangling
+    /// symlink), before anything is written.
+    pub fn check(&self) -> Result<(), RecordError> {
+        match &self.target {
+            Target::Refused(why) => Err(RecordError::write(&self.path, why)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Make the directory, remove an older final file, and create the partial file (or open
+    /// the device).
     pub fn create(&self) -> Result<std::fs::File, RecordError> {
+        self.check()?;
+        if self.target == Target::Through {
+            return open_through(&self.path);
+        }
         let io = |source| RecordError::Io {
             path: self.partial.clone(),
             source,
         };
-        if let Some(dir) = self.path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if let Some(dir) = self
+            .final_path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+        {
             std::fs::create_dir_all(dir).map_err(io)?;
         }
-        match std::fs::remove_file(&self.path) {
+        match std::fs::remove_file(&self.final_path) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                 return Err(RecordError::Io {
-                    path: self.path.clone(),
+                    path: self.final_path.clone(),
                     source: e,
                 })
             }
             _ => {}
         }
-        std::fs::File::create(&self.partial).map_err(io)
+        // A leftover partial file of an earlier run goes; whatever else sits under that name
+        // (a symlink planted there) is not followed: the new file is created exclusively.
+        if std::fs::symlink_metadata(&self.partial).is_ok_and(|m| !m.is_dir()) {
+            std::fs::remove_file(&self.partial).map_err(io)?;
+        }
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&self.partial)
+            .map_err(io)
+    }
+
+    /// Remove the partial file of a failed write (nothing for a device).
+    pub fn discard(&self) {
+        if self.target == Target::File {
+            let _ = std::fs::remove_file(&self.partial);
+        }
     }
 
     /// After the file was closed: make it durable, then rename it to its final name when
     /// `complete` (so a crash after the rename cannot leave a whole-looking file whose data
-    /// never reached the disk).
+    /// never reached the disk). A device is left as it is.
     pub fn settle(&self, complete: bool) -> Result<Finished, RecordError> {
+        if self.target == Target::Through {
+            return Ok(Finished {
+                path: self.path.clone(),
+                complete,
+            });
+        }
         std::fs::File::open(&self.partial)
             .and_then(|f| f.sync_all())
             .map_err(|source| RecordError::Io {
@@ -222,8 +376,8 @@ impl OutputFile {
                 source,
             })?;
         if complete {
-            std::fs::rename(&self.partial, &self.path).map_err(|source| RecordError::Io {
-                path: self.path.clone(),
+            std::fs::rename(&self.partial, &self.final_path).map_err(|source| RecordError::Io {
+                path: self.final_path.clone(),
                 source,
             })?;
             Ok(Finished {
@@ -236,6 +390,180 @@ impl OutputFile {
                 complete: false,
             })
         }
+    }
+}
+
+/// Open a device or FIFO for writing without creating, truncating or replacing it. A FIFO
+/// nobody reads is refused at once instead of blocking the run forever.
+fn open_through(path: &Path) -> Result<std::fs::File, RecordError> {
+    use std::os::unix::fs::OpenOptionsExt;
+    use std::os::unix::io::AsRawFd;
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| {
+            if e.raw_os_error() == Some(libc::ENXIO) {
+                RecordError::write(path, "is a FIFO that nobody reads")
+            } else {
+                RecordError::Io {
+                    path: path.to_path_buf(),
+                    source: e,
+                }
+            }
+        })?;
+    // Blocking writes from here on (the flag was only for the open).
+    // SAFETY: fcntl on a file descriptor we own, with flags read from it.
+    unsafe {
+        let fd = file.as_raw_fd();
+        let flags = libc::fcntl(fd, libc::F_GETFL);
+        if flags >= 0 {
+            libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK);
+        }
+    }
+    Ok(file)
+}
+
+/// The identity of a path for [`check_distinct`]: its device and inode when it exists, and
+/// its absolute path with symlinks resolved as far as they exist.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct PathId {
+    inode: Option<(u64, u64)>,
+    char_device: bool,
+    canonical: PathBuf,
+}
+
+fn path_id(p: &Path) -> PathId {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    let meta = std::fs::metadata(p).ok();
+    let canonical = std::fs::canonicalize(p).unwrap_or_else(|_| {
+        // Not there yet: resolve the folder, keep the name.
+        let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let mut parts: Vec<std::ffi::OsString> = Vec::new();
+        let mut dir = abs.as_path();
+        loop {
+            if let Ok(c) = std::fs::canonicalize(dir) {
+                let mut out = c;
+                for part in parts.iter().rev() {
+                    out.push(part);
+                }
+                return normalize(&out);
+            }
+            match (dir.file_name(), dir.parent()) {
+                (Some(name), Some(parent)) => {
+                    parts.push(name.to_os_string());
+                    dir = parent;
+                }
+                _ => return normalize(&abs),
+            }
+        }
+    });
+    PathId {
+        inode: meta.as_ref().map(|m| (m.dev(), m.ino())),
+        char_device: meta.is_some_and(|m| m.file_type().is_char_device()),
+        canonical,
+    }
+}
+
+/// `a/./b/../c` → `a/c` (lexically; only for paths that do not exist yet).
+fn normalize(p: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
+}
+
+/// Check, before a command writes anything, that its outputs are different files from each
+/// other (also through symlinks, `./`, `..` and hard links, and counting the `.partial` file
+/// each one is written as) and from every input, and that each output path can take a file.
+/// `outputs` and `inputs` are (what, path) pairs, e.g. ("--rrd", "out/r.rrd"); the error is
+/// one line naming both. The same character device (`/dev/null`) may take several outputs.
+pub fn check_distinct(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<(), String> {
+    struct Entry<'a> {
+        what: &'a str,
+        path: &'a Path,
+        ids: Vec<PathId>,
+        is_output: bool,
+    }
+    let mut entries: Vec<Entry> = Vec::new();
+    for &(what, path) in inputs {
+        entries.push(Entry {
+            what,
+            path,
+            ids: vec![path_id(path)],
+            is_output: false,
+        });
+    }
+    for &(what, path) in outputs {
+        let out = OutputFile::new(path);
+        out.check()
+            .map_err(|e| format!("{what} {}: {}", path.display(), error_reason(&e)))?;
+        let mut ids = vec![path_id(path)];
+        if !out.is_through() {
+            ids.push(path_id(&out.final_path));
+            ids.push(path_id(&out.partial));
+        }
+        entries.push(Entry {
+            what,
+            path,
+            ids,
+            is_output: true,
+        });
+    }
+    for (j, b) in entries.iter().enumerate() {
+        for a in &entries[..j] {
+            if !(a.is_output || b.is_output) {
+                continue;
+            }
+            let clash = a.ids.iter().any(|x| {
+                b.ids.iter().any(|y| {
+                    let same =
+                        x.canonical == y.canonical || (x.inode.is_some() && x.inode == y.inode);
+                    same && !(x.char_device && y.char_device && a.is_output && b.is_output)
+                })
+            });
+            if clash {
+                let role = if a.is_output { "" } else { " (an input)" };
+                return Err(format!(
+                    "{} {} and {} {}{role} are the same file (or one is the other's .partial file): give each output its own path",
+                    b.what,
+                    b.path.display(),
+                    a.what,
+                    a.path.display()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// An error with its causes: "I/O error from writing…: No space left on device (os error 28)".
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !s.contains(&text) {
+            s.push_str(": ");
+            s.push_str(&text);
+        }
+        cause = c.source();
+    }
+    s
+}
+
+fn error_reason(e: &RecordError) -> String {
+    match e {
+        RecordError::Io { source, .. } => source.to_string(),
+        RecordError::Write { message, .. } => message.clone(),
     }
 }
 

@@ -67,6 +67,10 @@ pub struct RerunSink {
     per_iteration: Series,
     completed: bool,
     error: Option<RecordError>,
+    /// Set with `error`, for [`Recording::failure`].
+    failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    /// The file the stream writes to.
+    file: RrdFile,
 }
 
 /// Entity paths of one rod, and what its transient entities showed at the last step.
@@ -213,7 +217,8 @@ impl RerunSink {
         blueprint: Blueprint,
     ) -> Result<Self, RecordError> {
         let out = OutputFile::new(path);
-        // Creates the directory and removes an older final file; the SDK opens the file.
+        // Creates the directory and removes an older final file (a device is only opened);
+        // the SDK opens the file.
         drop(out.create()?);
         let id = format!("{}-{:016x}", name, super::stable_hash(text.as_bytes()));
         // Chunks close only when we flush (or at 2 MiB), never on a timer.
@@ -221,18 +226,21 @@ impl RerunSink {
             flush_tick: std::time::Duration::MAX,
             ..ChunkBatcherConfig::DEFAULT
         };
+        let file = RrdFile::create(out.writing())?;
         let rec = RecordingStreamBuilder::new(APPLICATION_ID)
             .recording_id(id)
             .enabled(true)
             .batcher_config(batching)
             .with_blueprint(blueprint)
-            .save(&out.partial)
-            .map_err(|e| RecordError::write(&out.partial, e))?;
+            .buffered()
+            .map_err(|e| RecordError::write(out.writing(), e))?;
+        // What was buffered (the store info, the blueprint) goes to the file first.
+        rec.set_sink(Box::new(file.clone()));
         rec.set_log_time_enabled(false);
         rec.set_log_tick_enabled(false);
         // The name only: the builder's recording properties would carry the wall-clock start.
         rec.send_recording_name(name.to_string())
-            .map_err(|e| RecordError::write(&out.partial, e))?;
+            .map_err(|e| RecordError::write(out.writing(), e))?;
         Ok(Self {
             out,
             rec: Some(rec),
@@ -249,6 +257,8 @@ impl RerunSink {
             per_iteration: Series::default(),
             completed: false,
             error: None,
+            failed: Default::default(),
+            file,
         })
     }
 
@@ -260,8 +270,10 @@ impl RerunSink {
 
     fn fail(&mut self, e: impl std::fmt::Display) {
         if self.error.is_none() {
-            self.error = Some(RecordError::write(&self.out.partial, e));
+            self.error = Some(RecordError::write(self.out.writing(), e));
         }
+        self.failed
+            .store(true, std::sync::atomic::Ordering::Relaxed);
     }
 
     fn check(&mut self, r: ::rerun::RecordingStreamResult<()>) {
@@ -538,15 +550,175 @@ impl RerunSink {
             .unwrap_or_else(|| r.to_string())
     }
 
-    /// Send the buffered series and make the file readable up to here.
+    /// Send the buffered series and make the file readable up to here. The wait for the
+    /// SDK's writer thread is bounded: a writer that died (disk full) or hangs fails the
+    /// recording instead of the run waiting forever.
     fn flush(&mut self, rec: &RecordingStream) {
         let r = self
             .per_step
             .send(rec)
             .and_then(|_| self.per_iteration.send(rec));
         self.check(r);
-        if let Err(e) = rec.flush_blocking() {
+        if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
+            let e = match e {
+                ::rerun::sink::SinkFlushError::Timeout => format!(
+                    "the .rrd writer did not answer within {} s (is the disk hanging?)",
+                    WRITER_TIMEOUT.as_secs()
+                ),
+                e => e.to_string(),
+            };
             self.fail(e);
+        }
+    }
+}
+
+/// How long the sink waits for the SDK's writer thread to flush or close the file.
+const WRITER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// End the stream (dropping the last handle makes the SDK send what it still holds to the
+/// sink), on a helper thread so that a pipeline that never returns costs at most
+/// [`WRITER_TIMEOUT`], then an error.
+fn close_stream(rec: RecordingStream) -> Result<(), String> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let spawned = std::thread::Builder::new()
+        .name("rrd-close".into())
+        .spawn(move || {
+            drop(rec);
+            let _ = tx.send(());
+        });
+    if spawned.is_err() {
+        return Err("cannot start a thread to close the file".into());
+    }
+    rx.recv_timeout(WRITER_TIMEOUT).map_err(|_| {
+        format!(
+            "the .rrd writer did not close the file within {} s (is the disk hanging?)",
+            WRITER_TIMEOUT.as_secs()
+        )
+    })
+}
+
+/// Most chunks whose index (the `.rrd` footer) is kept: about 4 kB of memory each, so at most
+/// ~32 MB. The SDK builds the footer in memory for the whole run (a dense table of every
+/// chunk by every column), which made a long run's memory grow like its file (442 MB at
+/// 300 000 steps of the seed grasp). A run that logs more chunks drops the index at that
+/// point, freeing it: its `.rrd` is the same stream without a footer (`rerun rrd
+/// stats/print` and the viewer read it; `rerun rrd verify` asks for the footer, which
+/// `rerun rrd optimize` adds).
+pub const FOOTER_CHUNKS: u64 = 8192;
+
+/// The `.rrd` file: the SDK's encoder writing straight to the file on the stream's own
+/// thread (no further queue), a write error kept and reported at the next flush, and the
+/// footer index bounded by [`FOOTER_CHUNKS`]. Shared between the stream (as its sink) and
+/// the [`RerunSink`], which ends the file itself once the stream is closed.
+#[derive(Clone)]
+struct RrdFile {
+    state: std::sync::Arc<std::sync::Mutex<RrdState>>,
+}
+
+struct RrdState {
+    encoder: Option<Encoder<std::io::BufWriter<std::fs::File>>>,
+    chunks: u64,
+    footer: bool,
+    error: Option<String>,
+}
+
+type Encoder<W> = ::rerun::external::re_log_encoding::Encoder<W>;
+
+impl RrdFile {
+    fn create(path: &Path) -> Result<Self, RecordError> {
+        use ::rerun::external::re_log_encoding::{CrateVersion, EncodingOptions};
+        // Opened without truncating anything but a regular file (OutputFile::create has made
+        // the partial file, or checked the device).
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .truncate(std::fs::metadata(path).is_ok_and(|m| m.is_file()))
+            .open(path)
+            .map_err(|source| RecordError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        let encoder = Encoder::new_eager(
+            CrateVersion::LOCAL,
+            EncodingOptions::PROTOBUF_COMPRESSED,
+            std::io::BufWriter::with_capacity(1 << 16, file),
+        )
+        .map_err(|e| RecordError::write(path, e))?;
+        Ok(Self {
+            state: std::sync::Arc::new(std::sync::Mutex::new(RrdState {
+                encoder: Some(encoder),
+                chunks: 0,
+                footer: true,
+                error: None,
+            })),
+        })
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, RrdState> {
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Write the end of the stream (and the footer, when it was kept) and close the file.
+    fn finish(&self) -> Result<(), String> {
+        let mut s = self.lock();
+        if let Some(e) = s.error.take() {
+            return Err(e);
+        }
+        let Some(mut enc) = s.encoder.take() else {
+            return Ok(());
+        };
+        enc.finish()
+            .map_err(|e| super::error_chain(&e))
+            .and_then(|_| enc.into_inner().map_err(|e| super::error_chain(&e)))
+            .and_then(|w| w.into_inner().map_err(|e| super::error_chain(e.error())))
+            .map(drop)
+    }
+}
+
+impl RrdState {
+    fn fail(&mut self, e: String) {
+        if self.error.is_none() {
+            self.error = Some(e);
+        }
+        // Nothing more is written (not even the end of the stream).
+        if let Some(enc) = self.encoder.take() {
+            let _ = enc.into_inner();
+        }
+    }
+}
+
+impl ::rerun::sink::LogSink for RrdFile {
+    fn send(&self, msg: ::rerun::external::re_log_types::LogMsg) {
+        let mut s = self.lock();
+        let Some(enc) = s.encoder.as_mut() else {
+            return;
+        };
+        if let Err(e) = enc.append(&msg) {
+            return s.fail(super::error_chain(&e));
+        }
+        if matches!(msg, ::rerun::external::re_log_types::LogMsg::ArrowMsg(..)) {
+            s.chunks += 1;
+            if s.footer && s.chunks > FOOTER_CHUNKS {
+                if let Some(enc) = s.encoder.as_mut() {
+                    enc.do_not_emit_footer();
+                }
+                s.footer = false;
+            }
+        }
+    }
+
+    fn flush_blocking(
+        &self,
+        _timeout: std::time::Duration,
+    ) -> Result<(), ::rerun::sink::SinkFlushError> {
+        let mut s = self.lock();
+        if let Some(enc) = s.encoder.as_mut() {
+            if let Err(e) = enc.flush_blocking() {
+                s.fail(super::error_chain(&e));
+            }
+        }
+        match &s.error {
+            Some(e) => Err(::rerun::sink::SinkFlushError::Failed { message: e.clone() }),
+            None => Ok(()),
         }
     }
 }
@@ -847,14 +1019,26 @@ impl Recording for RerunSink {
 
     fn finish(&mut self) -> Result<Finished, RecordError> {
         if let Some(rec) = self.rec.take() {
-            self.flush(&rec);
-            // Dropping the last handle ends the stream: the file writer writes the footer and
-            // closes the file before this returns.
-            drop(rec);
+            if self.error.is_none() {
+                self.flush(&rec);
+            }
+            // The stream sends what it still holds, then the file is ended here.
+            match close_stream(rec) {
+                Ok(()) => {
+                    if let Err(e) = self.file.finish() {
+                        self.fail(e);
+                    }
+                }
+                Err(e) => self.fail(e),
+            }
         }
         if let Some(e) = self.error.take() {
             return Err(e);
         }
         self.out.settle(self.completed)
+    }
+
+    fn failure(&self) -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+        Some(self.failed.clone())
     }
 }
