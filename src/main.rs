@@ -271,12 +271,12 @@ static STOP: AtomicUsize = AtomicUsize::new(0);
 /// Set by the first signal; a second one then ends the process at once.
 static STOPPING: AtomicBool = AtomicBool::new(false);
 
-/// SIGINT and SIGTERM stop the run after the current step (the recordings are then closed
-/// properly); a second signal exits at once.
+/// SIGINT, SIGTERM and SIGHUP (a closed terminal or dropped ssh session) stop the run after
+/// the current step (the recordings are then closed properly); a second signal exits at once.
 fn install_signal_handlers() {
-    use signal_hook::consts::{SIGINT, SIGTERM};
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     use signal_hook::flag;
-    for sig in [SIGINT, SIGTERM] {
+    for sig in [SIGINT, SIGTERM, SIGHUP] {
         let code = 128 + sig;
         let ok = flag::register_conditional_shutdown(sig, code, &STOPPING).is_ok()
             && flag::register_usize(sig, &STOP, code as usize).is_ok()
@@ -284,6 +284,15 @@ fn install_signal_handlers() {
         if !ok {
             eprintln!("warning: cannot handle signal {sig}; stopping the run may leave partial recordings");
         }
+    }
+}
+
+/// The name of the signal behind exit status `stop` (128 + number).
+fn signal_name(stop: usize) -> &'static str {
+    match stop {
+        129 => "SIGHUP",
+        143 => "SIGTERM",
+        _ => "SIGINT",
     }
 }
 
@@ -316,6 +325,21 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         detail: out.detail,
         flush_every: out.flush_every.unwrap_or(sc.flush_every),
     };
+    // Every output its own file, none of them an input, each one a path that can take a file:
+    // checked before anything is created.
+    let outputs: Vec<(&str, &Path)> = [
+        ("--rrd", &out.rrd),
+        ("--mcap", &out.mcap),
+        ("--csv", &out.csv),
+        ("--summary", &out.summary),
+    ]
+    .into_iter()
+    .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
+    .collect();
+    if let Err(e) = gripsim::record::check_distinct(&outputs, &[("the scenario", path)]) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     // From here a signal stops the run and the files are closed properly.
     install_signal_handlers();
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
@@ -337,7 +361,16 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     }
 
     let mut sim = Simulation::new(&sc);
-    sim.interrupt = Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0));
+    // A recording that cannot be written (disk full) stops the run too: the other files are
+    // then closed properly and the error is reported.
+    let failures: Vec<_> = sinks.iter().filter_map(|s| s.failure()).collect();
+    let sink_failed = {
+        let failures = failures.clone();
+        move || failures.iter().any(|f| f.load(Ordering::Relaxed))
+    };
+    sim.interrupt = Some(Box::new(move || {
+        STOP.load(Ordering::Relaxed) != 0 || sink_failed()
+    }));
     let mut collector = SummaryCollector::new();
     let start = std::time::Instant::now();
     let result = {
@@ -374,9 +407,14 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         print_recordings(&files, opts);
     }
     let stop = STOP.load(Ordering::Relaxed);
+    let sink_failed = failures.iter().any(|f| f.load(Ordering::Relaxed));
     match result {
+        Err(gripsim::solver::SimError::Interrupted { .. }) if sink_failed && stop == 0 => {
+            // The recording's error was printed above.
+            ExitCode::from(2)
+        }
         Err(e @ gripsim::solver::SimError::Interrupted { .. }) if stop != 0 => {
-            let signal = if stop == 143 { "SIGTERM" } else { "SIGINT" };
+            let signal = signal_name(stop);
             eprintln!("{e} by {signal}; the recordings are closed and keep their .partial names");
             ExitCode::from(stop as u8)
         }
@@ -663,7 +701,7 @@ fn sweep(args: SweepCli) -> ExitCode {
             );
             if r.interrupted {
                 let stop = STOP.load(Ordering::Relaxed);
-                let signal = if stop == 143 { "SIGTERM" } else { "SIGINT" };
+                let signal = signal_name(stop);
                 eprintln!(
                     "interrupted by {signal}: {} of {} cases are finished in {}; run the same command again to resume",
                     r.ran + r.skipped,
