@@ -300,13 +300,25 @@ impl Scenario {
     /// Read a scenario file, apply `--set` overrides, validate.
     pub fn load(path: &std::path::Path, sets: &[String]) -> Result<Scenario, ScenarioError> {
         let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|e| ScenarioError {
+        let bytes = read_capped(path).map_err(|e| ScenarioError {
             file: file.clone(),
             key: String::new(),
             value: String::new(),
             message: format!("cannot read the file: {e}"),
             hint: Some(missing_file_hint(path, &e)),
         })?;
+        if bytes.len() as u64 > MAX_SCENARIO_BYTES {
+            return Err(ScenarioError {
+                file,
+                key: String::new(),
+                value: String::new(),
+                message: format!(
+                    "larger than {} MiB: not a scenario file (reading stopped there)",
+                    MAX_SCENARIO_BYTES >> 20
+                ),
+                hint: Some("a scenario is a short TOML text; check the path".into()),
+            });
+        }
         let text = String::from_utf8(bytes).map_err(|e| ScenarioError {
             file: file.clone(),
             key: String::new(),
@@ -371,8 +383,14 @@ impl Scenario {
         })?;
         for s in sets {
             overrides::apply(&mut root, s).map_err(|(key, value, message, hint)| {
+                // One line, whatever the --set text holds.
+                let shown = if s.contains(['\n', '\r']) {
+                    s.escape_debug().to_string()
+                } else {
+                    s.clone()
+                };
                 ScenarioError {
-                    file: format!("{file} (--set {s})"),
+                    file: format!("{file} (--set {shown})"),
                     key,
                     value,
                     message,
@@ -387,6 +405,21 @@ impl Scenario {
         geometry::validate(&sc)?;
         Ok(sc)
     }
+}
+
+/// The largest scenario file read (16 MiB; a 100 000-vertex polygon takes about 4 MiB). A
+/// longer input (`/dev/zero`, a recording given by mistake) is refused after reading one byte
+/// more than this, before it is parsed.
+pub const MAX_SCENARIO_BYTES: u64 = 16 << 20;
+
+/// Read at most [`MAX_SCENARIO_BYTES`] + 1 bytes of `path` (so a longer one is detected).
+pub fn read_capped(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read as _;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?
+        .take(MAX_SCENARIO_BYTES + 1)
+        .read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
 /// The hint for a scenario file that cannot be read: a "did you mean" when a `.toml` file
@@ -439,6 +472,15 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "name",
             top.get("name"),
             "may only hold letters, digits, '-', '_' and '.' (it names the recording files)",
+            "use e.g. \"seed-grasp-r5\"",
+        ));
+    }
+    if name.chars().all(|c| c == '.') {
+        // "." and ".." name folders: recordings/..rrd is a hidden file at best.
+        return Err(top.err_hint(
+            "name",
+            top.get("name"),
+            "must hold a letter or digit (it names the recording files)",
             "use e.g. \"seed-grasp-r5\"",
         ));
     }
@@ -647,7 +689,9 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
             ));
         }
     };
-    let (dt_near, near_distance) = if stepping == Stepping::Proximity {
+    let (dt_near, near_distance) = if stepping == Stepping::Proximity || s.has("dt_near") {
+        // Checked whatever the stepping (docs/scenario-format.md), so a value that would fail
+        // once `--set solve.stepping=proximity` switches it on fails now.
         let dn = s.positive("dt_near")?;
         if dn > dt {
             return Err(s.err_hint(
@@ -668,7 +712,12 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
                 "use a larger dt_near or a shorter t_end",
             ));
         }
-        (dn, s.positive("near_distance")?)
+        let near = if stepping == Stepping::Proximity {
+            s.positive("near_distance")?
+        } else {
+            s.opt_positive("near_distance")?.unwrap_or(0.0)
+        };
+        (dn, near)
     } else {
         // Accepted and ignored when stepping is fixed, so a --set can switch stepping.
         (
@@ -703,8 +752,26 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
             "with adaptive stepping dt is the first step; keep it within the bounds",
         ));
     }
+    if stepping == Stepping::Adaptive && mode == Mode::Dynamic && t_end / dt_min > MAX_STEPS {
+        // The step-count limit `dt` has: adaptive steps may shrink to dt_min.
+        return Err(s.err_hint(
+            "dt_min",
+            s.get("dt_min").or(s.get("dt_max")),
+            format!(
+                "is too small: t_end / dt_min = {:.3e} steps (at most {MAX_STEPS:e}){}",
+                t_end / dt_min,
+                if s.has("dt_min") {
+                    ""
+                } else {
+                    " (dt_min defaults to dt_max × 1e-6)"
+                }
+            ),
+            "use a larger dt_min or a shorter t_end",
+        ));
+    }
     let time_of_impact = s.opt_bool("time_of_impact")?.unwrap_or(false);
     let gravity = s.opt_vec2("gravity")?.unwrap_or([0.0, -9.81]);
+    check_magnitude(s, "gravity", gravity, MAX_ACCELERATION, "m/s²")?;
     let force_tol = s.opt_positive("force_tol")?.unwrap_or(1e-9);
     let step_tol = s.opt_positive("step_tol")?.unwrap_or(1e-12);
     let max_newton_iterations = positive_int(s, "max_newton_iterations", 50)?;
@@ -746,6 +813,32 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         max_backoff,
         load_step,
     })
+}
+
+/// Largest accepted |gravity| and |drive acceleration|: 1e6 m/s² (about 100 000 g). Far above
+/// any gripper, far below where f64 arithmetic on a step overflows (gravity = 1e308 ran to
+/// the end with every number infinite or lost).
+pub const MAX_ACCELERATION: f64 = 1e6;
+/// Largest accepted |force| of a load or a particle: 1e9 N.
+pub const MAX_FORCE: f64 = 1e9;
+
+fn check_magnitude(
+    r: &TableReader,
+    key: &str,
+    v: [f64; 2],
+    cap: f64,
+    unit: &str,
+) -> Result<(), ScenarioError> {
+    let m = v[0].hypot(v[1]);
+    if m > cap {
+        return Err(r.err_hint(
+            key,
+            r.table.get(key),
+            format!("magnitude {m:.3e} {unit} is not physical here (at most {cap:e} {unit})"),
+            "check the units (SI: m, s, kg, N)",
+        ));
+    }
+    Ok(())
 }
 
 fn positive_int(s: &TableReader, key: &'static str, default: u32) -> Result<u32, ScenarioError> {
@@ -882,12 +975,19 @@ fn parse_rod(
             (true, false) => MassSpec::Density(r.positive("density")?),
             (false, true) => MassSpec::NodeMass(r.positive("node_mass")?),
             (false, false) => {
+                // A misspelt `densty` or `node_mas` is the likelier mistake: name it.
+                if let Some(e) = r
+                    .typo_error("density")
+                    .or_else(|| r.typo_error("node_mass"))
+                {
+                    return Err(e);
+                }
                 return Err(r.err_hint(
                     "density",
                     None,
                     "missing required key",
                     "give density = ... (kg/m³) or node_mass = ... (kg)",
-                ))
+                ));
             }
         };
 
@@ -937,7 +1037,11 @@ fn parse_rod(
             let dr = match d.str("kind")? {
                 "fixed" => Drive::Fixed,
                 "constant_acceleration" => Drive::ConstantAcceleration {
-                    acceleration: d.vec2("acceleration")?,
+                    acceleration: {
+                        let a = d.vec2("acceleration")?;
+                        check_magnitude(&d, "acceleration", a, MAX_ACCELERATION, "m/s²")?;
+                        a
+                    },
                     stop_time: d.opt_positive("stop_time")?,
                     stop_travel: d.opt_positive("stop_travel")?,
                 },
@@ -1000,6 +1104,7 @@ fn parse_rod(
                 ));
             }
             let force = l.vec2("force")?;
+            check_magnitude(&l, "force", force, MAX_FORCE, "N")?;
             l.finish()?;
             loads.push(Load { node, force });
         }
@@ -1041,6 +1146,7 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
     let velocity = r.opt_vec2("velocity")?.unwrap_or([0.0; 2]);
     let mass = r.positive("mass")?;
     let force = r.opt_vec2("force")?.unwrap_or([0.0; 2]);
+    check_magnitude(r, "force", force, MAX_FORCE, "N")?;
     r.finish()?;
     Ok(RodSpec {
         name,

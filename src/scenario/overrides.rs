@@ -32,6 +32,19 @@ pub fn apply(root: &mut Table, assignment: &str) -> Result<(), OverrideError> {
     };
     let path = path.trim();
     let raw = raw.trim();
+    if raw.contains(['\n', '\r']) {
+        // TOML would read the first line as the value and the rest as more keys, which
+        // were then dropped without a word.
+        return Err((
+            path.to_string(),
+            raw.escape_debug().to_string(),
+            "a --set value must be on one line".into(),
+            Some(
+                "write line breaks inside a string as \\n, e.g. --set 'description=\"a\\nb\"'"
+                    .into(),
+            ),
+        ));
+    }
     if path.is_empty() {
         return Err((
             String::new(),

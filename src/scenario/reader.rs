@@ -62,13 +62,33 @@ pub fn show(v: &Value) -> String {
         }
         // Arrays and tables render inline; a multi-line rendering would break the one-line
         // error format.
-        other => other.to_string().replace('\n', " "),
+        other => inline(other),
     };
     if s.chars().count() > 80 {
         let cut: String = s.chars().take(77).collect();
         format!("{cut}...")
     } else {
         s
+    }
+}
+
+/// A value as TOML writes it inline (a datetime as written, not as the serializer's private
+/// `$__toml_private_datetime` table).
+fn inline(v: &Value) -> String {
+    match v {
+        Value::Datetime(d) => d.to_string(),
+        Value::Array(a) => {
+            let items: Vec<String> = a.iter().map(inline).collect();
+            format!("[{}]", items.join(", "))
+        }
+        Value::Table(t) => {
+            let items: Vec<String> = t
+                .iter()
+                .map(|(k, v)| format!("{k} = {}", inline(v)))
+                .collect();
+            format!("{{ {} }}", items.join(", "))
+        }
+        other => other.to_string().replace('\n', " "),
     }
 }
 
