@@ -81,8 +81,9 @@ pub fn parse_vary(spec: &str) -> Result<Vary, String> {
             "--vary {spec:?}: an empty value (two commas in a row?)"
         ));
     }
-    for (i, v) in values.iter().enumerate() {
-        if values[..i].contains(v) {
+    let mut seen = std::collections::HashSet::new();
+    for v in &values {
+        if !seen.insert(v.as_str()) {
             return Err(format!("--vary {spec:?}: the value {v:?} is listed twice"));
         }
     }
@@ -141,6 +142,13 @@ fn parse_range(s: &str) -> Result<Option<Vec<String>>, String> {
     }
     if n == 0 {
         return Err("COUNT must be at least 1".into());
+    }
+    if n > sweep::MAX_CASES {
+        // Refused before a value is made (1e8 values took gigabytes).
+        return Err(format!(
+            "COUNT {n} is more than a sweep takes (at most {} cases)",
+            sweep::MAX_CASES
+        ));
     }
     if log && !(a > 0.0 && b > 0.0) {
         return Err("log spacing needs START > 0 and STOP > 0".into());

@@ -225,32 +225,59 @@ struct Case {
     id: String,
     values: Vec<String>,
     sets: Vec<String>,
-    scenario: Scenario,
     hash: String,
+}
+
+/// The largest grid a sweep takes (cases, counted before anything is built).
+pub const MAX_CASES: usize = 100_000;
+
+/// The scenario text every case starts from, and the first case's scenario (its rods name
+/// the manifest's columns). Cases keep only their assignments and hash; each one's
+/// scenario is read again when it runs.
+struct Base {
+    text: String,
+    file: String,
+    first: Scenario,
 }
 
 fn hash_text(text: &str) -> String {
     format!("{:016x}", super::fnv1a(text.as_bytes()))
 }
 
-/// The grid in order: the first `--vary` key varies slowest.
-fn grid(vary: &[Vary]) -> Vec<Vec<String>> {
-    let mut rows: Vec<Vec<String>> = vec![Vec::new()];
-    for v in vary {
-        let mut next = Vec::with_capacity(rows.len() * v.values.len());
-        for r in &rows {
-            for val in &v.values {
-                let mut r = r.clone();
-                r.push(val.clone());
-                next.push(r);
-            }
-        }
-        rows = next;
+/// The values of grid case `index` (the first `--vary` key varies slowest).
+fn grid_values(vary: &[Vary], mut index: usize) -> Vec<String> {
+    let mut values = vec![String::new(); vary.len()];
+    for (k, v) in vary.iter().enumerate().rev() {
+        let n = v.values.len();
+        values[k] = v.values[index % n].clone();
+        index /= n;
     }
-    rows
+    values
 }
 
-fn build_cases(opts: &SweepOptions) -> Result<Vec<Case>, StudyError> {
+/// The number of cases of the grid, or an error when it is over [`MAX_CASES`] (counted
+/// without building anything).
+fn grid_size(vary: &[Vary]) -> Result<usize, StudyError> {
+    let n = vary
+        .iter()
+        .try_fold(1usize, |acc, v| acc.checked_mul(v.values.len()))
+        .filter(|&n| n <= MAX_CASES);
+    n.ok_or_else(|| {
+        let counts: Vec<String> = vary.iter().map(|v| v.values.len().to_string()).collect();
+        let product = vary
+            .iter()
+            .fold(1f64, |acc, v| acc * v.values.len() as f64);
+        StudyError::Usage(format!(
+            "the grid has {} = {product:.3e} cases; a sweep takes at most {MAX_CASES}: vary fewer keys or fewer values (or split it with --shard and separate sweeps)",
+            counts.join(" x ")
+        ))
+    })
+}
+
+/// Check every case of the grid (each is the scenario with its assignments) and hash it: on
+/// `jobs` threads, with a progress line on stderr when it takes a while, stopping within one
+/// case when `opts.stop` says so (then `Ok(None)`).
+fn build_cases(opts: &SweepOptions, jobs: usize) -> Result<Option<(Base, Vec<Case>)>, StudyError> {
     if opts.vary.is_empty() {
         return Err(StudyError::Usage(
             "a sweep needs at least one --vary KEY=V1,V2,...".into(),
@@ -264,13 +291,24 @@ fn build_cases(opts: &SweepOptions) -> Result<Vec<Case>, StudyError> {
             )));
         }
     }
+    let total = grid_size(&opts.vary)?;
     let keys: Vec<String> = opts.vary.iter().map(|v| v.key.clone()).collect();
-    let text = std::fs::read(&opts.scenario)
+    let text = crate::scenario::read_capped(&opts.scenario)
         .map_err(|e| io_err(&opts.scenario, format!("cannot read the scenario: {e}")))?;
+    if text.len() as u64 > crate::scenario::MAX_SCENARIO_BYTES {
+        return Err(io_err(
+            &opts.scenario,
+            format!(
+                "larger than {} MiB: not a scenario file",
+                crate::scenario::MAX_SCENARIO_BYTES >> 20
+            ),
+        ));
+    }
     let text = String::from_utf8(text).map_err(|_| io_err(&opts.scenario, "not UTF-8 text"))?;
     let file = opts.scenario.display().to_string();
-    let mut cases = Vec::new();
-    for (index, values) in grid(&opts.vary).into_iter().enumerate() {
+    let stopped = || opts.stop.as_ref().is_some_and(|s| s());
+    let check = |index: usize| -> Result<(Case, Scenario), StudyError> {
+        let values = grid_values(&opts.vary, index);
         let mut sets = opts.sets.clone();
         sets.extend(keys.iter().zip(&values).map(|(k, v)| format!("{k}={v}")));
         let scenario = Scenario::from_str(&text, &file, &sets).map_err(|e| {
@@ -281,25 +319,110 @@ fn build_cases(opts: &SweepOptions) -> Result<Vec<Case>, StudyError> {
                 .collect();
             StudyError::Scenario(format!("case {index} ({}): {e}", what.join(", ")))
         })?;
-        let hash = hash_text(&scenario.text);
-        cases.push(Case {
+        let case = Case {
             index,
             id: case_id(&keys, &values),
+            hash: hash_text(&scenario.text),
             values,
             sets,
-            scenario,
-            hash,
-        });
+        };
+        Ok((case, scenario))
+    };
+    // The first case at once: a scenario that does not read fails before any waiting.
+    let (first_case, first) = check(0)?;
+    let mut cases: Vec<Option<Case>> = (0..total).map(|_| None).collect();
+    cases[0] = Some(first_case);
+    let next = AtomicUsize::new(1);
+    let done = AtomicUsize::new(1);
+    let halted = AtomicBool::new(false);
+    let (tx, rx) = mpsc::channel::<Result<Case, StudyError>>();
+    let mut first_error: Option<(usize, StudyError)> = None;
+    let mut interrupted = false;
+    std::thread::scope(|s| {
+        for _ in 0..jobs.clamp(1, total) {
+            let tx = tx.clone();
+            let (next, done, halted, check, stopped) = (&next, &done, &halted, &check, &stopped);
+            s.spawn(move || loop {
+                if halted.load(Ordering::Relaxed) || stopped() {
+                    break;
+                }
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                if k >= total {
+                    break;
+                }
+                let r = check(k).map(|(c, _)| c);
+                if r.is_err() {
+                    halted.store(true, Ordering::Relaxed);
+                }
+                done.fetch_add(1, Ordering::Relaxed);
+                if tx.send(r).is_err() {
+                    break;
+                }
+            });
+        }
+        drop(tx);
+        let started = Instant::now();
+        let mut shown = Instant::now();
+        loop {
+            match rx.recv_timeout(std::time::Duration::from_millis(200)) {
+                Ok(Ok(c)) => {
+                    let i = c.index;
+                    cases[i] = Some(c);
+                }
+                Ok(Err(e)) => {
+                    // Report the lowest failing case, as a serial check would.
+                    let idx = match &e {
+                        StudyError::Scenario(m) => m
+                            .strip_prefix("case ")
+                            .and_then(|r| r.split(' ').next())
+                            .and_then(|n| n.parse().ok())
+                            .unwrap_or(usize::MAX),
+                        _ => usize::MAX,
+                    };
+                    if first_error.as_ref().is_none_or(|(j, _)| idx < *j) {
+                        first_error = Some((idx, e));
+                    }
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                Err(mpsc::RecvTimeoutError::Disconnected) => break,
+            }
+            if stopped() {
+                interrupted = true;
+                halted.store(true, Ordering::Relaxed);
+            }
+            if !opts.quiet
+                && started.elapsed().as_secs_f64() > 2.0
+                && shown.elapsed().as_secs_f64() >= 1.0
+            {
+                eprintln!(
+                    "checking the grid: {} of {total} cases read",
+                    done.load(Ordering::Relaxed)
+                );
+                shown = Instant::now();
+            }
+        }
+    });
+    if let Some((_, e)) = first_error {
+        return Err(e);
     }
-    for (i, c) in cases.iter().enumerate() {
-        if let Some(o) = cases[..i].iter().find(|o| o.id == c.id) {
+    if interrupted || stopped() {
+        return Ok(None);
+    }
+    let cases: Vec<Case> = cases.into_iter().flatten().collect();
+    if cases.len() != total {
+        // Stopped between two cases.
+        return Ok(None);
+    }
+    let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for c in &cases {
+        if let Some(o) = seen.insert(&c.id, c.index) {
             return Err(StudyError::Usage(format!(
                 "cases {} and {} get the same folder name {}",
-                o.index, c.index, c.id
+                o, c.index, c.id
             )));
         }
     }
-    Ok(cases)
+    Ok(Some((Base { text, file, first }, cases)))
 }
 
 fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Option<T>, StudyError> {
@@ -401,20 +524,24 @@ enum Outcome {
 /// Run one case into `cases/.tmp-<id>` and rename it to `cases/<id>`.
 fn run_case(
     case: &Case,
+    base: &Base,
     opts: &SweepOptions,
     cases_dir: &Path,
     keys: &[String],
 ) -> Result<Outcome, StudyError> {
+    // Read again (it was checked when the grid was built; only the hash was kept).
+    let scenario = Scenario::from_str(&base.text, &base.file, &case.sets)
+        .map_err(|e| StudyError::Scenario(format!("case {}: {e}", case.index)))?;
     let tmp = cases_dir.join(format!(".tmp-{}", case.id));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
-    let mut sim = Simulation::new(&case.scenario);
+    let mut sim = Simulation::new(&scenario);
     if let Some(stop) = &opts.stop {
         let stop = stop.clone();
         sim.interrupt = Some(Box::new(move || stop()));
     }
     let mut collector = SummaryCollector::new();
-    let mut trace = Trace::new(&case.scenario);
+    let mut trace = Trace::new(&scenario);
     let start = Instant::now();
     let result = {
         let mut fan = Fanout::new();
@@ -430,7 +557,7 @@ fn run_case(
     let summary = collector.finish(&sim.stats, wall);
     write_json(&tmp.join("summary.json"), &summary)?;
     let sc_path = tmp.join("scenario.toml");
-    std::fs::write(&sc_path, case.scenario.text.as_bytes()).map_err(|e| io_err(&sc_path, e))?;
+    std::fs::write(&sc_path, scenario.text.as_bytes()).map_err(|e| io_err(&sc_path, e))?;
     let plot_error = if opts.plots {
         let label: Vec<String> = keys
             .iter()
@@ -471,19 +598,30 @@ fn run_case(
 /// every case is done.
 pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
     let start = Instant::now();
-    let cases = build_cases(opts)?;
+    let jobs = if opts.jobs == 0 {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    } else {
+        opts.jobs
+    };
+    let Some((base, cases)) = build_cases(opts, jobs)? else {
+        // Stopped while the grid was checked: nothing was written.
+        return Ok(SweepReport {
+            cases: grid_size(&opts.vary)?,
+            in_shard: 0,
+            interrupted: true,
+            wall_time_s: start.elapsed().as_secs_f64(),
+            ..Default::default()
+        });
+    };
     let keys: Vec<String> = opts.vary.iter().map(|v| v.key.clone()).collect();
     let manifest = Manifest {
         format: FORMAT,
         scenario: opts.scenario.display().to_string(),
         sets: opts.sets.clone(),
         vary: opts.vary.clone(),
-        rods: cases[0]
-            .scenario
-            .rods
-            .iter()
-            .map(|r| r.name.clone())
-            .collect(),
+        rods: base.first.rods.iter().map(|r| r.name.clone()).collect(),
         cases: cases
             .iter()
             .map(|c| CaseEntry {
@@ -524,15 +662,7 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
     };
     let stopped = || opts.stop.as_ref().is_some_and(|s| s());
     if !todo.is_empty() {
-        let jobs = if opts.jobs == 0 {
-            std::thread::available_parallelism()
-                .map(|n| n.get())
-                .unwrap_or(1)
-        } else {
-            opts.jobs
-        }
-        .min(todo.len())
-        .max(1);
+        let jobs = jobs.min(todo.len()).max(1);
         let bar = if opts.quiet {
             indicatif::ProgressBar::hidden()
         } else {
@@ -553,15 +683,15 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
         std::thread::scope(|s| {
             for _ in 0..jobs {
                 let tx = tx.clone();
-                let (todo, next, halted, cases_dir, keys) =
-                    (&todo, &next, &halted, &cases_dir, &keys);
+                let (todo, next, halted, cases_dir, keys, base) =
+                    (&todo, &next, &halted, &cases_dir, &keys, &base);
                 s.spawn(move || loop {
                     if halted.load(Ordering::Relaxed) || stopped() {
                         break;
                     }
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(case) = todo.get(k) else { break };
-                    let r = run_case(case, opts, cases_dir, keys);
+                    let r = run_case(case, base, opts, cases_dir, keys);
                     if r.is_err() {
                         halted.store(true, Ordering::Relaxed);
                     }
@@ -1065,11 +1195,23 @@ mod tests {
                 values: vec!["x".into(), "y".into(), "z".into()],
             },
         ];
-        let g = grid(&v);
-        assert_eq!(g.len(), 6);
-        assert_eq!(g[0], ["1", "x"]);
-        assert_eq!(g[1], ["1", "y"]);
-        assert_eq!(g[3], ["2", "x"]);
+        assert_eq!(grid_size(&v).unwrap(), 6);
+        assert_eq!(grid_values(&v, 0), ["1", "x"]);
+        assert_eq!(grid_values(&v, 1), ["1", "y"]);
+        assert_eq!(grid_values(&v, 3), ["2", "x"]);
+        assert_eq!(grid_values(&v, 5), ["2", "z"]);
+    }
+
+    #[test]
+    fn a_grid_over_the_cap_is_refused_before_it_is_built() {
+        let big = Vary {
+            key: "a".into(),
+            values: (0..1000).map(|i| i.to_string()).collect(),
+        };
+        let v = vec![big.clone(), big.clone(), big];
+        let e = grid_size(&v).unwrap_err().to_string();
+        assert!(e.contains("1000 x 1000 x 1000 = 1.000e9 cases"), "{e}");
+        assert!(e.contains(&MAX_CASES.to_string()), "{e}");
     }
 
     #[test]
