@@ -45,7 +45,8 @@ impl std::fmt::Debug for Ran {
 }
 
 /// Run `cmd` to its end, or kill it after `limit` (a hang guard, not a timing: the test then
-/// fails because the process hung).
+/// fails because the process hung). The child is reaped by `waitpid` below, not `Child::wait`.
+#[allow(clippy::zombie_processes)]
 fn run(cmd: &mut Command, limit: Duration) -> Ran {
     let mut child = cmd
         .stdin(Stdio::null())
