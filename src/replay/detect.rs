@@ -16,16 +16,11 @@
 //!     for, jump × Δt, ≥ `spike_displacement`.
 //!   - `unexplained`: the rest is ≥ `spike_floor` and ≥ `spike_accel_ratio` × the node's
 //!     acceleration scale, at any Δt.
-//!   - `alternating`: Δv reverses direction at least `alternation_flips` times within
-//!     `alternation_window` seconds, each |Δv| ≥ max(`spike_floor`, ratio × Δt × a_scene).
-//! * **Sticking** (per free node):
-//!   - `toggling`: ≥ `stick_toggles` constraint changes of accepted steps within
-//!     `stick_window` seconds;
-//!   - `oscillating`: constrained, and moved along a surface normal by the corrector (|n·(q −
-//!     q_predictor)| ≥ `stick_correction_min`) in ≥ `stick_corrections` steps within
-//!     `stick_window`, the normal correction reversing at least once;
-//!   - `adhesive_hold`: constrained at the end of a step while its eq. 2 reaction pulls it into
-//!     the obstacle, R·n < −`adhesion_tolerance`.
+//! * **Sticking** (per free node): `toggling`, ≥ `stick_toggles` constraint changes of
+//!   accepted steps within `stick_window` seconds.
+//!
+//! Three rules of earlier versions (`alternating`, `oscillating`, `adhesive_hold`) never fired
+//! on a real simulated run and were removed (docs/replay.md says why).
 //!
 //! Defaults scale with the scene ([`Scales`]): its length L, acceleration a and velocity
 //! √(aL) scales, node masses and time scale √(L/a). A new rule is one more method on
@@ -57,31 +52,13 @@ pub struct Thresholds {
     /// [default: 1e-4 x the scene's length scale L].
     #[arg(long, value_name = "M")]
     pub spike_displacement: Option<f64>,
-    /// Alternating spikes: window (s of simulated time) in which the velocity change must
-    /// reverse [default: 1e-2 x the scene's time scale sqrt(L/a)].
-    #[arg(long, value_name = "S")]
-    pub alternation_window: Option<f64>,
-    /// Alternating spikes: reversals of the velocity change needed within the window [4].
-    #[arg(long, value_name = "N")]
-    pub alternation_flips: Option<u64>,
-    /// Sticking: window (s of simulated time) for the toggling and oscillating rules
-    /// [default: 1e-2 x the scene's time scale sqrt(L/a)].
+    /// Sticking: window (s of simulated time) for the toggling rule
+    /// [default: the larger of 2e-3 x the scene's time scale sqrt(L/a) and 20 x solve.dt].
     #[arg(long, value_name = "S")]
     pub stick_window: Option<f64>,
     /// Sticking (toggling): constraint changes (added or released) needed within the window [4].
     #[arg(long, value_name = "N")]
     pub stick_toggles: Option<u64>,
-    /// Sticking (oscillating): corrected steps needed within the window [4].
-    #[arg(long, value_name = "N")]
-    pub stick_corrections: Option<u64>,
-    /// Sticking (oscillating): smallest corrector displacement along the normal (m) counted
-    /// [default: 1e-6 x L].
-    #[arg(long, value_name = "M")]
-    pub stick_correction_min: Option<f64>,
-    /// Sticking (adhesive hold): a constrained node with R.n below minus this (N) is flagged
-    /// [default: 1e-4 x the node's mass x the scene's acceleration scale].
-    #[arg(long, value_name = "N")]
-    pub adhesion_tolerance: Option<f64>,
 }
 
 impl Thresholds {
@@ -90,13 +67,8 @@ impl Thresholds {
         spike_floor: None,
         spike_accel_ratio: None,
         spike_displacement: None,
-        alternation_window: None,
-        alternation_flips: None,
         stick_window: None,
         stick_toggles: None,
-        stick_corrections: None,
-        stick_correction_min: None,
-        adhesion_tolerance: None,
     };
 
     /// Reject values that make no sense (negative, NaN, empty windows).
@@ -105,8 +77,6 @@ impl Thresholds {
             ("--spike-floor", self.spike_floor),
             ("--spike-accel-ratio", self.spike_accel_ratio),
             ("--spike-displacement", self.spike_displacement),
-            ("--stick-correction-min", self.stick_correction_min),
-            ("--adhesion-tolerance", self.adhesion_tolerance),
         ];
         for (name, v) in pos {
             if let Some(v) = v {
@@ -115,21 +85,14 @@ impl Thresholds {
                 }
             }
         }
-        for (name, v) in [
-            ("--alternation-window", self.alternation_window),
-            ("--stick-window", self.stick_window),
-        ] {
+        for (name, v) in [("--stick-window", self.stick_window)] {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
                     return Err(format!("{name} must be a time > 0 (s), got {v}"));
                 }
             }
         }
-        let counts = [
-            ("--alternation-flips", self.alternation_flips),
-            ("--stick-toggles", self.stick_toggles),
-            ("--stick-corrections", self.stick_corrections),
-        ];
+        let counts = [("--stick-toggles", self.stick_toggles)];
         for (name, v) in counts {
             if v == Some(0) {
                 return Err(format!("{name} must be at least 1"));
@@ -154,6 +117,8 @@ pub struct Scales {
     pub velocity: f64,
     /// Time scale √(L / a) (s).
     pub time: f64,
+    /// The scenario's step `solve.dt` (s; the first step of an adaptive run), 0 when static.
+    pub dt: f64,
 }
 
 impl Scales {
@@ -219,6 +184,11 @@ impl Scales {
             acceleration: accel,
             velocity: (accel * length).sqrt(),
             time: (length / accel).sqrt(),
+            dt: if sc.solve.mode == Mode::Dynamic {
+                sc.solve.dt
+            } else {
+                0.0
+            },
         }
     }
 }
@@ -251,15 +221,8 @@ pub struct Effective {
     pub spike_floor: f64,
     pub spike_accel_ratio: f64,
     pub spike_displacement: f64,
-    pub alternation_window: f64,
-    pub alternation_flips: u64,
     pub stick_window: f64,
     pub stick_toggles: u64,
-    pub stick_corrections: u64,
-    pub stick_correction_min: f64,
-    /// Per node: `adhesion_tolerance` if set, else this factor × m_i × a (N/kg·m/s²).
-    pub adhesion_tolerance: Option<f64>,
-    pub adhesion_factor: f64,
 }
 
 impl Effective {
@@ -268,36 +231,25 @@ impl Effective {
             spike_floor: th.spike_floor.unwrap_or(1e-3 * s.velocity),
             spike_accel_ratio: th.spike_accel_ratio.unwrap_or(10.0),
             spike_displacement: th.spike_displacement.unwrap_or(1e-4 * s.length),
-            alternation_window: th.alternation_window.unwrap_or(1e-2 * s.time),
-            alternation_flips: th.alternation_flips.unwrap_or(4),
-            stick_window: th.stick_window.unwrap_or(1e-2 * s.time),
+            stick_window: th.stick_window.unwrap_or((2e-3 * s.time).max(20.0 * s.dt)),
             stick_toggles: th.stick_toggles.unwrap_or(4),
-            stick_corrections: th.stick_corrections.unwrap_or(4),
-            stick_correction_min: th.stick_correction_min.unwrap_or(1e-6 * s.length),
-            adhesion_tolerance: th.adhesion_tolerance,
-            adhesion_factor: 1e-4 * s.acceleration,
         }
-    }
-
-    fn adhesion(&self, mass: f64) -> f64 {
-        self.adhesion_tolerance
-            .unwrap_or(self.adhesion_factor * mass)
     }
 }
 
-/// One velocity spike (or, for `alternating`, one episode of them).
+/// One velocity spike.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Spike {
-    /// `impact`, `unexplained` or `alternating`.
+    /// `impact` or `unexplained`.
     pub kind: &'static str,
     pub rod: usize,
     pub rod_name: String,
     pub node: usize,
-    /// The step whose velocity change triggered it (`alternating`: the first of the episode).
+    /// The step whose velocity change triggered it.
     pub step: u64,
     /// Time at the end of that step (s).
     pub t: f64,
-    /// `alternating`: the last step of the episode; otherwise equal to `step`.
+    /// Equal to `step` (kept for episodes of future rules).
     pub last_step: u64,
     pub dt: f64,
     /// Δv = u_k − u_{k−1} (m/s).
@@ -305,8 +257,8 @@ pub struct Spike {
     pub dv_norm: f64,
     /// |Δt f/m|: the velocity change the smooth forces give over the step (m/s).
     pub force_dv: f64,
-    /// The flagged jump (m/s): the contact part (`impact`), the unexplained part
-    /// (`unexplained`), or the largest |Δv| of the episode (`alternating`).
+    /// The flagged jump (m/s): the contact part (`impact`) or the unexplained part
+    /// (`unexplained`).
     pub jump: f64,
     /// The part of e = Δv − Δt f/m that removed the normal velocity the node brought into
     /// the step (m/s).
@@ -325,14 +277,12 @@ pub struct Spike {
     pub displacement: f64,
     /// Node constrained at the end of the step.
     pub in_contact: bool,
-    /// `alternating`: reversals of Δv in the episode; else 0.
-    pub flips: u64,
 }
 
 /// One episode of a sticking node.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Sticking {
-    /// `toggling`, `oscillating` or `adhesive_hold`.
+    /// `toggling`.
     pub rule: &'static str,
     pub rod: usize,
     pub rod_name: String,
@@ -342,13 +292,8 @@ pub struct Sticking {
     pub t: f64,
     pub last_step: u64,
     pub last_t: f64,
-    /// Constraint changes (`toggling`), corrected steps (`oscillating`) or held steps
-    /// (`adhesive_hold`) in the episode.
+    /// Constraint changes in the episode.
     pub count: u64,
-    /// `oscillating`: largest normal correction |n·(q − q_predictor)| (m); else 0.
-    pub max_correction: f64,
-    /// `adhesive_hold`: the most negative R·n (N); else 0.
-    pub min_normal_reaction: f64,
 }
 
 /// Everything found in one run.
@@ -364,11 +309,8 @@ pub struct Counts {
     pub spikes: usize,
     pub impact: usize,
     pub unexplained: usize,
-    pub alternating: usize,
     pub sticking: usize,
     pub toggling: usize,
-    pub oscillating: usize,
-    pub adhesive_hold: usize,
 }
 
 impl Findings {
@@ -379,11 +321,8 @@ impl Findings {
             spikes: self.spikes.len(),
             impact: s("impact"),
             unexplained: s("unexplained"),
-            alternating: s("alternating"),
             sticking: self.sticking.len(),
             toggling: t("toggling"),
-            oscillating: t("oscillating"),
-            adhesive_hold: t("adhesive_hold"),
         }
     }
 
@@ -519,34 +458,14 @@ struct Episode {
     last_step: u64,
     last_t: f64,
     count: u64,
-    value: f64,
-}
-
-/// An open alternation episode: first step and time, flips, and the spike at its largest Δv.
-#[derive(Debug, Clone)]
-struct AltEpisode {
-    step: u64,
-    t: f64,
-    last_step: u64,
-    flips: u64,
-    spike: Spike,
 }
 
 /// What one node carries between steps: only what lies inside the windows.
 #[derive(Debug, Clone, Default)]
 struct NodeState {
-    /// The last large Δv, its step and time.
-    alt_last: Option<([f64; 2], u64, f64)>,
-    /// Reversals in the window: (step, time, the step and time the pattern starts at).
-    alt_flips: VecDeque<(u64, f64, u64, f64)>,
-    alt_open: Option<AltEpisode>,
     /// Accepted constraint changes in the window: (step, time).
     changes: VecDeque<(u64, f64)>,
     toggle_open: Option<Episode>,
-    /// Normal corrections in the window: (step, time, n·(q − q_pred)).
-    corrections: VecDeque<(u64, f64, f64)>,
-    osc_open: Option<Episode>,
-    hold_open: Option<Episode>,
 }
 
 /// The spike and sticking rules over a stream of steps (module documentation).
@@ -610,9 +529,6 @@ impl Detector {
                 if self.dynamic && dt > 0.0 {
                     self.spikes(r, step, t, dt, cur);
                 }
-                if self.dynamic {
-                    self.held(r, step, t, cur);
-                }
             }
         }
         self.close_stale(t);
@@ -628,19 +544,10 @@ impl Detector {
     pub fn finish(mut self) -> Findings {
         for (r, nodes) in self.nodes.iter_mut().enumerate() {
             for (i, n) in nodes.iter_mut().enumerate() {
-                if let Some(ep) = n.alt_open.take() {
-                    self.out.spikes.push(alt_spike(ep));
-                }
-                for (rule, ep) in [
-                    ("toggling", n.toggle_open.take()),
-                    ("oscillating", n.osc_open.take()),
-                    ("adhesive_hold", n.hold_open.take()),
-                ] {
-                    if let Some(ep) = ep {
-                        self.out
-                            .sticking
-                            .push(sticking(rule, r, &self.names[r], i, ep));
-                    }
+                if let Some(ep) = n.toggle_open.take() {
+                    self.out
+                        .sticking
+                        .push(sticking("toggling", r, &self.names[r], i, ep));
                 }
             }
         }
@@ -685,7 +592,6 @@ impl Detector {
                             last_step: c.step,
                             last_t: c.t,
                             count: n.changes.len() as u64,
-                            value: 0.0,
                         });
                     }
                 }
@@ -695,7 +601,7 @@ impl Detector {
 
     /// Close the episodes that can no longer grow (their last event left the window).
     fn close_stale(&mut self, t: f64) {
-        let (sw, aw) = (self.th.stick_window, self.th.alternation_window);
+        let sw = self.th.stick_window;
         for (r, nodes) in self.nodes.iter_mut().enumerate() {
             for (i, n) in nodes.iter_mut().enumerate() {
                 if n.toggle_open.is_some_and(|ep| t - ep.last_t >= sw) {
@@ -704,20 +610,11 @@ impl Detector {
                         .sticking
                         .push(sticking("toggling", r, &self.names[r], i, ep));
                 }
-                if n.alt_flips.front().is_some_and(|f| t - f.1 >= aw) {
-                    while n.alt_flips.front().is_some_and(|f| t - f.1 >= aw) {
-                        n.alt_flips.pop_front();
-                    }
-                }
-                if n.alt_open.is_some() && (n.alt_flips.len() as u64) < self.th.alternation_flips {
-                    let ep = n.alt_open.take().expect("checked");
-                    self.out.spikes.push(alt_spike(ep));
-                }
             }
         }
     }
 
-    /// `impact`, `unexplained` and `alternating` for the free nodes of rod `r`.
+    /// `impact` and `unexplained` for the free nodes of rod `r`.
     fn spikes(&mut self, r: usize, step: u64, t: f64, dt: f64, cur: &RodSample<'_>) {
         let rod = &self.rods[r];
         let n = rod.n;
@@ -743,7 +640,10 @@ impl Detector {
             let unexplained = norm(rest);
             let large =
                 |j: f64, scale: f64| j >= th.spike_floor && j / dt >= th.spike_accel_ratio * scale;
-            let flag_unexplained = large(unexplained, node_ref);
+            // Floor: the jump must stand for a displacement over 1e-9 L (a sliver of a last
+            // step turns position round-off into velocity noise of any size).
+            let flag_unexplained =
+                large(unexplained, node_ref) && unexplained * dt >= 1e-9 * self.scales.length;
             let flag_impact = large(impact, a_scene) && impact * dt >= th.spike_displacement;
             let make = |kind: &'static str, jump: f64, accel_ref: f64| Spike {
                 kind,
@@ -766,7 +666,6 @@ impl Detector {
                 accel_ratio: jump / dt / accel_ref,
                 displacement: jump * dt,
                 in_contact: cur.in_contact[i],
-                flips: 0,
             };
             if flag_unexplained {
                 self.out
@@ -774,171 +673,6 @@ impl Detector {
                     .push(make("unexplained", unexplained, node_ref));
             } else if flag_impact {
                 self.out.spikes.push(make("impact", impact, a_scene));
-            }
-
-            // Alternation: reversals of large Δv within a window of simulated time.
-            let dvn = norm(dv);
-            let big = dvn >= th.spike_floor.max(th.spike_accel_ratio * dt * a_scene) && dvn > 0.0;
-            let node = &mut self.nodes[r][i];
-            let mut flipped = false;
-            if !big {
-                node.alt_last = None;
-            } else {
-                if let Some((lv, lstep, lt)) = node.alt_last {
-                    // Consecutive large changes pointing (more than 90 degrees) apart.
-                    if lstep + 1 == step && dot(lv, dv) < 0.0 {
-                        node.alt_flips.push_back((step, t, lstep, lt));
-                        flipped = true;
-                    }
-                }
-                node.alt_last = Some((dv, step, t));
-            }
-            while node
-                .alt_flips
-                .front()
-                .is_some_and(|x| t - x.1 >= th.alternation_window)
-            {
-                node.alt_flips.pop_front();
-            }
-            if flipped && node.alt_flips.len() as u64 >= th.alternation_flips {
-                let spike = || make("alternating", dvn, node_ref);
-                match node.alt_open.as_mut() {
-                    Some(ep) => {
-                        ep.last_step = step;
-                        ep.flips += 1;
-                        if dvn > ep.spike.jump {
-                            ep.spike = spike();
-                        }
-                    }
-                    None => {
-                        let first = node.alt_flips[0];
-                        node.alt_open = Some(AltEpisode {
-                            step: first.2,
-                            t: first.3,
-                            last_step: step,
-                            flips: node.alt_flips.len() as u64,
-                            spike: spike(),
-                        });
-                    }
-                }
-            }
-        }
-    }
-
-    /// `oscillating` and `adhesive_hold`: what happens to the constrained nodes of rod `r`.
-    fn held(&mut self, r: usize, step: u64, t: f64, cur: &RodSample<'_>) {
-        let rod = &self.rods[r];
-        let th = self.th;
-        for i in 0..rod.n {
-            if rod.clamped[i] {
-                continue;
-            }
-            let node = &mut self.nodes[r][i];
-            while node
-                .corrections
-                .front()
-                .is_some_and(|x| t - x.1 >= th.stick_window)
-            {
-                node.corrections.pop_front();
-            }
-            let held = cur.in_contact[i];
-            let n1 = cur.normal(i);
-            let mut corrected = false;
-            let mut size = 0.0;
-            if held {
-                let c = [
-                    cur.q[2 * i] - cur.q_predictor[2 * i],
-                    cur.q[2 * i + 1] - cur.q_predictor[2 * i + 1],
-                ];
-                // Only what the corrector moved the node across the surface counts: a
-                // tangential correction (round-off on a curved surface) is no fight.
-                let nc = dot(n1, c);
-                size = nc.abs();
-                if size >= th.stick_correction_min && nc != 0.0 {
-                    node.corrections.push_back((step, t, nc));
-                    corrected = true;
-                }
-            }
-            let reversal = node
-                .corrections
-                .iter()
-                .zip(node.corrections.iter().skip(1))
-                .any(|(a, b)| a.2 * b.2 < 0.0);
-            let sticking_now =
-                held && node.corrections.len() as u64 >= th.stick_corrections && reversal;
-            if sticking_now && corrected {
-                match node.osc_open.as_mut() {
-                    Some(ep) => {
-                        ep.last_step = step;
-                        ep.last_t = t;
-                        ep.count += 1;
-                        ep.value = ep.value.max(size);
-                    }
-                    None => {
-                        let (s0, t0, _) = node.corrections[0];
-                        let biggest = node
-                            .corrections
-                            .iter()
-                            .map(|x| x.2.abs())
-                            .fold(0.0, f64::max);
-                        node.osc_open = Some(Episode {
-                            step: s0,
-                            t: t0,
-                            last_step: step,
-                            last_t: t,
-                            count: node.corrections.len() as u64,
-                            value: biggest,
-                        });
-                    }
-                }
-            } else if !sticking_now {
-                if let Some(ep) = node.osc_open.take() {
-                    self.out
-                        .sticking
-                        .push(sticking("oscillating", r, &self.names[r], i, ep));
-                }
-            }
-
-            // Adhesive hold: the reaction pulls the node into a surface it is held on.
-            let reaction = [cur.reaction[2 * i], cur.reaction[2 * i + 1]];
-            let rn = match cur.normal2(i).and_then(|n2| decompose(reaction, n1, n2)) {
-                Some((a, b)) => a.min(b),
-                None => dot(n1, reaction),
-            };
-            let node = &mut self.nodes[r][i];
-            if held && rn < -th.adhesion(rod.mass[i]) {
-                match node.hold_open.as_mut() {
-                    Some(ep) if ep.last_step + 1 == step => {
-                        ep.last_step = step;
-                        ep.last_t = t;
-                        ep.count += 1;
-                        ep.value = ep.value.min(rn);
-                    }
-                    _ => {
-                        if let Some(ep) = node.hold_open.take() {
-                            self.out.sticking.push(sticking(
-                                "adhesive_hold",
-                                r,
-                                &self.names[r],
-                                i,
-                                ep,
-                            ));
-                        }
-                        node.hold_open = Some(Episode {
-                            step,
-                            t,
-                            last_step: step,
-                            last_t: t,
-                            count: 1,
-                            value: rn,
-                        });
-                    }
-                }
-            } else if node.hold_open.is_some_and(|ep| ep.last_step + 1 < step) {
-                let ep = node.hold_open.take().expect("checked");
-                self.out
-                    .sticking
-                    .push(sticking("adhesive_hold", r, &self.names[r], i, ep));
             }
         }
     }
@@ -987,17 +721,6 @@ fn split_contact(
     }
 }
 
-fn alt_spike(ep: AltEpisode) -> Spike {
-    Spike {
-        kind: "alternating",
-        step: ep.step,
-        t: ep.t,
-        last_step: ep.last_step,
-        flips: ep.flips,
-        ..ep.spike
-    }
-}
-
 fn sticking(rule: &'static str, r: usize, name: &str, i: usize, ep: Episode) -> Sticking {
     Sticking {
         rule,
@@ -1009,12 +732,6 @@ fn sticking(rule: &'static str, r: usize, name: &str, i: usize, ep: Episode) -> 
         last_step: ep.last_step,
         last_t: ep.last_t,
         count: ep.count,
-        max_correction: if rule == "oscillating" { ep.value } else { 0.0 },
-        min_normal_reaction: if rule == "adhesive_hold" {
-            ep.value
-        } else {
-            0.0
-        },
     }
 }
 

@@ -1111,15 +1111,13 @@ pub fn format_diff(rep: &DiffReport) -> String {
     }
     let _ = writeln!(
         s,
-        "\nspikes           A {} (impact {}, unexplained {}, alternating {}), B {} (impact {}, unexplained {}, alternating {})",
+        "\nspikes           A {} (impact {}, unexplained {}), B {} (impact {}, unexplained {})",
         rep.counts_a.spikes,
         rep.counts_a.impact,
         rep.counts_a.unexplained,
-        rep.counts_a.alternating,
         rep.counts_b.spikes,
         rep.counts_b.impact,
-        rep.counts_b.unexplained,
-        rep.counts_b.alternating
+        rep.counts_b.unexplained
     );
     let _ = writeln!(
         s,

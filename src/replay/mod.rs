@@ -77,8 +77,8 @@ pub struct ReplayArgs {
 pub enum ReplayCommand {
     /// Scan one run for velocity spikes and sticking nodes; exit 1 if any is found.
     ///
-    /// Reports every spike (impact, unexplained, alternating) and every sticking episode
-    /// (toggling, oscillating, adhesive hold) with rod, node, step, time and the values that
+    /// Reports every spike (impact, unexplained) and every sticking episode (toggling) with
+    /// rod, node, step, time and the values that
     /// triggered it. The rules and thresholds are explained in docs/replay.md.
     #[command(
         after_help = "Exit status: 0 clean, 1 something flagged, 2 error, 3 the recording stops before the run's end (killed, damaged, interrupted; --allow-partial: 0 or 1).\n\nExamples:\n  gripsim replay check recordings/point-mass-plane-dt1e-4.mcap\n  gripsim replay check run.mcap --json out/check.json --rrd out/check.rrd\n  gripsim replay check run.mcap --spike-displacement 1e-6"
@@ -316,14 +316,10 @@ pub fn format_check(rep: &CheckReport) -> String {
     );
     let _ = writeln!(
         s,
-        "spikes    {:>5}  (impact {}, unexplained {}, alternating {})",
-        c.spikes, c.impact, c.unexplained, c.alternating
+        "spikes    {:>5}  (impact {}, unexplained {})",
+        c.spikes, c.impact, c.unexplained
     );
-    let _ = writeln!(
-        s,
-        "sticking  {:>5}  (toggling {}, oscillating {}, adhesive hold {})",
-        c.sticking, c.toggling, c.oscillating, c.adhesive_hold
-    );
+    let _ = writeln!(s, "sticking  {:>5}  (toggling {})", c.sticking, c.toggling);
     if !rep.spikes.is_empty() {
         let _ = writeln!(s, "\nspikes");
         let _ = writeln!(
@@ -373,26 +369,20 @@ pub fn format_check(rep: &CheckReport) -> String {
         let _ = writeln!(s, "\nsticking");
         let _ = writeln!(
             s,
-            "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6} {:>12}",
-            "rule", "rod", "node", "steps", "t (s)", "to t (s)", "count", "value"
+            "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6}",
+            "rule", "rod", "node", "steps", "t (s)", "to t (s)", "count"
         );
         for x in rep.sticking.iter().take(MAX_ROWS) {
-            let value = match x.rule {
-                "oscillating" => format!("{} m", g(x.max_correction)),
-                "adhesive_hold" => format!("{} N", g(x.min_normal_reaction)),
-                _ => String::new(),
-            };
             let _ = writeln!(
                 s,
-                "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6} {:>12}",
+                "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6}",
                 x.rule,
                 x.rod_name,
                 x.node,
                 format!("{}-{}", x.step, x.last_step),
                 g(x.t),
                 g(x.last_t),
-                x.count,
-                value
+                x.count
             );
         }
         if rep.sticking.len() > MAX_ROWS {

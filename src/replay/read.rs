@@ -729,6 +729,11 @@ impl Records {
                  {calculated:#010x}): the file is damaged there",
                 self.chunks, self.chunk_offset
             ),
+            // Damage that the decompressor or the record parser finds first.
+            other if self.queue.first() == Some(&mcap::records::op::CHUNK) => format!(
+                "chunk {} (at byte {}) is damaged ({other})",
+                self.chunks, self.chunk_offset
+            ),
             other => other.to_string(),
         }
     }
