@@ -560,6 +560,21 @@ fn a_damaged_chunk_is_named_and_read_up_to() {
         steps >= 1 && steps < 501,
         "read up to the damage: {steps} steps"
     );
+    // One flipped bit that still decompresses: the CRC finds it, and nothing of the damaged
+    // chunk is used (before, its 100 steps were read, unchecked, with exit 0).
+    let mut bytes = std::fs::read(&whole).unwrap();
+    bytes[third.0 + 9 + 200] ^= 0x01;
+    let flipped = d.join("flipped.mcap");
+    std::fs::write(&flipped, &bytes).unwrap();
+    let out = expect(gripsim().args(["replay", "check"]).arg(&flipped), 3);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("chunk 3") && err.contains("fails its CRC"),
+        "{}",
+        text(&out)
+    );
+    let (_, rep) = check(&flipped, &["--allow-partial"]);
+    assert_eq!(rep["steps"], steps, "{rep:#}");
     // diff says the same.
     expect(gripsim().args(["replay", "diff"]).arg(&whole).arg(&bad), 3);
 }
