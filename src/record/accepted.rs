@@ -7,13 +7,15 @@
 //! an attempt that was retried, so a recording's `/sim/contact` and everything that counts
 //! contact changes see accepted steps only (docs/replay.md).
 
-use crate::events::{ContactChange, Event, Observer, ReleaseReason};
+use crate::events::{Event, Observer};
 
-/// Wraps an observer: contact changes are passed on just before the `StepEnd` of the attempt
+/// Wraps an observer: contact changes (constraints, friction states, free bodies' own
+/// contacts) are passed on just before the `StepEnd` of the attempt
 /// that made them, or dropped when that attempt is retried or the run ends without it.
 pub struct AcceptedContacts<O: Observer> {
     pub inner: O,
-    held: Vec<(ContactChange, Option<ReleaseReason>)>,
+    /// The current attempt's changes (constraints, friction states, free bodies' contacts).
+    held: Vec<Event<'static>>,
     /// Changes dropped with discarded attempts.
     pub discarded: u64,
 }
@@ -48,14 +50,35 @@ impl<O: Observer> Observer for AcceptedContacts<O> {
                 self.drop_held();
                 self.inner.on_event(event);
             }
-            Event::ConstraintAdded(c) => self.held.push((*c, None)),
-            Event::ConstraintReleased(c, why) => self.held.push((*c, Some(*why))),
+            Event::ConstraintAdded(c) => self.held.push(Event::ConstraintAdded(*c)),
+            Event::ConstraintReleased(c, why) => {
+                self.held.push(Event::ConstraintReleased(*c, *why))
+            }
+            Event::FrictionChanged(f) => self.held.push(Event::FrictionChanged(*f)),
+            &Event::BodyContactChanged {
+                step,
+                t,
+                pass,
+                body,
+                obstacle,
+                feature,
+                added,
+                normal,
+                reaction,
+            } => self.held.push(Event::BodyContactChanged {
+                step,
+                t,
+                pass,
+                body,
+                obstacle,
+                feature,
+                added,
+                normal,
+                reaction,
+            }),
             Event::StepEnd { .. } => {
-                for (c, why) in std::mem::take(&mut self.held) {
-                    match why {
-                        None => self.inner.on_event(&Event::ConstraintAdded(c)),
-                        Some(w) => self.inner.on_event(&Event::ConstraintReleased(c, w)),
-                    }
+                for e in std::mem::take(&mut self.held) {
+                    self.inner.on_event(&e);
                 }
                 self.inner.on_event(event);
             }
