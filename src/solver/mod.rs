@@ -73,8 +73,6 @@ struct RodOut {
     obstacle: Vec<usize>,
     normal2: Vec<f64>,
     obstacle2: Vec<usize>,
-    /// The recorded velocity: the state's, with a driven node's drive velocity.
-    u: Vec<f64>,
     in_contact: Vec<bool>,
     stress: Vec<f64>,
     gap: Vec<f64>,
@@ -91,7 +89,6 @@ impl RodOut {
             obstacle: vec![usize::MAX; n],
             normal2: vec![0.0; 2 * n],
             obstacle2: vec![usize::MAX; n],
-            u: vec![0.0; 2 * n],
             in_contact: vec![false; n],
             stress: vec![0.0; n],
             gap: vec![f64::INFINITY; n],

@@ -7,8 +7,6 @@ use crate::events::{BodyView, ContactView, Event, Observer, RodStepView};
 
 impl Simulation {
     pub(super) fn fill_outputs(&mut self, r: usize, dt: f64, initial: bool) {
-        let dynamic = self.scenario.solve.mode == crate::scenario::Mode::Dynamic;
-        let t = self.t;
         let rod = &self.rods[r];
         let w = &self.work[r];
         let surfaces = contact::Surfaces {
@@ -56,16 +54,6 @@ impl Simulation {
             o.normal2[2 * i] = second.map_or(0.0, |s| s.normal[0]);
             o.normal2[2 * i + 1] = second.map_or(0.0, |s| s.normal[1]);
             o.obstacle2[i] = second.map_or(usize::MAX, |s| s.obstacle);
-            // A driven node's velocity is its drive's, exactly (the state keeps the backward
-            // difference the integrator needs, which depends on dt).
-            let (ux, uy) = if rod.clamped[i] && dynamic {
-                let v = rod.drive.motion(t.max(0.0)).1;
-                (v[0], v[1])
-            } else {
-                (w.u[2 * i], w.u[2 * i + 1])
-            };
-            o.u[2 * i] = ux;
-            o.u[2 * i + 1] = uy;
             o.gap[i] = contact::gap(&surfaces, [w.q[2 * i], w.q[2 * i + 1]], rod.length);
         }
         if initial {
@@ -87,7 +75,7 @@ impl Simulation {
             .zip(&self.work)
             .map(|(o, w)| RodStepView {
                 q: &w.q,
-                u: &o.u,
+                u: &w.u,
                 reaction: &o.reaction,
                 impulse: &o.impulse,
                 drive_force: &o.drive_force,
