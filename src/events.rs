@@ -90,6 +90,11 @@ pub struct RodStepView<'a> {
     pub normal: &'a [f64],
     /// Which obstacle each node is constrained against (`usize::MAX` when free).
     pub contact_obstacle: &'a [usize],
+    /// Outward normal of the second surface of a node held at the corner of two obstacles;
+    /// zero when the node is held against one surface or none.
+    pub normal2: &'a [f64],
+    /// The second obstacle of a corner (`usize::MAX` when none).
+    pub contact_obstacle2: &'a [usize],
     /// True for nodes constrained at the end of the step.
     pub in_contact: &'a [bool],
     /// Bending stress σ = E |κ − κ̄| / Δl · h/2 (Pa) at each node (0 at the ends).

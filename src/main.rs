@@ -83,6 +83,15 @@ enum Command {
         /// Print nothing but errors.
         #[arg(long, short)]
         quiet: bool,
+        /// Check the run for velocity spikes and sticking nodes while it runs (the detector of
+        /// `gripsim replay check`, no recording needed); exit 1 if anything is flagged.
+        #[arg(long)]
+        check: bool,
+        /// With --check: write the check report as JSON to this file.
+        #[arg(long, value_name = "FILE.json", requires = "check")]
+        check_json: Option<PathBuf>,
+        #[command(flatten)]
+        thresholds: gripsim::replay::Thresholds,
     },
     /// Check a scenario file without running it.
     #[command(
@@ -206,6 +215,8 @@ struct Outputs {
     summary: Option<PathBuf>,
     detail: Detail,
     flush_every: Option<u64>,
+    /// `--check`: the thresholds and where to write the report.
+    check: Option<(gripsim::replay::Thresholds, Option<PathBuf>)>,
 }
 
 fn main() -> ExitCode {
@@ -222,6 +233,9 @@ fn main() -> ExitCode {
             summary,
             sets,
             quiet,
+            check,
+            check_json,
+            thresholds,
         } => {
             let out = Outputs {
                 rrd,
@@ -233,6 +247,7 @@ fn main() -> ExitCode {
                     DetailArg::Iteration => Detail::Iteration,
                 },
                 flush_every,
+                check: check.then_some((thresholds, check_json)),
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
@@ -360,6 +375,12 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         return ExitCode::from(2);
     }
 
+    if let Some((th, _)) = &out.check {
+        if let Err(e) = th.validate() {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    }
     let mut sim = Simulation::new(&sc);
     // A recording that cannot be written (disk full) stops the run too: the other files are
     // then closed properly and the error is reported.
@@ -372,14 +393,23 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         STOP.load(Ordering::Relaxed) != 0 || sink_failed()
     }));
     let mut collector = SummaryCollector::new();
+    let mut detector = out
+        .check
+        .as_ref()
+        .map(|(th, _)| gripsim::replay::detect::DetectObserver::new(&sc, th));
     let start = std::time::Instant::now();
     let result = {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);
+        if let Some(d) = detector.as_mut() {
+            fan.push(d as &mut dyn Observer);
+        }
         for s in sinks.iter_mut() {
             fan.push(s.as_mut() as &mut dyn Observer);
         }
-        sim.run(&mut fan)
+        // Only accepted steps' contact changes reach the sinks.
+        let mut accepted = gripsim::record::accepted::AcceptedContacts::new(fan);
+        sim.run(&mut accepted)
     };
     let mut failed = false;
     let mut files = Vec::new();
@@ -405,6 +435,39 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     if !quiet {
         print_summary(&summary);
         print_recordings(&files, opts);
+    }
+    let mut check_code = 0u8;
+    if let (Some(d), Some((_, json))) = (detector, &out.check) {
+        let report = gripsim::replay::CheckReport::of(
+            format!("(run of {})", path.display()),
+            &sc.name,
+            if sc.solve.mode == gripsim::scenario::Mode::Dynamic {
+                "dynamic"
+            } else {
+                "static"
+            },
+            d.detector,
+            None,
+            Some(result.is_ok()),
+        );
+        if !quiet || report.flagged {
+            say!(
+                "\ncheck\n{}",
+                gripsim::replay::format_check(&report).trim_end()
+            );
+        }
+        if let Some(p) = json {
+            let mut text = serde_json::to_string_pretty(&report).expect("a report serialises");
+            text.push('\n');
+            if let Err(e) = gripsim::record::write_atomic(p, text.as_bytes()) {
+                eprintln!(
+                    "error: cannot write the check report to {}: {e}",
+                    p.display()
+                );
+                failed = true;
+            }
+        }
+        check_code = u8::from(report.flagged);
     }
     let stop = STOP.load(Ordering::Relaxed);
     let sink_failed = failures.iter().any(|f| f.load(Ordering::Relaxed));
@@ -436,7 +499,7 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
             ExitCode::from(2)
         }
         Ok(_) if failed => ExitCode::from(2),
-        Ok(_) => ExitCode::SUCCESS,
+        Ok(_) => ExitCode::from(check_code),
     }
 }
 

@@ -274,6 +274,10 @@ fn synthetic(path: &Path, inject: Inject) {
             })
             .collect();
         let zeros: Vec<Vec<f64>> = states.iter().map(|s| vec![0.0; s.q.len()]).collect();
+        let none: Vec<Vec<usize>> = states
+            .iter()
+            .map(|s| vec![usize::MAX; s.in_contact.len()])
+            .collect();
         let impulse: Vec<Vec<f64>> = states
             .iter()
             .map(|s| s.reaction.iter().map(|r| r * DT).collect())
@@ -291,6 +295,8 @@ fn synthetic(path: &Path, inject: Inject) {
                 drive_force: &zeros[r],
                 normal: &states[r].normal,
                 contact_obstacle: &obstacles[r],
+                normal2: &zeros[r],
+                contact_obstacle2: &none[r],
                 in_contact: &states[r].in_contact,
                 bending_stress: &gaps[r],
                 gap: &gaps[r],
@@ -328,7 +334,7 @@ fn check(path: &Path, extra: &[&str]) -> (i32, Value) {
         .output()
         .unwrap();
     let code = out.status.code().unwrap();
-    assert!(code == 0 || code == 1, "{}", text(&out));
+    assert!(code == 0 || code == 1 || code == 3, "{}", text(&out));
     (code, json(&out_json))
 }
 
@@ -409,20 +415,11 @@ fn known_spikes_and_sticking_are_found_exactly() {
         // The flick: out at 80, back at 81.
         s("unexplained", 0, 3, 80),
         s("unexplained", 0, 3, 81),
-        // The rattle: one episode from 150, and every step of it a jump no force explains.
-        s("alternating", 0, 1, 150),
     ];
+    // The rattle: every step of it a jump no force explains.
     want.extend((150..=156).map(|k| s("unexplained", 0, 1, k)));
     assert_eq!(spikes(&rep), set(&want), "{:#}", rep["spikes"]);
     assert_eq!(rep["counts"]["sticking"], 0, "{:#}", rep["sticking"]);
-    let rattle = rep["spikes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|x| x["kind"] == "alternating")
-        .unwrap();
-    assert_eq!(rattle["last_step"], 156);
-    assert_eq!(rattle["flips"], 6);
     let impact = rep["spikes"]
         .as_array()
         .unwrap()
@@ -438,29 +435,14 @@ fn known_spikes_and_sticking_are_found_exactly() {
     assert_eq!(code, 1);
     assert_eq!(rep["counts"]["spikes"], 0, "{:#}", rep["spikes"]);
     let t = |k: &str, r, n, a, b| (k.to_string(), r, n, a, b);
+    // The removed rules (oscillating, adhesive hold) find nothing any more.
     assert_eq!(
         sticking(&rep),
-        set(&[
-            t("toggling", 0, 4, 60, 63),
-            t("oscillating", 0, 5, 100, 110),
-            t("adhesive_hold", 0, 0, 170, 172),
-        ]),
+        set(&[t("toggling", 0, 4, 60, 63)]),
         "{:#}",
         rep["sticking"]
     );
-    for x in rep["sticking"].as_array().unwrap() {
-        match x["rule"].as_str().unwrap() {
-            "toggling" => assert_eq!(x["count"], 4),
-            "oscillating" => {
-                assert_eq!(x["count"], 11);
-                assert!((x["max_correction"].as_f64().unwrap() - 1e-6).abs() < 1e-12);
-            }
-            _ => {
-                assert_eq!(x["count"], 3);
-                assert_eq!(x["min_normal_reaction"], -0.5);
-            }
-        }
-    }
+    assert_eq!(rep["sticking"][0]["count"], 4);
 
     // Every threshold is a flag.
     let (code, rep) = check(&spiky, &["--spike-displacement", "1e-4"]);
@@ -472,23 +454,15 @@ fn known_spikes_and_sticking_are_found_exactly() {
     assert_eq!(rep["counts"]["unexplained"], 9);
     let (code, rep) = check(&spiky, &["--spike-floor", "1"]);
     assert_eq!((code, rep["counts"]["spikes"].as_u64()), (0, Some(0)));
-    let (_, rep) = check(&spiky, &["--alternation-flips", "7"]);
-    assert_eq!(rep["counts"]["alternating"], 0);
-    let (_, rep) = check(&spiky, &["--alternation-window", "3"]);
-    assert_eq!(rep["counts"]["alternating"], 0);
     let (_, rep) = check(&sticky, &["--stick-toggles", "5"]);
     assert_eq!(rep["counts"]["toggling"], 0);
-    let (_, rep) = check(&sticky, &["--stick-window", "3"]);
+    let (_, rep) = check(&sticky, &["--stick-window", "2.5e-4"]);
     assert_eq!(
         rep["counts"]["toggling"], 0,
-        "4 changes over 4 steps need a 4-step window"
+        "4 changes over 4 steps of 1e-4 s need a window over 3e-4 s"
     );
-    let (_, rep) = check(&sticky, &["--stick-correction-min", "2e-6"]);
-    assert_eq!(rep["counts"]["oscillating"], 0);
-    let (_, rep) = check(&sticky, &["--stick-corrections", "12"]);
-    assert_eq!(rep["counts"]["oscillating"], 0);
-    let (_, rep) = check(&sticky, &["--adhesion-tolerance", "0.6"]);
-    assert_eq!(rep["counts"]["adhesive_hold"], 0);
+    let (_, rep) = check(&sticky, &["--stick-window", "3.5e-4"]);
+    assert_eq!(rep["counts"]["toggling"], 1);
     expect(
         gripsim()
             .args(["replay", "check"])
@@ -982,13 +956,17 @@ fn a_file_cut_short_is_read_to_its_last_complete_chunk() {
     let cut = d.join("cut.partial.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 6 / 10]).unwrap();
 
+    // An incomplete recording is no pass: its own exit status, unless asked.
     let (code, rep) = check(&cut, &[]);
+    assert_eq!(code, 3, "{rep:#}");
+    assert_eq!(rep["incomplete"], true);
+    let (code, _) = check(&cut, &["--allow-partial"]);
+    assert_eq!(code, 0, "cut before the drop lands");
     assert!(rep["truncated"].is_string(), "{rep:#}");
     let steps = rep["steps"].as_u64().unwrap();
     assert!(steps > 300 && steps < 1201, "{steps} steps read");
     assert_eq!(steps % 50, 1, "whole chunks of 50 steps (plus step 0)");
     assert_eq!(rep["completed"], Value::Null);
-    let _ = code;
     let out = gripsim()
         .args(["replay", "check"])
         .arg(&cut)
@@ -1003,7 +981,8 @@ fn a_file_cut_short_is_read_to_its_last_complete_chunk() {
     );
 
     // Against the whole run: the same up to the cut, but it ends early.
-    let rep = diff(&whole, &cut, &[], 1);
+    diff(&whole, &cut, &[], 3);
+    let rep = diff(&whole, &cut, &["--allow-partial"], 1);
     assert_eq!(rep["span"]["differs"], true);
     assert_eq!(rep["first_divergence"], Value::Null);
 
@@ -1025,7 +1004,7 @@ fn a_file_cut_short_is_read_to_its_last_complete_chunk() {
 // ---- the README's CI example ----------------------------------------------------------------
 
 const GOLDEN: &str = "recordings/golden/point-mass-plane-dt1e-4.mcap";
-const REGENERATE: &str = "gripsim run scenarios/point-mass-plane-dt1e-4.toml --set solve.t_end=0.12 --mcap recordings/golden/point-mass-plane-dt1e-4.mcap -q";
+const REGENERATE: &str = "the commands under \"regenerate the golden files\" in README.md";
 
 #[test]
 fn the_readme_ci_example_passes_against_the_golden_recording() {
@@ -1055,7 +1034,7 @@ fn the_readme_ci_example_passes_against_the_golden_recording() {
         .filter(|l| l.starts_with("gripsim "))
         .map(|l| l.replace("out/ci", &out_dir))
         .collect();
-    assert_eq!(commands.len(), 4, "{block}");
+    assert_eq!(commands.len(), 13, "{block}");
     for c in &commands {
         let args: Vec<&str> = c.split_whitespace().skip(1).collect();
         let out = gripsim().args(&args).output().unwrap();

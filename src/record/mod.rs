@@ -9,6 +9,7 @@
 //! The file sinks share [`OutputFile`] (write under a `.partial` name, rename when the run
 //! completed) and the [`Recording`] trait (finish the file and say where it is).
 
+pub mod accepted;
 pub mod csv;
 pub mod grasp;
 pub mod mcap;

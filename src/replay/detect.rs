@@ -1,84 +1,74 @@
-//! Velocity spikes and sticking nodes in a recorded run. The rules, their reasoning and the
+//! Velocity spikes and sticking nodes, found while a run streams past: one [`Detector`] fed
+//! step by step, from the live event stream ([`DetectObserver`], used by `gripsim run
+//! --check` and `gripsim sweep`) or from a recording read chunk by chunk (`gripsim replay
+//! check` and `diff`). It keeps the previous step and, per node, what lies inside the detection
+//! windows, so its memory does not grow with the run. The rules, their reasoning and the
 //! defaults are in docs/replay.md; in short:
 //!
 //! * **Spike** (per free node and step, dynamic runs): the velocity change not explained by the
 //!   smooth forces, e = Δv − Δt f(q_{k+1})/m (elastic + gravity + loads, recomputed from the
-//!   recorded positions as implicit Euler evaluates them), is split into what a perfectly
-//!   inelastic, frictionless contact does (along the outward normal: cancel what the forces
-//!   push into the surface over the step — support — and remove at most the normal velocity
-//!   the node brought into the step — impact) and the rest.
-//!   - `impact`: the impact part is large: ≥ `spike_floor`, implied acceleration ≥
-//!     `spike_accel_ratio` × |g|, and the displacement it stands for, jump × Δt, ≥
-//!     `spike_displacement`. The last term makes the severity scale with Δt: the same impact
-//!     resolved with a 100 times smaller step is not a spike.
-//!   - `unexplained`: the rest is large (≥ `spike_floor` and ≥ `spike_accel_ratio` × the
-//!     node's acceleration scale max(|g|, |f|/m)), at any Δt: a jump no force and no contact
-//!     can produce.
-//!   - `alternating`: Δv reverses direction at least `alternation_flips` times within
-//!     `alternation_window` steps with |Δv| ≥ max(`spike_floor`, `spike_accel_ratio` Δt |g|):
-//!     an oscillation of a period no step resolves.
-//! * **Sticking** (per free node):
-//!   - `toggling`: ≥ `stick_toggles` constraint changes (added or released, `/sim/contact`)
-//!     within `stick_window` steps;
-//!   - `oscillating`: constrained, and moved by the corrector (|q − q_predictor| ≥
-//!     `stick_correction_min`) in ≥ `stick_corrections` of the last `stick_window` steps with the
-//!     correction reversing its normal direction at least once;
-//!   - `adhesive_hold`: constrained at the end of a step while its eq. 2 reaction pulls it into
-//!     the obstacle, R·n < −`adhesion_tolerance`.
+//!   positions as implicit Euler evaluates them), is split into what a perfectly inelastic,
+//!   frictionless contact does along the outward normal of every surface the node is held
+//!   against (cancel what the forces push into it — support — and remove at most the normal
+//!   velocity the node brought into the step — impact) and the rest.
+//!   - `impact`: the impact part is ≥ `spike_floor`, its implied acceleration ≥
+//!     `spike_accel_ratio` × the scene's acceleration scale, and the displacement it stands
+//!     for, jump × Δt, ≥ `spike_displacement`.
+//!   - `unexplained`: the rest is ≥ `spike_floor` and ≥ `spike_accel_ratio` × the node's
+//!     acceleration scale, at any Δt.
+//! * **Sticking** (per free node): `toggling`, ≥ `stick_toggles` constraint changes of
+//!   accepted steps within `stick_window` seconds.
+//!
+//! Three rules of earlier versions (`alternating`, `oscillating`, `adhesive_hold`) never fired
+//! on a real simulated run and were removed (docs/replay.md says why).
+//!
+//! Defaults scale with the scene ([`Scales`]): its length L, acceleration a and velocity
+//! √(aL) scales, node masses and time scale √(L/a). A new rule is one more method on
+//! [`Detector`] called from [`Detector::step`] (or [`Detector::flush_contacts`] for event
+//! rules) that pushes to [`Findings`] and a count in [`Counts`].
 
-use super::read::Run;
 use crate::energy::{bend::bend, stretch::stretch};
+use crate::events::{Event, Observer, RodStepView};
 use crate::model::Rod;
+use crate::obstacle::Obstacle;
+use crate::scenario::{Mode, Scenario};
 use serde::Serialize;
+use std::collections::VecDeque;
 
-/// Thresholds of the rules (each one a `gripsim replay` flag).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, clap::Args)]
+/// The thresholds a user may set (each one a flag); unset ones follow the scene
+/// ([`Effective::for_scene`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, clap::Args)]
 pub struct Thresholds {
-    /// Spikes: smallest velocity jump (m/s) counted at all.
-    #[arg(long, value_name = "M/S", default_value = "1e-3")]
-    pub spike_floor: f64,
-    /// Spikes: the jump's implied acceleration |jump|/dt must exceed this many times |g|
-    /// (impacts) or the node's acceleration scale max(|g|, |f|/m) (unexplained jumps).
-    #[arg(long, value_name = "RATIO", default_value = "10")]
-    pub spike_accel_ratio: f64,
-    /// Impact spikes: the displacement the jump stands for, |jump| x dt (m), must exceed this.
-    #[arg(long, value_name = "M", default_value = "1e-5")]
-    pub spike_displacement: f64,
-    /// Alternating spikes: window (steps) in which the velocity change must reverse.
-    #[arg(long, value_name = "STEPS", default_value = "8")]
-    pub alternation_window: u64,
-    /// Alternating spikes: reversals of the velocity change needed within the window.
-    #[arg(long, value_name = "N", default_value = "4")]
-    pub alternation_flips: u64,
-    /// Sticking: window (steps) for the toggling and oscillating rules.
-    #[arg(long, value_name = "STEPS", default_value = "20")]
-    pub stick_window: u64,
-    /// Sticking (toggling): constraint changes (added or released) needed within the window.
-    #[arg(long, value_name = "N", default_value = "4")]
-    pub stick_toggles: u64,
-    /// Sticking (oscillating): corrected steps needed within the window.
-    #[arg(long, value_name = "N", default_value = "4")]
-    pub stick_corrections: u64,
-    /// Sticking (oscillating): smallest corrector displacement |q - q_predictor| (m) counted.
-    #[arg(long, value_name = "M", default_value = "1e-7")]
-    pub stick_correction_min: f64,
-    /// Sticking (adhesive hold): a constrained node with R.n below minus this (N) is flagged.
-    #[arg(long, value_name = "N", default_value = "1e-6")]
-    pub adhesion_tolerance: f64,
+    /// Spikes: smallest velocity jump (m/s) counted at all [default: 1e-3 x the scene's
+    /// velocity scale sqrt(a L)].
+    #[arg(long, value_name = "M/S")]
+    pub spike_floor: Option<f64>,
+    /// Spikes: the jump's implied acceleration |jump|/dt must exceed this many times the
+    /// scene's acceleration scale (impacts) or the node's own max(scene, |f|/m) (unexplained
+    /// jumps) [default: 10].
+    #[arg(long, value_name = "RATIO")]
+    pub spike_accel_ratio: Option<f64>,
+    /// Impact spikes: the displacement the jump stands for, |jump| x dt (m), must exceed this
+    /// [default: 1e-4 x the scene's length scale L].
+    #[arg(long, value_name = "M")]
+    pub spike_displacement: Option<f64>,
+    /// Sticking: window (s of simulated time) for the toggling rule
+    /// [default: the larger of 2e-3 x the scene's time scale sqrt(L/a) and 20 x solve.dt].
+    #[arg(long, value_name = "S")]
+    pub stick_window: Option<f64>,
+    /// Sticking (toggling): constraint changes (added or released) needed within the window [4].
+    #[arg(long, value_name = "N")]
+    pub stick_toggles: Option<u64>,
 }
 
 impl Thresholds {
+    /// All unset: every threshold follows the scene.
     pub const DEFAULT: Thresholds = Thresholds {
-        spike_floor: 1e-3,
-        spike_accel_ratio: 10.0,
-        spike_displacement: 1e-5,
-        alternation_window: 8,
-        alternation_flips: 4,
-        stick_window: 20,
-        stick_toggles: 4,
-        stick_corrections: 4,
-        stick_correction_min: 1e-7,
-        adhesion_tolerance: 1e-6,
+        spike_floor: None,
+        spike_accel_ratio: None,
+        spike_displacement: None,
+        stick_window: None,
+        stick_toggles: None,
     };
 
     /// Reject values that make no sense (negative, NaN, empty windows).
@@ -87,23 +77,24 @@ impl Thresholds {
             ("--spike-floor", self.spike_floor),
             ("--spike-accel-ratio", self.spike_accel_ratio),
             ("--spike-displacement", self.spike_displacement),
-            ("--stick-correction-min", self.stick_correction_min),
-            ("--adhesion-tolerance", self.adhesion_tolerance),
         ];
         for (name, v) in pos {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{name} must be a finite number >= 0, got {v}"));
+            if let Some(v) = v {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(format!("{name} must be a finite number >= 0, got {v}"));
+                }
             }
         }
-        let counts = [
-            ("--alternation-window", self.alternation_window),
-            ("--alternation-flips", self.alternation_flips),
-            ("--stick-window", self.stick_window),
-            ("--stick-toggles", self.stick_toggles),
-            ("--stick-corrections", self.stick_corrections),
-        ];
+        for (name, v) in [("--stick-window", self.stick_window)] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(format!("{name} must be a time > 0 (s), got {v}"));
+                }
+            }
+        }
+        let counts = [("--stick-toggles", self.stick_toggles)];
         for (name, v) in counts {
-            if v == 0 {
+            if v == Some(0) {
                 return Err(format!("{name} must be at least 1"));
             }
         }
@@ -111,25 +102,154 @@ impl Thresholds {
     }
 }
 
-impl Default for Thresholds {
-    fn default() -> Self {
-        Self::DEFAULT
+/// The scales of a scene the default thresholds follow (reported in `--json` as `scales`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Scales {
+    /// Length scale L (m): the largest of the rod lengths, the obstacle sizes (circle and
+    /// ellipse diameters, polygon extents, sine wavelengths) and, for particles, the initial
+    /// gap to the nearest obstacle (a drop height) and v0 × t_end (how far it slides); 1 m
+    /// when all of them are 0.
+    pub length: f64,
+    /// Acceleration scale a (m/s²): the largest of |g|, the drives' accelerations, the loads
+    /// per node mass and the particles' v0²/L; L/t_end² when all of them are 0.
+    pub acceleration: f64,
+    /// Velocity scale √(a L) (m/s).
+    pub velocity: f64,
+    /// Time scale √(L / a) (s).
+    pub time: f64,
+    /// The scenario's step `solve.dt` (s; the first step of an adaptive run), 0 when static.
+    pub dt: f64,
+}
+
+impl Scales {
+    pub fn of(sc: &Scenario) -> Scales {
+        let rods: Vec<Rod> = sc.rods.iter().map(Rod::new).collect();
+        let mut length = 0.0f64;
+        for rod in &rods {
+            length = length.max(rod.rest_length.iter().sum());
+        }
+        for o in &sc.obstacles {
+            length = length.max(obstacle_size(o));
+        }
+        let span = if sc.solve.mode == Mode::Dynamic {
+            sc.solve.t_end
+        } else {
+            0.0
+        };
+        for rod in rods.iter().filter(|r| r.n == 1) {
+            // How far it travels at its initial speed over the run.
+            length = length.max(rod.velocity[0].hypot(rod.velocity[1]) * span);
+            let gap = sc
+                .obstacles
+                .iter()
+                .map(|o| o.query([rod.q0[0], rod.q0[1]]).distance)
+                .fold(f64::INFINITY, f64::min);
+            if gap.is_finite() {
+                length = length.max(gap);
+            }
+        }
+        if !(length > 0.0) {
+            length = 1.0;
+        }
+        let mut accel = sc.solve.gravity[0].hypot(sc.solve.gravity[1]);
+        let t_end = if sc.solve.mode == Mode::Dynamic && sc.solve.t_end > 0.0 {
+            sc.solve.t_end
+        } else {
+            1.0
+        };
+        for rod in &rods {
+            // The drive's acceleration, from its motion (whatever the drive's kind).
+            let samples = 16;
+            let mut v_prev = rod.drive.motion(0.0).1;
+            for k in 1..=samples {
+                let t = t_end * k as f64 / samples as f64;
+                let v = rod.drive.motion(t).1;
+                let dv = (v[0] - v_prev[0]).hypot(v[1] - v_prev[1]);
+                accel = accel.max(dv / (t_end / samples as f64));
+                v_prev = v;
+            }
+            for i in 0..rod.n {
+                let f = rod.load[2 * i].hypot(rod.load[2 * i + 1]);
+                accel = accel.max(f / rod.mass[i]);
+            }
+            let v0 = rod.velocity[0].hypot(rod.velocity[1]);
+            accel = accel.max(v0 * v0 / length);
+        }
+        if !(accel > 0.0) {
+            // Nothing accelerates anything: the run's own span sets the scale.
+            accel = length / (t_end * t_end);
+        }
+        Scales {
+            length,
+            acceleration: accel,
+            velocity: (accel * length).sqrt(),
+            time: (length / accel).sqrt(),
+            dt: if sc.solve.mode == Mode::Dynamic {
+                sc.solve.dt
+            } else {
+                0.0
+            },
+        }
     }
 }
 
-/// One velocity spike (or, for `alternating`, one episode of them).
+/// The size of an obstacle's features (m); 0 for a plane.
+fn obstacle_size(o: &Obstacle) -> f64 {
+    match o {
+        Obstacle::Circle(c) => 2.0 * c.radius,
+        Obstacle::Ellipse(e) => 2.0 * e.a.max(e.b),
+        Obstacle::Sine(s) if s.wavenumber > 0.0 => std::f64::consts::TAU / s.wavenumber,
+        Obstacle::Polygon(p) => {
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for v in &p.vertices {
+                for a in 0..2 {
+                    lo[a] = lo[a].min(v[a]);
+                    hi[a] = hi[a].max(v[a]);
+                }
+            }
+            (hi[0] - lo[0]).hypot(hi[1] - lo[1])
+        }
+        #[allow(unreachable_patterns)]
+        _ => 0.0,
+    }
+}
+
+/// The thresholds in force for one run: the user's, else the scene's defaults. Reported in
+/// `--json` as `thresholds`; windows in seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Effective {
+    pub spike_floor: f64,
+    pub spike_accel_ratio: f64,
+    pub spike_displacement: f64,
+    pub stick_window: f64,
+    pub stick_toggles: u64,
+}
+
+impl Effective {
+    pub fn for_scene(th: &Thresholds, s: &Scales) -> Effective {
+        Effective {
+            spike_floor: th.spike_floor.unwrap_or(1e-3 * s.velocity),
+            spike_accel_ratio: th.spike_accel_ratio.unwrap_or(10.0),
+            spike_displacement: th.spike_displacement.unwrap_or(1e-4 * s.length),
+            stick_window: th.stick_window.unwrap_or((2e-3 * s.time).max(20.0 * s.dt)),
+            stick_toggles: th.stick_toggles.unwrap_or(4),
+        }
+    }
+}
+
+/// One velocity spike.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Spike {
-    /// `impact`, `unexplained` or `alternating`.
+    /// `impact` or `unexplained`.
     pub kind: &'static str,
     pub rod: usize,
     pub rod_name: String,
     pub node: usize,
-    /// The step whose velocity change triggered it (`alternating`: the first of the episode).
+    /// The step whose velocity change triggered it.
     pub step: u64,
     /// Time at the end of that step (s).
     pub t: f64,
-    /// `alternating`: the last step of the episode; otherwise equal to `step`.
+    /// Equal to `step` (kept for episodes of future rules).
     pub last_step: u64,
     pub dt: f64,
     /// Δv = u_k − u_{k−1} (m/s).
@@ -137,34 +257,32 @@ pub struct Spike {
     pub dv_norm: f64,
     /// |Δt f/m|: the velocity change the smooth forces give over the step (m/s).
     pub force_dv: f64,
-    /// The flagged jump (m/s): the contact part (`impact`), the unexplained part
-    /// (`unexplained`), or the largest |Δv| of the episode (`alternating`).
+    /// The flagged jump (m/s): the contact part (`impact`) or the unexplained part
+    /// (`unexplained`).
     pub jump: f64,
     /// The part of e = Δv − Δt f/m that removed the normal velocity the node brought into
     /// the step (m/s).
     pub impact_jump: f64,
     /// The part of e nothing explains (m/s).
     pub unexplained_jump: f64,
-    /// Normal speed into the surface at the start of the step (m/s), for a node constrained
-    /// at its end; else 0.
+    /// Normal speed into the surface(s) at the start of the step (m/s), for a node
+    /// constrained at its end; else 0.
     pub approach_speed: f64,
     /// |jump| / dt (m/s²).
     pub accel: f64,
-    /// The scale it is compared with (m/s²): |g| for an impact, max(|g|, |f|/m) otherwise.
+    /// The scale it is compared with (m/s²).
     pub accel_ref: f64,
     pub accel_ratio: f64,
     /// |jump| × dt (m).
     pub displacement: f64,
     /// Node constrained at the end of the step.
     pub in_contact: bool,
-    /// `alternating`: reversals of Δv in the episode; else 0.
-    pub flips: u64,
 }
 
 /// One episode of a sticking node.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Sticking {
-    /// `toggling`, `oscillating` or `adhesive_hold`.
+    /// `toggling`.
     pub rule: &'static str,
     pub rod: usize,
     pub rod_name: String,
@@ -174,13 +292,8 @@ pub struct Sticking {
     pub t: f64,
     pub last_step: u64,
     pub last_t: f64,
-    /// Constraint changes (`toggling`), corrected steps (`oscillating`) or held steps
-    /// (`adhesive_hold`) in the episode.
+    /// Constraint changes in the episode.
     pub count: u64,
-    /// `oscillating`: largest |q − q_predictor| (m); else 0.
-    pub max_correction: f64,
-    /// `adhesive_hold`: the most negative R·n (N); else 0.
-    pub min_normal_reaction: f64,
 }
 
 /// Everything found in one run.
@@ -196,11 +309,8 @@ pub struct Counts {
     pub spikes: usize,
     pub impact: usize,
     pub unexplained: usize,
-    pub alternating: usize,
     pub sticking: usize,
     pub toggling: usize,
-    pub oscillating: usize,
-    pub adhesive_hold: usize,
 }
 
 impl Findings {
@@ -211,19 +321,22 @@ impl Findings {
             spikes: self.spikes.len(),
             impact: s("impact"),
             unexplained: s("unexplained"),
-            alternating: s("alternating"),
             sticking: self.sticking.len(),
             toggling: t("toggling"),
-            oscillating: t("oscillating"),
-            adhesive_hold: t("adhesive_hold"),
         }
     }
 
     pub fn is_empty(&self) -> bool {
         self.spikes.is_empty() && self.sticking.is_empty()
     }
-}
 
+    fn sort(&mut self) {
+        self.spikes
+            .sort_by(|a, b| (a.step, a.rod, a.node, a.kind).cmp(&(b.step, b.rod, b.node, b.kind)));
+        self.sticking
+            .sort_by(|a, b| (a.step, a.rod, a.node, a.rule).cmp(&(b.step, b.rod, b.node, b.rule)));
+    }
+}
 /// Elastic + gravity + load force on every node of `rod` at `q` (interleaved, N).
 pub fn smooth_force(rod: &Rod, gravity: [f64; 2], q: &[f64], f: &mut [f64]) {
     let n = rod.n;
@@ -269,428 +382,406 @@ fn norm(v: [f64; 2]) -> f64 {
     v[0].hypot(v[1])
 }
 
-/// Scan a run with the rules of the module documentation.
-pub fn detect(run: &Run, th: &Thresholds) -> Findings {
-    let mut out = Findings::default();
-    let rods: Vec<Rod> = run.scenario.rods.iter().map(Rod::new).collect();
-    let g = run.scenario.solve.gravity;
-    let gnorm = norm(g);
-    let dynamic = run.dynamic();
-    for (r, rod) in rods.iter().enumerate() {
-        let name = run.rod_name(r).to_string();
-        if dynamic {
-            spikes(run, r, rod, &name, g, gnorm, th, &mut out.spikes);
-        }
-        toggling(run, r, rod, &name, th, &mut out.sticking);
-        if dynamic {
-            held(run, r, rod, &name, th, &mut out.sticking);
+fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+/// The coefficients (α, β) of `v = α n1 + β n2`, when n1 and n2 are not (nearly) parallel.
+fn decompose(v: [f64; 2], n1: [f64; 2], n2: [f64; 2]) -> Option<(f64, f64)> {
+    let det = n1[0] * n2[1] - n1[1] * n2[0];
+    if det.abs() < 1e-6 {
+        return None;
+    }
+    Some((
+        (v[0] * n2[1] - v[1] * n2[0]) / det,
+        (n1[0] * v[1] - n1[1] * v[0]) / det,
+    ))
+}
+
+/// One rod's state at the end of a step, as the detector reads it (a live step view or a
+/// recorded step). Interleaved vectors `[x0, y0, x1, y1, …]`.
+#[derive(Debug, Clone, Copy)]
+pub struct RodSample<'a> {
+    pub q: &'a [f64],
+    pub u: &'a [f64],
+    pub reaction: &'a [f64],
+    pub normal: &'a [f64],
+    /// The second surface's normal of a node held at a corner (zero otherwise); may be empty
+    /// (a recording from before it was recorded).
+    pub normal2: &'a [f64],
+    pub in_contact: &'a [bool],
+    pub q_predictor: &'a [f64],
+}
+
+impl<'a> From<&RodStepView<'a>> for RodSample<'a> {
+    fn from(v: &RodStepView<'a>) -> Self {
+        RodSample {
+            q: v.q,
+            u: v.u,
+            reaction: v.reaction,
+            normal: v.normal,
+            normal2: v.normal2,
+            in_contact: v.in_contact,
+            q_predictor: v.q_predictor,
         }
     }
-    out.spikes
-        .sort_by(|a, b| (a.step, a.rod, a.node, a.kind).cmp(&(b.step, b.rod, b.node, b.kind)));
-    out.sticking
-        .sort_by(|a, b| (a.step, a.rod, a.node, a.rule).cmp(&(b.step, b.rod, b.node, b.rule)));
-    out
 }
 
-/// State of the alternation scan of one node.
-#[derive(Default, Clone)]
-struct Alternation {
-    /// Last large Δv and its step.
-    last: Option<([f64; 2], u64)>,
-    /// Steps at which a reversal happened (the later step of the pair), recent ones.
-    flips: std::collections::VecDeque<u64>,
-    /// The episode in progress: (first step, last step, flips, largest |Δv|, index into
-    /// `run.steps` of the step with the largest |Δv|).
-    open: Option<(u64, u64, u64, f64, usize)>,
+impl RodSample<'_> {
+    fn normal(&self, i: usize) -> [f64; 2] {
+        [self.normal[2 * i], self.normal[2 * i + 1]]
+    }
+
+    /// The corner's second normal, when the node is held at one.
+    fn normal2(&self, i: usize) -> Option<[f64; 2]> {
+        let n = [*self.normal2.get(2 * i)?, *self.normal2.get(2 * i + 1)?];
+        (n != [0.0, 0.0]).then_some(n)
+    }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn spikes(
-    run: &Run,
-    r: usize,
-    rod: &Rod,
-    name: &str,
-    g: [f64; 2],
-    gnorm: f64,
-    th: &Thresholds,
-    out: &mut Vec<Spike>,
-) {
-    let n = rod.n;
-    let mut f = vec![0.0; 2 * n];
-    let mut alt = vec![Alternation::default(); n];
-    let mut alt_out: Vec<Spike> = Vec::new();
-    for k in 1..run.steps.len() {
-        let (prev, cur) = (&run.steps[k - 1].rods[r], &run.steps[k].rods[r]);
-        let st = &run.steps[k];
-        let dt = st.dt;
-        if dt <= 0.0 {
-            continue;
+/// A constraint added or released, as the run reported it. Changes of attempts the solver threw
+/// away (a rejected adaptive step, a Newton back-off, a time-of-impact split) carry the same
+/// step number but another time than the accepted step; the detector drops them.
+#[derive(Debug, Clone, Copy)]
+pub struct ContactSample {
+    pub step: u64,
+    pub t: f64,
+    pub rod: usize,
+    pub node: usize,
+}
+
+/// An open sticking episode.
+#[derive(Debug, Clone, Copy)]
+struct Episode {
+    step: u64,
+    t: f64,
+    last_step: u64,
+    last_t: f64,
+    count: u64,
+}
+
+/// What one node carries between steps: only what lies inside the windows.
+#[derive(Debug, Clone, Default)]
+struct NodeState {
+    /// Accepted constraint changes in the window: (step, time).
+    changes: VecDeque<(u64, f64)>,
+    toggle_open: Option<Episode>,
+}
+
+/// The spike and sticking rules over a stream of steps (module documentation).
+pub struct Detector {
+    pub scales: Scales,
+    pub th: Effective,
+    rods: Vec<Rod>,
+    names: Vec<String>,
+    gravity: [f64; 2],
+    dynamic: bool,
+    /// Velocities of the previous step, per rod.
+    prev_u: Vec<Vec<f64>>,
+    have_prev: bool,
+    force: Vec<f64>,
+    nodes: Vec<Vec<NodeState>>,
+    pending: Vec<ContactSample>,
+    out: Findings,
+    /// Steps seen (with step 0) and the last time.
+    pub steps: u64,
+    pub t_end: f64,
+}
+
+impl Detector {
+    pub fn new(sc: &Scenario, th: &Thresholds) -> Detector {
+        let scales = Scales::of(sc);
+        let rods: Vec<Rod> = sc.rods.iter().map(Rod::new).collect();
+        let nmax = rods.iter().map(|r| r.n).max().unwrap_or(0);
+        Detector {
+            scales,
+            th: Effective::for_scene(th, &scales),
+            names: sc.rods.iter().map(|r| r.name.clone()).collect(),
+            prev_u: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
+            nodes: rods
+                .iter()
+                .map(|r| vec![NodeState::default(); r.n])
+                .collect(),
+            rods,
+            gravity: sc.solve.gravity,
+            dynamic: sc.solve.mode == Mode::Dynamic,
+            have_prev: false,
+            force: vec![0.0; 2 * nmax],
+            pending: Vec::new(),
+            out: Findings::default(),
+            steps: 0,
+            t_end: 0.0,
         }
-        smooth_force(rod, g, &cur.q, &mut f);
+    }
+
+    /// A constraint change; counted when the step it belongs to ends with the same time.
+    pub fn contact(&mut self, c: ContactSample) {
+        if c.rod < self.rods.len() && c.node < self.rods[c.rod].n {
+            self.pending.push(c);
+        }
+    }
+
+    /// The end of an accepted step (step 0: the initial state).
+    pub fn step(&mut self, step: u64, t: f64, dt: f64, rods: &[RodSample<'_>]) {
+        self.flush_contacts(step, t);
+        if self.have_prev {
+            for (r, cur) in rods.iter().enumerate().take(self.rods.len()) {
+                if self.dynamic && dt > 0.0 {
+                    self.spikes(r, step, t, dt, cur);
+                }
+            }
+        }
+        self.close_stale(t);
+        for (r, cur) in rods.iter().enumerate().take(self.rods.len()) {
+            self.prev_u[r].copy_from_slice(cur.u);
+        }
+        self.have_prev = true;
+        self.steps += 1;
+        self.t_end = t;
+    }
+
+    /// Everything found; open episodes are closed at the last step.
+    pub fn finish(mut self) -> Findings {
+        for (r, nodes) in self.nodes.iter_mut().enumerate() {
+            for (i, n) in nodes.iter_mut().enumerate() {
+                if let Some(ep) = n.toggle_open.take() {
+                    self.out
+                        .sticking
+                        .push(sticking("toggling", r, &self.names[r], i, ep));
+                }
+            }
+        }
+        self.out.sort();
+        self.out
+    }
+
+    /// What has been found so far (open episodes not included).
+    pub fn found(&self) -> &Findings {
+        &self.out
+    }
+
+    /// `toggling`: the accepted changes of this step, in a window of simulated time.
+    fn flush_contacts(&mut self, step: u64, t: f64) {
+        let pending = std::mem::take(&mut self.pending);
+        let (window, need) = (self.th.stick_window, self.th.stick_toggles);
+        for c in pending {
+            if c.step != step || (self.dynamic && c.t != t) {
+                // A change of an attempt that was thrown away (or of a step never recorded).
+                if c.step > step {
+                    self.pending.push(c);
+                }
+                continue;
+            }
+            let n = &mut self.nodes[c.rod][c.node];
+            n.changes.push_back((c.step, c.t));
+            while n.changes.front().is_some_and(|&(_, t0)| c.t - t0 >= window) {
+                n.changes.pop_front();
+            }
+            if n.changes.len() as u64 >= need {
+                match n.toggle_open.as_mut() {
+                    Some(ep) => {
+                        ep.last_step = c.step;
+                        ep.last_t = c.t;
+                        ep.count += 1;
+                    }
+                    None => {
+                        let (s0, t0) = n.changes[0];
+                        n.toggle_open = Some(Episode {
+                            step: s0,
+                            t: t0,
+                            last_step: c.step,
+                            last_t: c.t,
+                            count: n.changes.len() as u64,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// Close the episodes that can no longer grow (their last event left the window).
+    fn close_stale(&mut self, t: f64) {
+        let sw = self.th.stick_window;
+        for (r, nodes) in self.nodes.iter_mut().enumerate() {
+            for (i, n) in nodes.iter_mut().enumerate() {
+                if n.toggle_open.is_some_and(|ep| t - ep.last_t >= sw) {
+                    let ep = n.toggle_open.take().expect("checked");
+                    self.out
+                        .sticking
+                        .push(sticking("toggling", r, &self.names[r], i, ep));
+                }
+            }
+        }
+    }
+
+    /// `impact` and `unexplained` for the free nodes of rod `r`.
+    fn spikes(&mut self, r: usize, step: u64, t: f64, dt: f64, cur: &RodSample<'_>) {
+        let rod = &self.rods[r];
+        let n = rod.n;
+        let f = &mut self.force[..2 * n];
+        smooth_force(rod, self.gravity, cur.q, f);
+        let a_scene = self.scales.acceleration;
+        let th = self.th;
         for i in 0..n {
             if rod.clamped[i] {
                 continue;
             }
             let m = rod.mass[i];
-            let dv = [
-                cur.u[2 * i] - prev.u[2 * i],
-                cur.u[2 * i + 1] - prev.u[2 * i + 1],
-            ];
+            let prev = [self.prev_u[r][2 * i], self.prev_u[r][2 * i + 1]];
+            let dv = [cur.u[2 * i] - prev[0], cur.u[2 * i + 1] - prev[1]];
             let fdv = [dt * f[2 * i] / m, dt * f[2 * i + 1] / m];
             let e = [dv[0] - fdv[0], dv[1] - fdv[1]];
-            // Scales the jumps are measured against: the node's own force for a jump nothing
-            // explains; gravity for an impact (the elastic force at the end of an impact step
-            // is largely the rod's answer to that impact, so it is no scale for it).
-            let node_ref = gnorm.max(norm([f[2 * i], f[2 * i + 1]]) / m).max(1e-300);
-            let impact_ref = gnorm.max(1e-300);
-            let (mut impact, mut approach) = (0.0, 0.0);
-            let mut rest = e;
-            if cur.in_contact[i] {
-                let nv = [cur.normal[2 * i], cur.normal[2 * i + 1]];
-                let dot = |v: [f64; 2]| nv[0] * v[0] + nv[1] * v[1];
-                // Support: the contact cancels what the forces push into the surface over
-                // the step. Impact: it removes the normal velocity the node brought into the
-                // step, and no more (perfectly inelastic). Nothing else along n, nothing along
-                // the surface (frictionless).
-                let support_max = (-dot(fdv)).max(0.0);
-                approach = (-dot([prev.u[2 * i], prev.u[2 * i + 1]])).max(0.0);
-                let en = dot(e);
-                let support = en.clamp(0.0, support_max);
-                impact = (en - support).clamp(0.0, approach);
-                let explained = support + impact;
-                rest = [e[0] - explained * nv[0], e[1] - explained * nv[1]];
-            }
+            let node_ref = a_scene.max(norm([f[2 * i], f[2 * i + 1]]) / m);
+            let (impact, approach, rest) = if cur.in_contact[i] {
+                split_contact(e, fdv, prev, cur.normal(i), cur.normal2(i))
+            } else {
+                (0.0, 0.0, e)
+            };
             let unexplained = norm(rest);
             let large =
                 |j: f64, scale: f64| j >= th.spike_floor && j / dt >= th.spike_accel_ratio * scale;
-            let flag_unexplained = large(unexplained, node_ref);
-            let flag_impact = large(impact, impact_ref) && impact * dt >= th.spike_displacement;
-            if flag_unexplained || flag_impact {
-                let (jump, accel_ref) = if flag_unexplained {
-                    (unexplained, node_ref)
-                } else {
-                    (impact, impact_ref)
-                };
-                out.push(Spike {
-                    kind: if flag_unexplained {
-                        "unexplained"
-                    } else {
-                        "impact"
-                    },
-                    rod: r,
-                    rod_name: name.to_string(),
-                    node: i,
-                    step: st.step,
-                    t: st.t,
-                    last_step: st.step,
-                    dt,
-                    dv,
-                    dv_norm: norm(dv),
-                    force_dv: norm(fdv),
-                    jump,
-                    impact_jump: impact,
-                    unexplained_jump: unexplained,
-                    approach_speed: approach,
-                    accel: jump / dt,
-                    accel_ref,
-                    accel_ratio: jump / dt / accel_ref,
-                    displacement: jump * dt,
-                    in_contact: cur.in_contact[i],
-                    flips: 0,
-                });
-            }
-
-            // Alternation: reversals of large Δv within a short window.
-            let a = &mut alt[i];
-            let dvn = norm(dv);
-            let big = dvn >= th.spike_floor.max(th.spike_accel_ratio * dt * gnorm) && dvn > 0.0;
-            let mut flipped = false;
-            if !big {
-                a.last = None;
-            } else {
-                if let Some((lv, lstep)) = a.last {
-                    // Consecutive large changes pointing (more than 90 degrees) apart.
-                    if lstep + 1 == st.step && lv[0] * dv[0] + lv[1] * dv[1] < 0.0 {
-                        a.flips.push_back(st.step);
-                        flipped = true;
-                    }
-                }
-                a.last = Some((dv, st.step));
-            }
-            while a
-                .flips
-                .front()
-                .is_some_and(|&s| s + th.alternation_window <= st.step)
-            {
-                a.flips.pop_front();
-            }
-            let enough = a.flips.len() as u64 >= th.alternation_flips;
-            if enough && flipped {
-                let first_flip = *a.flips.front().expect("non-empty");
-                match a.open.as_mut() {
-                    Some(ep) => {
-                        ep.1 = st.step;
-                        ep.2 += 1;
-                        if dvn > ep.3 {
-                            ep.3 = dvn;
-                            ep.4 = k;
-                        }
-                    }
-                    None => {
-                        // The pattern starts with the Δv before the first reversal.
-                        a.open = Some((first_flip - 1, st.step, a.flips.len() as u64, dvn, k));
-                    }
-                }
-            } else if !enough {
-                if let Some(ep) = a.open.take() {
-                    alt_out.push(alternation_spike(run, r, name, i, ep, rod, g, gnorm));
-                }
+            // Floor: the jump must stand for a displacement over 1e-9 L (a sliver of a last
+            // step turns position round-off into velocity noise of any size).
+            let flag_unexplained =
+                large(unexplained, node_ref) && unexplained * dt >= 1e-9 * self.scales.length;
+            let flag_impact = large(impact, a_scene) && impact * dt >= th.spike_displacement;
+            let make = |kind: &'static str, jump: f64, accel_ref: f64| Spike {
+                kind,
+                rod: r,
+                rod_name: self.names[r].clone(),
+                node: i,
+                step,
+                t,
+                last_step: step,
+                dt,
+                dv,
+                dv_norm: norm(dv),
+                force_dv: norm(fdv),
+                jump,
+                impact_jump: impact,
+                unexplained_jump: unexplained,
+                approach_speed: approach,
+                accel: jump / dt,
+                accel_ref,
+                accel_ratio: jump / dt / accel_ref,
+                displacement: jump * dt,
+                in_contact: cur.in_contact[i],
+            };
+            if flag_unexplained {
+                self.out
+                    .spikes
+                    .push(make("unexplained", unexplained, node_ref));
+            } else if flag_impact {
+                self.out.spikes.push(make("impact", impact, a_scene));
             }
         }
     }
-    for (i, a) in alt.iter_mut().enumerate() {
-        if let Some(ep) = a.open.take() {
-            alt_out.push(alternation_spike(run, r, name, i, ep, rod, g, gnorm));
-        }
-    }
-    out.extend(alt_out);
 }
 
-#[allow(clippy::too_many_arguments)]
-fn alternation_spike(
-    run: &Run,
-    r: usize,
-    name: &str,
-    i: usize,
-    ep: (u64, u64, u64, f64, usize),
-    rod: &Rod,
-    g: [f64; 2],
-    gnorm: f64,
-) -> Spike {
-    let (first, last, flips, biggest, k) = ep;
-    let st = &run.steps[k];
-    let (prev, cur) = (&run.steps[k - 1].rods[r], &st.rods[r]);
-    let mut f = vec![0.0; 2 * rod.n];
-    smooth_force(rod, g, &cur.q, &mut f);
-    let m = rod.mass[i];
-    let dv = [
-        cur.u[2 * i] - prev.u[2 * i],
-        cur.u[2 * i + 1] - prev.u[2 * i + 1],
-    ];
-    let fdv = [st.dt * f[2 * i] / m, st.dt * f[2 * i + 1] / m];
-    let accel_ref = gnorm.max(norm([f[2 * i], f[2 * i + 1]]) / m).max(1e-300);
-    let first_t = run
-        .steps
-        .iter()
-        .find(|s| s.step == first)
-        .map(|s| s.t)
-        .unwrap_or(st.t);
-    Spike {
-        kind: "alternating",
+/// Split the jump `e` of a node held on the surface(s) n1 (and n2 at a corner) into what an
+/// inelastic frictionless contact explains — per surface, support up to what the forces push
+/// into it over the step (−n·Δt f/m) and impact up to the normal velocity the node brought
+/// into the step (−n·u_k) — and the rest. Returns (|impact|, approach speed, rest).
+fn split_contact(
+    e: [f64; 2],
+    fdv: [f64; 2],
+    u_prev: [f64; 2],
+    n1: [f64; 2],
+    n2: Option<[f64; 2]>,
+) -> (f64, f64, [f64; 2]) {
+    // Coefficients along the surface normals: one surface, or both of a corner.
+    let corner = n2.and_then(|n2| {
+        let ce = decompose(e, n1, n2)?;
+        let cf = decompose(fdv, n1, n2)?;
+        let cu = decompose(u_prev, n1, n2)?;
+        Some((n2, ce, cf, cu))
+    });
+    let part = |en: f64, fn_: f64, un: f64| {
+        let support = en.clamp(0.0, (-fn_).max(0.0));
+        let approach = (-un).max(0.0);
+        let impact = (en - support).clamp(0.0, approach);
+        (support + impact, impact, approach)
+    };
+    match corner {
+        Some((n2, ce, cf, cu)) => {
+            let (x1, i1, w1) = part(ce.0, cf.0, cu.0);
+            let (x2, i2, w2) = part(ce.1, cf.1, cu.1);
+            let impact = [i1 * n1[0] + i2 * n2[0], i1 * n1[1] + i2 * n2[1]];
+            let approach = [w1 * n1[0] + w2 * n2[0], w1 * n1[1] + w2 * n2[1]];
+            let rest = [
+                e[0] - x1 * n1[0] - x2 * n2[0],
+                e[1] - x1 * n1[1] - x2 * n2[1],
+            ];
+            (norm(impact), norm(approach), rest)
+        }
+        None => {
+            let (x, impact, approach) = part(dot(e, n1), dot(fdv, n1), dot(u_prev, n1));
+            (impact, approach, [e[0] - x * n1[0], e[1] - x * n1[1]])
+        }
+    }
+}
+
+fn sticking(rule: &'static str, r: usize, name: &str, i: usize, ep: Episode) -> Sticking {
+    Sticking {
+        rule,
         rod: r,
         rod_name: name.to_string(),
         node: i,
-        step: first,
-        t: first_t,
-        last_step: last,
-        dt: st.dt,
-        dv,
-        dv_norm: norm(dv),
-        force_dv: norm(fdv),
-        jump: biggest,
-        impact_jump: 0.0,
-        unexplained_jump: norm([dv[0] - fdv[0], dv[1] - fdv[1]]),
-        approach_speed: 0.0,
-        accel: biggest / st.dt,
-        accel_ref,
-        accel_ratio: biggest / st.dt / accel_ref,
-        displacement: biggest * st.dt,
-        in_contact: cur.in_contact[i],
-        flips,
+        step: ep.step,
+        t: ep.t,
+        last_step: ep.last_step,
+        last_t: ep.last_t,
+        count: ep.count,
     }
 }
 
-/// Time at the end of step `step` (the nearest recorded step at or after it).
-fn time_of(run: &Run, step: u64) -> f64 {
-    let k = run.steps.partition_point(|s| s.step < step);
-    run.steps
-        .get(k)
-        .or(run.steps.last())
-        .map(|s| s.t)
-        .unwrap_or(0.0)
+/// The detector on a live run: `gripsim run --check` and `gripsim sweep` listen with it.
+pub struct DetectObserver {
+    pub detector: Detector,
 }
 
-/// `toggling`: many constraint changes of one node within a window of steps.
-fn toggling(run: &Run, r: usize, rod: &Rod, name: &str, th: &Thresholds, out: &mut Vec<Sticking>) {
-    for i in 0..rod.n {
-        let steps: Vec<u64> = run
-            .contacts
-            .iter()
-            .filter(|c| c.rod == r && c.node == i)
-            .map(|c| c.step)
-            .collect();
-        if (steps.len() as u64) < th.stick_toggles {
-            continue;
-        }
-        // Mark every change that lies in some window holding enough changes.
-        let mut marked = vec![false; steps.len()];
-        let mut lo = 0;
-        for hi in 0..steps.len() {
-            while steps[hi] - steps[lo] >= th.stick_window {
-                lo += 1;
-            }
-            if (hi - lo + 1) as u64 >= th.stick_toggles {
-                for m in marked.iter_mut().take(hi + 1).skip(lo) {
-                    *m = true;
-                }
-            }
-        }
-        // Episodes: runs of marked changes closer than a window.
-        let mut j = 0;
-        while j < steps.len() {
-            if !marked[j] {
-                j += 1;
-                continue;
-            }
-            let start = j;
-            while j + 1 < steps.len() && marked[j + 1] && steps[j + 1] - steps[j] < th.stick_window
-            {
-                j += 1;
-            }
-            out.push(Sticking {
-                rule: "toggling",
-                rod: r,
-                rod_name: name.to_string(),
-                node: i,
-                step: steps[start],
-                t: time_of(run, steps[start]),
-                last_step: steps[j],
-                last_t: time_of(run, steps[j]),
-                count: (j - start + 1) as u64,
-                max_correction: 0.0,
-                min_normal_reaction: 0.0,
-            });
-            j += 1;
+impl DetectObserver {
+    pub fn new(sc: &Scenario, th: &Thresholds) -> Self {
+        Self {
+            detector: Detector::new(sc, th),
         }
     }
 }
 
-/// `oscillating` and `adhesive_hold`: what happens to a node while it is constrained.
-fn held(run: &Run, r: usize, rod: &Rod, name: &str, th: &Thresholds, out: &mut Vec<Sticking>) {
-    for i in 0..rod.n {
-        if rod.clamped[i] {
-            continue;
-        }
-        // Oscillating: corrected steps while constrained, in a window, with a reversal.
-        // Each entry: (step index k, signed normal correction).
-        let mut recent: std::collections::VecDeque<(usize, f64, f64)> = Default::default();
-        let mut open: Option<(usize, usize, u64, f64)> = None; // (first k, last k, steps, max)
-                                                               // Adhesive hold: consecutive steps held with R·n < −tolerance.
-        let mut hold: Option<(usize, usize, u64, f64)> = None;
-        let close_osc = |ep: (usize, usize, u64, f64), out: &mut Vec<Sticking>| {
-            out.push(Sticking {
-                rule: "oscillating",
-                rod: r,
-                rod_name: name.to_string(),
-                node: i,
-                step: run.steps[ep.0].step,
-                t: run.steps[ep.0].t,
-                last_step: run.steps[ep.1].step,
-                last_t: run.steps[ep.1].t,
-                count: ep.2,
-                max_correction: ep.3,
-                min_normal_reaction: 0.0,
-            })
-        };
-        let close_hold = |ep: (usize, usize, u64, f64), out: &mut Vec<Sticking>| {
-            out.push(Sticking {
-                rule: "adhesive_hold",
-                rod: r,
-                rod_name: name.to_string(),
-                node: i,
-                step: run.steps[ep.0].step,
-                t: run.steps[ep.0].t,
-                last_step: run.steps[ep.1].step,
-                last_t: run.steps[ep.1].t,
-                count: ep.2,
-                max_correction: 0.0,
-                min_normal_reaction: ep.3,
-            })
-        };
-        for k in 1..run.steps.len() {
-            let st = &run.steps[k];
-            let v = &st.rods[r];
-            let step = st.step;
-            // Drop corrections that left the window.
-            while recent
-                .front()
-                .is_some_and(|&(kk, _, _)| run.steps[kk].step + th.stick_window <= step)
-            {
-                recent.pop_front();
+impl Observer for DetectObserver {
+    fn on_event(&mut self, event: &Event<'_>) {
+        match event {
+            Event::ConstraintAdded(c) | Event::ConstraintReleased(c, _) => {
+                self.detector.contact(ContactSample {
+                    step: c.step,
+                    t: c.t,
+                    rod: c.rod,
+                    node: c.node,
+                })
             }
-            let held = v.in_contact[i];
-            let nv = [v.normal[2 * i], v.normal[2 * i + 1]];
-            let mut corrected = false;
-            if held {
-                let c = [
-                    v.q[2 * i] - v.q_predictor[2 * i],
-                    v.q[2 * i + 1] - v.q_predictor[2 * i + 1],
-                ];
-                let size = norm(c);
-                if size >= th.stick_correction_min && size > 0.0 {
-                    recent.push_back((k, nv[0] * c[0] + nv[1] * c[1], size));
-                    corrected = true;
-                }
+            Event::StepEnd {
+                step, t, dt, rods, ..
+            } => {
+                let samples: Vec<RodSample<'_>> = rods.iter().map(RodSample::from).collect();
+                self.detector.step(*step, *t, *dt, &samples);
             }
-            let reversal = recent
-                .iter()
-                .zip(recent.iter().skip(1))
-                .any(|(a, b)| a.1 * b.1 < 0.0);
-            let sticking = held && recent.len() as u64 >= th.stick_corrections && reversal;
-            if sticking && corrected {
-                let size = recent.back().map(|x| x.2).unwrap_or(0.0);
-                match open.as_mut() {
-                    Some(ep) => {
-                        ep.1 = k;
-                        ep.2 += 1;
-                        ep.3 = ep.3.max(size);
-                    }
-                    None => {
-                        let biggest = recent.iter().map(|x| x.2).fold(0.0, f64::max);
-                        open = Some((recent[0].0, k, recent.len() as u64, biggest));
-                    }
-                }
-            } else if !sticking {
-                if let Some(ep) = open.take() {
-                    close_osc(ep, out);
-                }
-            }
-
-            let rn = nv[0] * v.reaction[2 * i] + nv[1] * v.reaction[2 * i + 1];
-            if held && rn < -th.adhesion_tolerance {
-                match hold.as_mut() {
-                    Some(ep) if ep.1 + 1 == k => {
-                        ep.1 = k;
-                        ep.2 += 1;
-                        ep.3 = ep.3.min(rn);
-                    }
-                    _ => {
-                        if let Some(ep) = hold.take() {
-                            close_hold(ep, out);
-                        }
-                        hold = Some((k, k, 1, rn));
-                    }
-                }
-            }
-        }
-        if let Some(ep) = open.take() {
-            close_osc(ep, out);
-        }
-        if let Some(ep) = hold.take() {
-            close_hold(ep, out);
+            _ => {}
         }
     }
+}
+
+/// Scan a whole run held in memory (the streaming readers feed a [`Detector`] directly).
+pub fn detect(run: &super::read::Run, th: &Thresholds) -> Findings {
+    let mut d = Detector::new(&run.scenario, th);
+    let mut contacts = run.contacts.iter().peekable();
+    for st in &run.steps {
+        while let Some(c) = contacts.next_if(|c| c.step <= st.step) {
+            d.contact(c.sample());
+        }
+        let samples: Vec<RodSample<'_>> = st.rods.iter().map(|r| r.sample()).collect();
+        d.step(st.step, st.t, st.dt, &samples);
+    }
+    d.finish()
 }
 
 #[cfg(test)]
@@ -710,7 +801,7 @@ mod tests {
         assert_eq!(cli.th, Thresholds::DEFAULT);
         assert!(Thresholds::DEFAULT.validate().is_ok());
         let bad = Thresholds {
-            stick_window: 0,
+            stick_window: Some(0.0),
             ..Thresholds::DEFAULT
         };
         assert!(bad.validate().is_err());

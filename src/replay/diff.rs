@@ -7,11 +7,13 @@
 //! events are paired by rod, node, change and obstacle; spikes and sticking episodes found by
 //! [`super::detect`] are paired the same way.
 
-use super::detect::{self, Counts, Findings, Thresholds};
-use super::read::Run;
+use super::detect::{Counts, Detector, Effective, Findings, Thresholds};
+use super::read::{Contact, Message, Meta, ReadStatus, Run, Step};
 use super::{ReplayError, REPORT_VERSION};
+use crate::scenario::{Mode, Scenario};
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 /// When two runs count as the same (each one a `gripsim replay diff` flag).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, clap::Args)]
@@ -73,24 +75,12 @@ pub struct RunRef {
     pub file: String,
     pub scenario: String,
     pub gripsim_version: String,
-    pub steps: usize,
+    pub steps: u64,
     pub t_end: f64,
     pub truncated: Option<String>,
     pub completed: Option<bool>,
-}
-
-impl RunRef {
-    fn of(run: &Run) -> Self {
-        Self {
-            file: run.path.display().to_string(),
-            scenario: run.meta.scenario_name.clone(),
-            gripsim_version: run.meta.gripsim_version.clone(),
-            steps: run.steps.len(),
-            t_end: run.t_end(),
-            truncated: run.status.truncated.clone(),
-            completed: run.completed(),
-        }
-    }
+    /// The recording stops before its run's end (truncated, or the run did not complete).
+    pub incomplete: bool,
 }
 
 /// A scenario value that differs, by dotted path (`rod.0.E`); null where a run lacks it.
@@ -210,7 +200,9 @@ pub struct DiffReport {
     pub a: RunRef,
     pub b: RunRef,
     pub tolerances: Tolerances,
-    pub thresholds: Thresholds,
+    /// The thresholds in force for run A and run B (they follow each run's scene).
+    pub thresholds_a: Effective,
+    pub thresholds_b: Effective,
     pub within_tolerance: bool,
     pub parameters: Vec<ParamDiff>,
     pub span: Span,
@@ -228,50 +220,6 @@ pub struct DiffReport {
     pub findings_a: Findings,
     #[serde(skip)]
     pub findings_b: Findings,
-}
-
-/// Why two runs cannot be compared node by node, if they cannot.
-pub fn comparable(a: &Run, b: &Run) -> Result<(), ReplayError> {
-    let desc = |r: &Run| {
-        let rods: Vec<String> = r
-            .meta
-            .rods
-            .iter()
-            .map(|x| format!("{:?} with {} node(s)", x.name, x.nodes))
-            .collect();
-        format!(
-            "{} ({} rod(s): {})",
-            r.path.display(),
-            r.meta.rods.len(),
-            rods.join(", ")
-        )
-    };
-    let same = a.meta.rods.len() == b.meta.rods.len()
-        && a.meta
-            .rods
-            .iter()
-            .zip(&b.meta.rods)
-            .all(|(x, y)| x.nodes == y.nodes);
-    if !same {
-        return Err(ReplayError::new(format!(
-            "cannot compare the runs node by node: A is {} and B is {}. A diff pairs rod i node j \
-             of A with rod i node j of B, so both runs need the same rods in the same order with \
-             the same node counts (compare their summaries instead)",
-            desc(a),
-            desc(b)
-        )));
-    }
-    if a.dynamic() != b.dynamic() {
-        return Err(ReplayError::new(format!(
-            "cannot compare a {} run ({}) with a {} run ({}): one is timed by simulated time, the \
-             other by load factor",
-            a.meta.mode,
-            a.path.display(),
-            b.meta.mode,
-            b.path.display()
-        )));
-    }
-    Ok(())
 }
 
 /// Every leaf of a TOML table by dotted path; arrays of tables are indexed (`rod.0.E`), other
@@ -299,30 +247,6 @@ pub fn flatten(prefix: &str, v: &toml::Value, out: &mut BTreeMap<String, toml::V
             out.insert(prefix.to_string(), other.clone());
         }
     }
-}
-
-/// Scenario values that differ between the runs, by dotted path.
-pub fn parameter_diff(a: &Run, b: &Run) -> Vec<ParamDiff> {
-    let parse = |r: &Run| {
-        let mut m = BTreeMap::new();
-        if let Ok(t) = r.meta.scenario_text.parse::<toml::Table>() {
-            flatten("", &toml::Value::Table(t), &mut m);
-        }
-        m
-    };
-    let (pa, pb) = (parse(a), parse(b));
-    let json = |v: &toml::Value| serde_json::to_value(v).ok();
-    let mut keys: Vec<&String> = pa.keys().chain(pb.keys()).collect();
-    keys.sort();
-    keys.dedup();
-    keys.into_iter()
-        .filter(|k| pa.get(*k) != pb.get(*k))
-        .map(|k| ParamDiff {
-            key: k.clone(),
-            a: pa.get(k).and_then(json),
-            b: pb.get(k).and_then(json),
-        })
-        .collect()
 }
 
 /// Where a time falls in a run: the steps around it and the blend weight of the later one.
@@ -377,32 +301,6 @@ pub fn locate(run: &Run, t: f64) -> At {
     At { k0, k1, w }
 }
 
-/// The step size of the step that ends at or just after `t`.
-fn dt_at(run: &Run, t: f64) -> f64 {
-    let at = locate(run, t);
-    let k = if at.w == 0.0 { at.k0 } else { at.k1 };
-    let dt = run.steps[k].dt;
-    if dt > 0.0 {
-        dt
-    } else {
-        run.steps.get(k + 1).map(|s| s.dt).unwrap_or(0.0)
-    }
-}
-
-/// The sorted union of both runs' step times up to `end`.
-pub fn sample_times(a: &Run, b: &Run, end: f64) -> Vec<f64> {
-    let mut t: Vec<f64> = a
-        .steps
-        .iter()
-        .chain(&b.steps)
-        .map(|s| s.t)
-        .filter(|&t| t <= end)
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t.dedup();
-    t
-}
-
 /// One per-node vector field of a recorded step.
 pub type Field = fn(&super::read::RodState) -> &[f64];
 
@@ -416,36 +314,378 @@ pub fn reac(v: &super::read::RodState) -> &[f64] {
     &v.reaction
 }
 
-/// Compare two runs.
+/// What a diff knows of a run before its steps.
+#[derive(Debug, Clone)]
+pub struct Head {
+    pub path: PathBuf,
+    pub meta: Meta,
+    pub scenario: Scenario,
+}
+
+impl Head {
+    fn of(run: &Run) -> Head {
+        Head {
+            path: run.path.clone(),
+            meta: run.meta.clone(),
+            scenario: run.scenario.clone(),
+        }
+    }
+
+    fn dynamic(&self) -> bool {
+        self.scenario.solve.mode == Mode::Dynamic
+    }
+}
+
+/// Why two runs cannot be compared node by node, if they cannot.
+pub fn comparable(a: &Head, b: &Head) -> Result<(), ReplayError> {
+    let desc = |r: &Head| {
+        let rods: Vec<String> = r
+            .meta
+            .rods
+            .iter()
+            .map(|x| format!("{:?} with {} node(s)", x.name, x.nodes))
+            .collect();
+        format!(
+            "{} ({} rod(s): {})",
+            r.path.display(),
+            r.meta.rods.len(),
+            rods.join(", ")
+        )
+    };
+    let same = a.meta.rods.len() == b.meta.rods.len()
+        && a.meta
+            .rods
+            .iter()
+            .zip(&b.meta.rods)
+            .all(|(x, y)| x.nodes == y.nodes);
+    if !same {
+        return Err(ReplayError::new(format!(
+            "cannot compare the runs node by node: A is {} and B is {}. A diff pairs rod i node j \
+             of A with rod i node j of B, so both runs need the same rods in the same order with \
+             the same node counts (compare their summaries instead)",
+            desc(a),
+            desc(b)
+        )));
+    }
+    if a.dynamic() != b.dynamic() {
+        return Err(ReplayError::new(format!(
+            "cannot compare a {} run ({}) with a {} run ({}): one is timed by simulated time, the \
+             other by load factor",
+            a.meta.mode,
+            a.path.display(),
+            b.meta.mode,
+            b.path.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Scenario values that differ between the runs, by dotted path.
+pub fn parameter_diff(a: &Head, b: &Head) -> Vec<ParamDiff> {
+    let parse = |r: &Head| {
+        let mut m = BTreeMap::new();
+        if let Ok(t) = r.meta.scenario_text.parse::<toml::Table>() {
+            flatten("", &toml::Value::Table(t), &mut m);
+        }
+        m
+    };
+    let (pa, pb) = (parse(a), parse(b));
+    let json = |v: &toml::Value| serde_json::to_value(v).ok();
+    let mut keys: Vec<&String> = pa.keys().chain(pb.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    keys.into_iter()
+        .filter(|k| pa.get(*k) != pb.get(*k))
+        .map(|k| ParamDiff {
+            key: k.clone(),
+            a: pa.get(k).and_then(json),
+            b: pb.get(k).and_then(json),
+        })
+        .collect()
+}
+
+/// What a reader thread sends: the messages in file order, then how the read ended.
+enum Feed {
+    Msg(Message),
+    Done(Result<ReadStatus, ReplayError>),
+}
+
+/// Where a run's steps come from: a file read on its own thread (a bounded queue of messages,
+/// so memory does not grow with the run), or a run already in memory.
+enum Source<'a> {
+    File(std::sync::mpsc::Receiver<Feed>),
+    Memory { run: &'a Run, k: usize, c: usize },
+}
+
+/// One item of a run, in file order.
+enum Item {
+    Contact(Contact),
+    Step(Step),
+}
+
+/// A contact change of an accepted step, as the diff pairs it.
+#[derive(Debug, Clone)]
+struct Ev {
+    rod: usize,
+    node: usize,
+    change: String,
+    obstacle: usize,
+    t: f64,
+    step: u64,
+}
+
+/// One run being read: the step before and the step after the current sample time, its
+/// detector, its accepted contact changes and its step sizes (run-length coded).
+struct Side<'a> {
+    head: Head,
+    src: Source<'a>,
+    det: Detector,
+    pending: Vec<Contact>,
+    events: Vec<Ev>,
+    /// (first step end time, last step end time, dt) of each stretch of equal steps.
+    dts: Vec<(f64, f64, f64)>,
+    cur: Option<Step>,
+    next: Option<Step>,
+    steps: u64,
+    t_end: f64,
+    status: ReadStatus,
+    completed: Option<bool>,
+}
+
+impl<'a> Side<'a> {
+    fn new(head: Head, src: Source<'a>, th: &Thresholds) -> Self {
+        Side {
+            det: Detector::new(&head.scenario, th),
+            head,
+            src,
+            pending: Vec::new(),
+            events: Vec::new(),
+            dts: Vec::new(),
+            cur: None,
+            next: None,
+            steps: 0,
+            t_end: 0.0,
+            status: ReadStatus::default(),
+            completed: None,
+        }
+    }
+
+    /// A file, read on its own thread; returns once `/sim/meta` is read.
+    fn file(path: &Path, th: &Thresholds) -> Result<Side<'static>, ReplayError> {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Feed>(64);
+        let p = path.to_path_buf();
+        std::thread::spawn(move || {
+            let tx2 = tx.clone();
+            let res = super::read::read_messages(&p, false, |m| {
+                tx2.send(Feed::Msg(m))
+                    .map_err(|_| ReplayError::new("the diff stopped reading".into()))
+            });
+            let _ = tx.send(Feed::Done(res));
+        });
+        let meta = loop {
+            match rx.recv() {
+                Ok(Feed::Msg(Message::Meta(m))) => break *m,
+                Ok(Feed::Msg(_)) => continue,
+                Ok(Feed::Done(Err(e))) => return Err(e),
+                Ok(Feed::Done(Ok(_))) | Err(_) => {
+                    return Err(ReplayError::file(path, "no /sim/meta message".into()))
+                }
+            }
+        };
+        let scenario = super::read::parse_scenario(path, &meta)?;
+        if scenario.rods.len() != meta.rods.len()
+            || scenario
+                .rods
+                .iter()
+                .zip(&meta.rods)
+                .any(|(s, m)| s.nodes != m.nodes)
+        {
+            return Err(ReplayError::file(
+                path,
+                "/sim/meta rods do not match its own scenario_text".into(),
+            ));
+        }
+        let head = Head {
+            path: path.to_path_buf(),
+            meta,
+            scenario,
+        };
+        Ok(Side::new(head, Source::File(rx), th))
+    }
+
+    fn item(&mut self) -> Result<Option<Item>, ReplayError> {
+        match &mut self.src {
+            Source::Memory { run, k, c } => {
+                let Some(st) = run.steps.get(*k) else {
+                    self.status = run.status.clone();
+                    self.completed = run.completed();
+                    return Ok(None);
+                };
+                if let Some(x) = run.contacts.get(*c).filter(|x| x.step <= st.step) {
+                    *c += 1;
+                    return Ok(Some(Item::Contact(x.clone())));
+                }
+                *k += 1;
+                Ok(Some(Item::Step(st.clone())))
+            }
+            Source::File(rx) => loop {
+                match rx.recv() {
+                    Ok(Feed::Msg(Message::Contact(c))) => return Ok(Some(Item::Contact(c))),
+                    Ok(Feed::Msg(Message::Step(s))) => return Ok(Some(Item::Step(s))),
+                    Ok(Feed::Msg(Message::Event(e))) if e.kind == "run_end" => {
+                        self.completed = e.completed
+                    }
+                    Ok(Feed::Msg(_)) => {}
+                    Ok(Feed::Done(res)) => {
+                        self.status = res?;
+                        if self.completed.is_none() {
+                            self.completed = self
+                                .status
+                                .run_end
+                                .as_ref()
+                                .and_then(|m| m.get("completed"))
+                                .map(|c| c == "true");
+                        }
+                        return Ok(None);
+                    }
+                    Err(_) => return Ok(None),
+                }
+            },
+        }
+    }
+
+    /// Move to the next step: `cur` becomes the old `next`.
+    fn advance(&mut self) -> Result<(), ReplayError> {
+        if let Some(n) = self.next.take() {
+            self.cur = Some(n);
+        }
+        while let Some(item) = self.item()? {
+            match item {
+                Item::Contact(c) => {
+                    self.det.contact(c.sample());
+                    self.pending.push(c);
+                }
+                Item::Step(st) => {
+                    self.take_step(&st);
+                    self.next = Some(st);
+                    return Ok(());
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn take_step(&mut self, st: &Step) {
+        let dynamic = self.head.dynamic();
+        for c in std::mem::take(&mut self.pending) {
+            // Only the accepted attempt's changes (same step, same time).
+            if c.step == st.step && (!dynamic || c.t == st.t) {
+                self.events.push(Ev {
+                    rod: c.rod,
+                    node: c.node,
+                    change: c.change,
+                    obstacle: c.obstacle,
+                    t: c.t,
+                    step: c.step,
+                });
+            } else if c.step > st.step {
+                self.pending.push(c);
+            }
+        }
+        let samples: Vec<_> = st.rods.iter().map(|r| r.sample()).collect();
+        self.det.step(st.step, st.t, st.dt, &samples);
+        match self.dts.last_mut() {
+            Some(seg) if seg.2 == st.dt => seg.1 = st.t,
+            _ => self.dts.push((st.t, st.t, st.dt)),
+        }
+        self.steps += 1;
+        self.t_end = st.t;
+    }
+
+    /// The step size of the step that ends at or just after `t`.
+    fn dt_at(&self, t: f64) -> f64 {
+        let k = self.dts.partition_point(|s| s.1 < t);
+        let k = k.min(self.dts.len().saturating_sub(1));
+        match self.dts.get(k) {
+            Some(s) if s.2 > 0.0 => s.2,
+            Some(_) => self.dts.get(k + 1).map(|s| s.2).unwrap_or(0.0),
+            None => 0.0,
+        }
+    }
+
+    /// Node `i` of rod `r` of `field` at `t` (between `cur` and `next`, or at `next`).
+    fn vec2(&self, t: f64, r: usize, i: usize, field: Field) -> [f64; 2] {
+        let n = self
+            .next
+            .as_ref()
+            .expect("a sample lies before the run's end");
+        let b = field(&n.rods[r]);
+        let vb = [b[2 * i], b[2 * i + 1]];
+        match &self.cur {
+            Some(c) if n.t != t => {
+                let a = field(&c.rods[r]);
+                let w = (t - c.t) / (n.t - c.t);
+                [
+                    a[2 * i] + w * (vb[0] - a[2 * i]),
+                    a[2 * i + 1] + w * (vb[1] - a[2 * i + 1]),
+                ]
+            }
+            _ => vb,
+        }
+    }
+
+    fn reference(&self) -> RunRef {
+        RunRef {
+            file: self.head.path.display().to_string(),
+            scenario: self.head.meta.scenario_name.clone(),
+            gripsim_version: self.head.meta.gripsim_version.clone(),
+            steps: self.steps,
+            t_end: self.t_end,
+            truncated: self.status.truncated.clone(),
+            completed: self.completed,
+            incomplete: self.status.truncated.is_some() || self.completed != Some(true),
+        }
+    }
+}
+
+/// Compare two recordings, streaming: both files are read at once, chunk by chunk, and
+/// compared at the union of their step times; memory holds two steps per run, the detection
+/// windows and the contact changes, not the runs.
+pub fn diff_files(
+    a: &Path,
+    b: &Path,
+    tol: &Tolerances,
+    th: &Thresholds,
+) -> Result<DiffReport, ReplayError> {
+    let sa = Side::file(a, th)?;
+    let sb = Side::file(b, th)?;
+    run_diff(sa, sb, tol)
+}
+
+/// Compare two runs held in memory (the same comparison as [`diff_files`]).
 pub fn diff(
     a: &Run,
     b: &Run,
     tol: &Tolerances,
     th: &Thresholds,
 ) -> Result<DiffReport, ReplayError> {
-    comparable(a, b)?;
-    let parameters = parameter_diff(a, b);
-    let (ta, tb) = (a.t_end(), b.t_end());
-    let end = ta.min(tb);
-    let time_tol = |t: f64| {
-        tol.tol_time
-            .unwrap_or_else(|| dt_at(a, t).max(dt_at(b, t)) * (1.0 + 1e-9))
-    };
-    let span = Span {
-        a_t_end: ta,
-        b_t_end: tb,
-        compared_to: end,
-        differs: (ta - tb).abs() > time_tol(end),
-    };
+    run_diff(memory_side(a, th), memory_side(b, th), tol)
+}
 
-    let times = sample_times(a, b, end);
+fn memory_side<'a>(r: &'a Run, th: &Thresholds) -> Side<'a> {
+    Side::new(Head::of(r), Source::Memory { run: r, k: 0, c: 0 }, th)
+}
+
+fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffReport, ReplayError> {
+    comparable(&a.head, &b.head)?;
+    let parameters = parameter_diff(&a.head, &b.head);
     let quantities: [(&'static str, Field, f64); 3] = [
         ("position", pos, tol.tol_position),
         ("velocity", vel, tol.tol_velocity),
         ("reaction", reac, tol.tol_reaction),
     ];
     let mut nodes: Vec<NodeDiff> = Vec::new();
-    for (r, rod) in a.meta.rods.iter().enumerate() {
+    for (r, rod) in a.head.meta.rods.iter().enumerate() {
         for i in 0..rod.nodes {
             nodes.push(NodeDiff {
                 rod: r,
@@ -458,17 +698,23 @@ pub fn diff(
             });
         }
     }
+    a.advance()?;
+    b.advance()?;
     let mut first: Option<Divergence> = None;
-    for &t in &times {
-        let (la, lb) = (locate(a, t), locate(b, t));
+    let mut samples = 0usize;
+    // The union of both runs' step times, while both runs reach it.
+    while let (Some(na), Some(nb)) = (&a.next, &b.next) {
+        let t = na.t.min(nb.t);
+        let (step_a, step_b) = (na.step, nb.step);
+        samples += 1;
         let mut worst: Option<(f64, Divergence)> = None;
         let mut idx = 0;
-        for (r, rod) in a.meta.rods.iter().enumerate() {
+        for (r, rod) in a.head.meta.rods.iter().enumerate() {
             for i in 0..rod.nodes {
                 let nd = &mut nodes[idx];
                 idx += 1;
                 for (q, (name, field, tolerance)) in quantities.iter().enumerate() {
-                    let (va, vb) = (la.vec2(a, r, i, *field), lb.vec2(b, r, i, *field));
+                    let (va, vb) = (a.vec2(t, r, i, *field), b.vec2(t, r, i, *field));
                     let d = (va[0] - vb[0]).hypot(va[1] - vb[1]);
                     match q {
                         0 => nd.position.add(d, t),
@@ -494,8 +740,8 @@ pub fn diff(
                                     b: vb,
                                     difference: d,
                                     tolerance: *tolerance,
-                                    step_a: la.step(a),
-                                    step_b: lb.step(b),
+                                    step_a,
+                                    step_b,
                                 },
                             ));
                         }
@@ -506,6 +752,20 @@ pub fn diff(
         if first.is_none() {
             first = worst.map(|w| w.1);
         }
+        let (ta, tb) = (na.t, nb.t);
+        if ta == t {
+            a.advance()?;
+        }
+        if tb == t {
+            b.advance()?;
+        }
+    }
+    // The rest of the longer run: its detector, contact changes and end.
+    while a.next.is_some() {
+        a.advance()?;
+    }
+    while b.next.is_some() {
+        b.advance()?;
     }
     for nd in &mut nodes {
         for (name, m, tolerance) in [
@@ -518,11 +778,66 @@ pub fn diff(
             }
         }
     }
+    let (ta, tb) = (a.t_end, b.t_end);
+    let end = ta.min(tb);
+    let time_tol = |t: f64| {
+        tol.tol_time
+            .unwrap_or_else(|| a.dt_at(t).max(b.dt_at(t)) * (1.0 + 1e-9))
+    };
+    let span = Span {
+        a_t_end: ta,
+        b_t_end: tb,
+        compared_to: end,
+        differs: (ta - tb).abs() > time_tol(end),
+    };
+    let (counts, events) = contact_diff(&a, &b, tol, end, &time_tol);
+    let end_tol = time_tol(end);
+    let (ra, rb) = (a.reference(), b.reference());
+    let (tha, thb) = (a.det.th, b.det.th);
+    let fa = a.det.finish();
+    let fb = b.det.finish();
+    let findings = finding_diff(&fa, &fb, end + end_tol, tol.event_window);
 
-    // Contact events, paired by (rod, node, change, obstacle) and nearest time.
+    let within_tolerance = !span.differs
+        && first.is_none()
+        && counts.shifted == 0
+        && counts.only_a == 0
+        && counts.only_b == 0
+        && findings.is_empty();
+    Ok(DiffReport {
+        report_version: REPORT_VERSION,
+        a: ra,
+        b: rb,
+        tolerances: *tol,
+        thresholds_a: tha,
+        thresholds_b: thb,
+        within_tolerance,
+        parameters,
+        span,
+        samples,
+        first_divergence: first,
+        nodes,
+        contact_event_counts: counts,
+        contact_events: events,
+        counts_a: fa.counts(),
+        counts_b: fb.counts(),
+        findings,
+        findings_a: fa,
+        findings_b: fb,
+    })
+}
+
+/// Contact events, paired by (rod, node, change, obstacle) and nearest time.
+fn contact_diff(
+    a: &Side<'_>,
+    b: &Side<'_>,
+    tol: &Tolerances,
+    end: f64,
+    time_tol: &dyn Fn(f64) -> f64,
+) -> (EventCounts, Vec<EventDiff>) {
     let in_span = |t: f64| t <= end + time_tol(end);
-    let ea: Vec<&super::read::Contact> = a.contacts.iter().filter(|c| in_span(c.t)).collect();
-    let eb: Vec<&super::read::Contact> = b.contacts.iter().filter(|c| in_span(c.t)).collect();
+    let ea: Vec<&Ev> = a.events.iter().filter(|c| in_span(c.t)).collect();
+    let eb: Vec<&Ev> = b.events.iter().filter(|c| in_span(c.t)).collect();
     let mut used = vec![false; eb.len()];
     let mut counts = EventCounts {
         a: ea.len(),
@@ -530,7 +845,7 @@ pub fn diff(
         ..EventCounts::default()
     };
     let mut events = Vec::new();
-    let name = |r: usize| a.meta.rods[r].name.clone();
+    let name = |r: usize| a.head.meta.rods[r].name.clone();
     // B's events by (rod, node, change, obstacle), so pairing looks at one node's events only.
     let mut groups: BTreeMap<(usize, usize, &str, usize), Vec<usize>> = BTreeMap::new();
     for (j, y) in eb.iter().enumerate() {
@@ -539,6 +854,19 @@ pub fn diff(
             .or_default()
             .push(j);
     }
+    let event = |status, x: &Ev, ta: Option<&Ev>, tb: Option<&Ev>| EventDiff {
+        status,
+        rod: x.rod,
+        rod_name: name(x.rod),
+        node: x.node,
+        change: x.change.clone(),
+        obstacle: x.obstacle,
+        t_a: ta.map(|e| e.t),
+        t_b: tb.map(|e| e.t),
+        step_a: ta.map(|e| e.step),
+        step_b: tb.map(|e| e.step),
+        shift: ta.zip(tb).map(|(p, q)| q.t - p.t),
+    };
     for x in &ea {
         let best = groups
             .get(&(x.rod, x.node, x.change.as_str(), x.obstacle))
@@ -553,93 +881,26 @@ pub fn diff(
                 counts.matched += 1;
                 if (y.t - x.t).abs() > time_tol(x.t.min(y.t)) {
                     counts.shifted += 1;
-                    events.push(EventDiff {
-                        status: "shifted",
-                        rod: x.rod,
-                        rod_name: name(x.rod),
-                        node: x.node,
-                        change: x.change.clone(),
-                        obstacle: x.obstacle,
-                        t_a: Some(x.t),
-                        t_b: Some(y.t),
-                        step_a: Some(x.step),
-                        step_b: Some(y.step),
-                        shift: Some(y.t - x.t),
-                    });
+                    events.push(event("shifted", x, Some(x), Some(y)));
                 }
             }
             None => {
                 counts.only_a += 1;
-                events.push(EventDiff {
-                    status: "only_a",
-                    rod: x.rod,
-                    rod_name: name(x.rod),
-                    node: x.node,
-                    change: x.change.clone(),
-                    obstacle: x.obstacle,
-                    t_a: Some(x.t),
-                    t_b: None,
-                    step_a: Some(x.step),
-                    step_b: None,
-                    shift: None,
-                });
+                events.push(event("only_a", x, Some(x), None));
             }
         }
     }
     for (j, y) in eb.iter().enumerate() {
         if !used[j] {
             counts.only_b += 1;
-            events.push(EventDiff {
-                status: "only_b",
-                rod: y.rod,
-                rod_name: name(y.rod),
-                node: y.node,
-                change: y.change.clone(),
-                obstacle: y.obstacle,
-                t_a: None,
-                t_b: Some(y.t),
-                step_a: None,
-                step_b: Some(y.step),
-                shift: None,
-            });
+            events.push(event("only_b", y, None, Some(y)));
         }
     }
     events.sort_by(|p, q| {
         let t = |e: &EventDiff| e.t_a.or(e.t_b).unwrap_or(0.0);
         t(p).total_cmp(&t(q))
     });
-
-    // Spikes and sticking found in one run only.
-    let fa = detect::detect(a, th);
-    let fb = detect::detect(b, th);
-    let findings = finding_diff(&fa, &fb, end + time_tol(end), tol.event_window);
-
-    let within_tolerance = !span.differs
-        && first.is_none()
-        && counts.shifted == 0
-        && counts.only_a == 0
-        && counts.only_b == 0
-        && findings.is_empty();
-    Ok(DiffReport {
-        report_version: REPORT_VERSION,
-        a: RunRef::of(a),
-        b: RunRef::of(b),
-        tolerances: *tol,
-        thresholds: *th,
-        within_tolerance,
-        parameters,
-        span,
-        samples: times.len(),
-        first_divergence: first,
-        nodes,
-        contact_event_counts: counts,
-        contact_events: events,
-        counts_a: fa.counts(),
-        counts_b: fb.counts(),
-        findings,
-        findings_a: fa,
-        findings_b: fb,
-    })
+    (counts, events)
 }
 
 /// Findings of one run with no counterpart (same category, kind, rod and node within
@@ -850,15 +1111,13 @@ pub fn format_diff(rep: &DiffReport) -> String {
     }
     let _ = writeln!(
         s,
-        "\nspikes           A {} (impact {}, unexplained {}, alternating {}), B {} (impact {}, unexplained {}, alternating {})",
+        "\nspikes           A {} (impact {}, unexplained {}), B {} (impact {}, unexplained {})",
         rep.counts_a.spikes,
         rep.counts_a.impact,
         rep.counts_a.unexplained,
-        rep.counts_a.alternating,
         rep.counts_b.spikes,
         rep.counts_b.impact,
-        rep.counts_b.unexplained,
-        rep.counts_b.alternating
+        rep.counts_b.unexplained
     );
     let _ = writeln!(
         s,

@@ -7,15 +7,16 @@
 //! - [`overlay`]: the Rerun views of `show`, `check --rrd` and `diff --rrd`.
 //!
 //! `gripsim replay` parses its arguments with [`ReplayArgs`] and calls [`main`]; the exit
-//! status is 0 (clean / within tolerance), 1 (something flagged / out of tolerance) or 2
-//! (an error, reported on stderr with the file it concerns).
+//! status is 0 (clean / within tolerance), 1 (something flagged / out of tolerance), 2
+//! (an error, reported on stderr with the file it concerns) or 3 ([`EXIT_INCOMPLETE`]: a
+//! recording that stops before its run's end, unless `--allow-partial`).
 
 pub mod detect;
 pub mod diff;
 pub mod overlay;
 pub mod read;
 
-pub use detect::{Findings, Thresholds};
+pub use detect::{Detector, Effective, Findings, Scales, Thresholds};
 pub use diff::{DiffReport, Tolerances};
 pub use read::Run;
 
@@ -23,7 +24,13 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// Version of the JSON reports (`--json`); bumped when a field changes meaning or is removed.
-pub const REPORT_VERSION: u32 = 1;
+/// 2: thresholds follow the scene (`scales`), windows are in seconds, `incomplete` added.
+pub const REPORT_VERSION: u32 = 2;
+
+/// Exit status of `replay check` and `diff` (and `run --check` on an interrupted run) for a
+/// recording that stops before its run's end (a killed run's `.partial.mcap`, a damaged chunk,
+/// an interrupted run), unless `--allow-partial`.
+pub const EXIT_INCOMPLETE: u8 = 3;
 
 /// Why a replay could not be done. Displayed as `FILE: message` when it concerns a file.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,11 +77,11 @@ pub struct ReplayArgs {
 pub enum ReplayCommand {
     /// Scan one run for velocity spikes and sticking nodes; exit 1 if any is found.
     ///
-    /// Reports every spike (impact, unexplained, alternating) and every sticking episode
-    /// (toggling, oscillating, adhesive hold) with rod, node, step, time and the values that
+    /// Reports every spike (impact, unexplained) and every sticking episode (toggling) with
+    /// rod, node, step, time and the values that
     /// triggered it. The rules and thresholds are explained in docs/replay.md.
     #[command(
-        after_help = "Exit status: 0 clean, 1 something flagged, 2 error.\n\nExamples:\n  gripsim replay check recordings/point-mass-plane-dt1e-4.mcap\n  gripsim replay check run.mcap --json out/check.json --rrd out/check.rrd\n  gripsim replay check run.mcap --spike-displacement 1e-6"
+        after_help = "Exit status: 0 clean, 1 something flagged, 2 error, 3 the recording stops before the run's end (killed, damaged, interrupted; --allow-partial: 0 or 1).\n\nExamples:\n  gripsim replay check recordings/point-mass-plane-dt1e-4.mcap\n  gripsim replay check run.mcap --json out/check.json --rrd out/check.rrd\n  gripsim replay check run.mcap --spike-displacement 1e-6"
     )]
     Check {
         /// The run (the .mcap of `gripsim run --mcap`).
@@ -85,6 +92,10 @@ pub enum ReplayCommand {
         /// Write the run with the flagged nodes marked, for the Rerun viewer.
         #[arg(long, value_name = "FILE.rrd")]
         rrd: Option<PathBuf>,
+        /// Treat a recording that stops before its run's end like a whole one (exit 0 or 1
+        /// instead of 3).
+        #[arg(long)]
+        allow_partial: bool,
         #[command(flatten)]
         thresholds: Thresholds,
     },
@@ -95,7 +106,7 @@ pub enum ReplayCommand {
     /// only (or shifted in time), and spikes or sticking found in one run only. The runs may
     /// use different or adaptive time steps: the one is interpolated at the other's times.
     #[command(
-        after_help = "Exit status: 0 within tolerance, 1 not, 2 error (including runs that cannot be compared).\n\nExamples:\n  gripsim replay diff recordings/golden/point-mass-plane-dt1e-4.mcap out/now.mcap\n  gripsim replay diff a.mcap b.mcap --tol-position 1e-6 --json out/diff.json --rrd out/diff.rrd"
+        after_help = "Exit status: 0 within tolerance, 1 not, 2 error (including runs that cannot be compared), 3 a recording stops before its run's end (--allow-partial: 0 or 1).\n\nExamples:\n  gripsim replay diff recordings/golden/point-mass-plane-dt1e-4.mcap out/now.mcap\n  gripsim replay diff a.mcap b.mcap --tol-position 1e-6 --json out/diff.json --rrd out/diff.rrd"
     )]
     Diff {
         /// Run A (the reference).
@@ -108,6 +119,9 @@ pub enum ReplayCommand {
         /// Write A and B overlaid (B ghosted), flagged nodes and the first divergence marked.
         #[arg(long, value_name = "FILE.rrd")]
         rrd: Option<PathBuf>,
+        /// Compare recordings that stop before their run's end (exit 0 or 1 instead of 3).
+        #[arg(long)]
+        allow_partial: bool,
         #[command(flatten)]
         tolerances: Tolerances,
         #[command(flatten)]
@@ -126,20 +140,25 @@ pub enum ReplayCommand {
     },
 }
 
-/// The report of `replay check`.
+/// The report of `replay check` (and of `run --check`).
 #[derive(Debug, Clone, Serialize)]
 pub struct CheckReport {
     pub report_version: u32,
     pub file: String,
     pub scenario: String,
     pub mode: String,
-    pub steps: usize,
+    pub steps: u64,
     pub t_end: f64,
     /// Why the file was read only in part (null when whole).
     pub truncated: Option<String>,
     /// The run's own end: true, false (stopped early), null (the file stops before it).
     pub completed: Option<bool>,
-    pub thresholds: Thresholds,
+    /// The recording stops before its run's end (truncated, or the run did not complete).
+    pub incomplete: bool,
+    /// The scene's scales the default thresholds follow.
+    pub scales: Scales,
+    /// The thresholds in force (windows in seconds).
+    pub thresholds: Effective,
     pub counts: detect::Counts,
     pub flagged: bool,
     pub spikes: Vec<detect::Spike>,
@@ -147,32 +166,119 @@ pub struct CheckReport {
 }
 
 impl CheckReport {
-    pub fn new(run: &Run, th: &Thresholds, found: Findings) -> Self {
+    /// The report of a finished detector.
+    pub fn of(
+        file: String,
+        scenario: &str,
+        mode: &str,
+        detector: Detector,
+        truncated: Option<String>,
+        completed: Option<bool>,
+    ) -> Self {
+        let (steps, t_end, scales, thresholds) =
+            (detector.steps, detector.t_end, detector.scales, detector.th);
+        let found = detector.finish();
         Self {
             report_version: REPORT_VERSION,
-            file: run.path.display().to_string(),
-            scenario: run.meta.scenario_name.clone(),
-            mode: run.meta.mode.clone(),
-            steps: run.steps.len(),
-            t_end: run.t_end(),
-            truncated: run.status.truncated.clone(),
-            completed: run.completed(),
-            thresholds: *th,
+            file,
+            scenario: scenario.to_string(),
+            mode: mode.to_string(),
+            steps,
+            t_end,
+            incomplete: truncated.is_some() || completed != Some(true),
+            truncated,
+            completed,
+            scales,
+            thresholds,
             counts: found.counts(),
             flagged: !found.is_empty(),
             spikes: found.spikes,
             sticking: found.sticking,
         }
     }
+
+    /// The exit status: 0 clean, 1 flagged, [`EXIT_INCOMPLETE`] for an incomplete recording
+    /// unless `allow_partial`.
+    pub fn exit_code(&self, allow_partial: bool) -> u8 {
+        if self.incomplete && !allow_partial {
+            EXIT_INCOMPLETE
+        } else {
+            u8::from(self.flagged)
+        }
+    }
 }
 
-/// Load and check one run.
-pub fn check(path: &Path, th: &Thresholds) -> Result<(Run, CheckReport), ReplayError> {
+/// Check one run, streaming: the file is read chunk by chunk and fed to the detector, so
+/// memory is bounded by the detection windows and one chunk, not by the run. Returns the
+/// report and the warning for a recording read only in part.
+pub fn check(path: &Path, th: &Thresholds) -> Result<(CheckReport, Option<String>), ReplayError> {
     th.validate().map_err(ReplayError::new)?;
-    let run = Run::load(path)?;
-    let found = detect::detect(&run, th);
-    let report = CheckReport::new(&run, th, found);
-    Ok((run, report))
+    let mut det: Option<(Detector, read::Meta)> = None;
+    let mut completed = None;
+    let mut last: Option<(u64, f64)> = None;
+    let mut steps = 0u64;
+    let status = read::read_messages(path, false, |m| {
+        match m {
+            read::Message::Meta(meta) => {
+                let sc = read::parse_scenario(path, &meta)?;
+                if sc.rods.len() != meta.rods.len()
+                    || sc
+                        .rods
+                        .iter()
+                        .zip(&meta.rods)
+                        .any(|(s, m)| s.nodes != m.nodes)
+                {
+                    return Err(ReplayError::file(
+                        path,
+                        "/sim/meta rods do not match its own scenario_text".into(),
+                    ));
+                }
+                det = Some((Detector::new(&sc, th), *meta));
+            }
+            read::Message::Contact(c) => {
+                if let Some((d, _)) = det.as_mut() {
+                    d.contact(c.sample());
+                }
+            }
+            read::Message::Step(st) => {
+                if let Some((d, _)) = det.as_mut() {
+                    let samples: Vec<detect::RodSample<'_>> =
+                        st.rods.iter().map(|r| r.sample()).collect();
+                    d.step(st.step, st.t, st.dt, &samples);
+                }
+                last = Some((st.step, st.t));
+                steps += 1;
+            }
+            read::Message::Event(e) if e.kind == "run_end" => completed = e.completed,
+            _ => {}
+        }
+        Ok(())
+    })?;
+    let (d, meta) = det.expect("read_messages checks /sim/meta");
+    if completed.is_none() {
+        completed = status
+            .run_end
+            .as_ref()
+            .and_then(|m| m.get("completed"))
+            .map(|c| c == "true");
+    }
+    let warning = status.truncated.as_ref().map(|why| {
+        let (k, t) = last.unwrap_or((0, 0.0));
+        format!(
+            "warning: {} is incomplete ({why}); read {steps} steps up to step {k} (t = {t} s), \
+             the last complete chunk",
+            path.display()
+        )
+    });
+    let report = CheckReport::of(
+        path.display().to_string(),
+        &meta.scenario_name,
+        &meta.mode,
+        d,
+        status.truncated.clone(),
+        completed,
+    );
+    Ok((report, warning))
 }
 
 /// At most this many rows per table in the human output (the JSON has them all).
@@ -210,14 +316,10 @@ pub fn format_check(rep: &CheckReport) -> String {
     );
     let _ = writeln!(
         s,
-        "spikes    {:>5}  (impact {}, unexplained {}, alternating {})",
-        c.spikes, c.impact, c.unexplained, c.alternating
+        "spikes    {:>5}  (impact {}, unexplained {})",
+        c.spikes, c.impact, c.unexplained
     );
-    let _ = writeln!(
-        s,
-        "sticking  {:>5}  (toggling {}, oscillating {}, adhesive hold {})",
-        c.sticking, c.toggling, c.oscillating, c.adhesive_hold
-    );
+    let _ = writeln!(s, "sticking  {:>5}  (toggling {})", c.sticking, c.toggling);
     if !rep.spikes.is_empty() {
         let _ = writeln!(s, "\nspikes");
         let _ = writeln!(
@@ -267,26 +369,20 @@ pub fn format_check(rep: &CheckReport) -> String {
         let _ = writeln!(s, "\nsticking");
         let _ = writeln!(
             s,
-            "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6} {:>12}",
-            "rule", "rod", "node", "steps", "t (s)", "to t (s)", "count", "value"
+            "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6}",
+            "rule", "rod", "node", "steps", "t (s)", "to t (s)", "count"
         );
         for x in rep.sticking.iter().take(MAX_ROWS) {
-            let value = match x.rule {
-                "oscillating" => format!("{} m", g(x.max_correction)),
-                "adhesive_hold" => format!("{} N", g(x.min_normal_reaction)),
-                _ => String::new(),
-            };
             let _ = writeln!(
                 s,
-                "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6} {:>12}",
+                "  {:<14} {:<10} {:>4} {:>15} {:>12} {:>12} {:>6}",
                 x.rule,
                 x.rod_name,
                 x.node,
                 format!("{}-{}", x.step, x.last_step),
                 g(x.t),
                 g(x.last_t),
-                x.count,
-                value
+                x.count
             );
         }
         if rep.sticking.len() > MAX_ROWS {
@@ -297,15 +393,19 @@ pub fn format_check(rep: &CheckReport) -> String {
             );
         }
     }
-    let _ = writeln!(
-        s,
-        "\n{}",
-        if rep.flagged {
-            "FLAGGED (exit 1)"
-        } else {
-            "clean (exit 0)"
-        }
-    );
+    let _ = writeln!(s, "\n{}", if rep.flagged { "FLAGGED" } else { "clean" });
+    if rep.incomplete {
+        let _ = writeln!(
+            s,
+            "INCOMPLETE: the recording stops before the run's end{} (exit {EXIT_INCOMPLETE} \
+             unless --allow-partial)",
+            match (&rep.truncated, rep.completed) {
+                (Some(why), _) => format!(" ({why})"),
+                (None, Some(false)) => " (the run stopped early)".to_string(),
+                _ => String::new(),
+            }
+        );
+    }
     s
 }
 
@@ -341,10 +441,11 @@ fn run_command(args: ReplayArgs) -> Result<u8, ReplayError> {
             run,
             json,
             rrd,
+            allow_partial,
             thresholds,
         } => {
-            let (run, report) = check(&run, &thresholds)?;
-            if let Some(w) = run.warning() {
+            let (report, warning) = check(&run, &thresholds)?;
+            if let Some(w) = warning {
                 eprintln!("{w}");
             }
             say(&format_check(&report));
@@ -352,6 +453,8 @@ fn run_command(args: ReplayArgs) -> Result<u8, ReplayError> {
                 write_json(p, &report)?;
             }
             if let Some(p) = &rrd {
+                // The Rerun view needs the whole run in memory.
+                let run = Run::load(&run)?;
                 overlay::write_check(p, &run, &report)?;
                 say(&format!(
                     "wrote {} (open: rerun {})\n",
@@ -359,37 +462,50 @@ fn run_command(args: ReplayArgs) -> Result<u8, ReplayError> {
                     p.display()
                 ));
             }
-            Ok(u8::from(report.flagged))
+            Ok(report.exit_code(allow_partial))
         }
         ReplayCommand::Diff {
             a,
             b,
             json,
             rrd,
+            allow_partial,
             tolerances,
             thresholds,
         } => {
             thresholds.validate().map_err(ReplayError::new)?;
             tolerances.validate().map_err(ReplayError::new)?;
-            let ra = Run::load(&a)?;
-            let rb = Run::load(&b)?;
-            for r in [&ra, &rb] {
-                if let Some(w) = r.warning() {
-                    eprintln!("{w}");
+            let report = diff::diff_files(&a, &b, &tolerances, &thresholds)?;
+            for r in [&report.a, &report.b] {
+                if let Some(why) = &r.truncated {
+                    eprintln!(
+                        "warning: {} is incomplete ({why}); read {} steps up to t = {} s, the \
+                         last complete chunk",
+                        r.file, r.steps, r.t_end
+                    );
                 }
             }
-            let report = diff::diff(&ra, &rb, &tolerances, &thresholds)?;
             say(&diff::format_diff(&report));
             if let Some(p) = &json {
                 write_json(p, &report)?;
             }
             if let Some(p) = &rrd {
+                // The Rerun view needs both runs in memory.
+                let (ra, rb) = (Run::load(&a)?, Run::load(&b)?);
                 overlay::write_diff(p, &ra, &rb, &report)?;
                 say(&format!(
                     "wrote {} (open: rerun {})\n",
                     p.display(),
                     p.display()
                 ));
+            }
+            let incomplete = report.a.incomplete || report.b.incomplete;
+            if incomplete && !allow_partial {
+                say(&format!(
+                    "INCOMPLETE: a recording stops before its run's end (exit {EXIT_INCOMPLETE} \
+                     unless --allow-partial)\n"
+                ));
+                return Ok(EXIT_INCOMPLETE);
             }
             Ok(u8::from(!report.within_tolerance))
         }

@@ -40,6 +40,8 @@ pub struct Shown {
 /// Owned arrays a [`RodStepView`] borrows that the MCAP stores differently.
 struct Views {
     obstacles: Vec<Vec<usize>>,
+    obstacles2: Vec<Vec<usize>>,
+    normals2: Vec<Vec<f64>>,
 }
 
 impl Views {
@@ -55,6 +57,18 @@ impl Views {
                         .collect()
                 })
                 .collect(),
+            obstacles2: step
+                .rods
+                .iter()
+                .map(|r| {
+                    let n = r.in_contact.len();
+                    (0..n)
+                        .map(|i| r.contact_obstacle2.get(i).copied().flatten())
+                        .map(|o| o.unwrap_or(usize::MAX))
+                        .collect()
+                })
+                .collect(),
+            normals2: step.rods.iter().map(|r| r.normal2_or_zero()).collect(),
         }
     }
 
@@ -62,7 +76,8 @@ impl Views {
         step.rods
             .iter()
             .zip(&self.obstacles)
-            .map(|(v, o)| RodStepView {
+            .zip(self.obstacles2.iter().zip(&self.normals2))
+            .map(|((v, o), (o2, n2))| RodStepView {
                 q: &v.q,
                 u: &v.u,
                 reaction: &v.reaction,
@@ -70,6 +85,8 @@ impl Views {
                 drive_force: &v.drive_force,
                 normal: &v.normal,
                 contact_obstacle: o,
+                normal2: n2,
+                contact_obstacle2: o2,
                 in_contact: &v.in_contact,
                 bending_stress: &v.bending_stress,
                 gap: &v.gap,
@@ -529,6 +546,7 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
                         .flat_map(|i| at.vec2(b, r, i, super::diff::pos))
                         .collect();
                     let obst = vec![usize::MAX; n];
+                    let zeros = vec![0.0; 2 * n];
                     let view = RodStepView {
                         q: &q,
                         u: &bs.u,
@@ -537,6 +555,8 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
                         drive_force: &bs.drive_force,
                         normal: &bs.normal,
                         contact_obstacle: &obst,
+                        normal2: &zeros,
+                        contact_obstacle2: &obst,
                         in_contact: &bs.in_contact,
                         bending_stress: &bs.bending_stress,
                         gap: &bs.gap,

@@ -102,6 +102,35 @@ pub struct RodState {
     #[serde(deserialize_with = "nullable_f64s")]
     pub gap: Vec<f64>,
     pub q_predictor: Vec<f64>,
+    /// The second surface of a corner (absent in recordings from before it was recorded).
+    #[serde(default)]
+    pub normal2: Vec<f64>,
+    #[serde(default)]
+    pub contact_obstacle2: Vec<Option<usize>>,
+}
+
+impl RodState {
+    /// `normal2`, zeros when the recording has none.
+    pub fn normal2_or_zero(&self) -> Vec<f64> {
+        if self.normal2.len() == self.q.len() {
+            self.normal2.clone()
+        } else {
+            vec![0.0; self.q.len()]
+        }
+    }
+
+    /// What the detector reads of this rod.
+    pub fn sample(&self) -> super::detect::RodSample<'_> {
+        super::detect::RodSample {
+            q: &self.q,
+            u: &self.u,
+            reaction: &self.reaction,
+            normal: &self.normal,
+            normal2: &self.normal2,
+            in_contact: &self.in_contact,
+            q_predictor: &self.q_predictor,
+        }
+    }
 }
 
 fn nullable_f64s<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
@@ -152,6 +181,16 @@ impl Contact {
     /// Why it was released (only `adhesive` exists in format 1).
     pub fn release_reason(&self) -> ReleaseReason {
         ReleaseReason::Adhesive
+    }
+
+    /// What the detector reads of this change.
+    pub fn sample(&self) -> super::detect::ContactSample {
+        super::detect::ContactSample {
+            step: self.step,
+            t: self.t,
+            rod: self.rod,
+            node: self.node,
+        }
     }
 }
 
@@ -239,6 +278,26 @@ fn check_step(s: &Step, shape: &Shape) -> Result<(), String> {
             ("normal", v.normal.len()),
             ("q_predictor", v.q_predictor.len()),
         ];
+        if !v.normal2.is_empty() && v.normal2.len() != 2 * n {
+            return Err(format!(
+                "/sim/step step {} rod {r}: `normal2` has {} numbers, expected 2 x {n} nodes",
+                s.step,
+                v.normal2.len()
+            ));
+        }
+        if !v.contact_obstacle2.is_empty() && v.contact_obstacle2.len() != n {
+            return Err(format!(
+                "/sim/step step {} rod {r}: `contact_obstacle2` has {} entries, expected {n}",
+                s.step,
+                v.contact_obstacle2.len()
+            ));
+        }
+        if v.normal2.iter().any(|x| !x.is_finite()) {
+            return Err(format!(
+                "/sim/step step {} rod {r} holds a non-finite number",
+                s.step
+            ));
+        }
         let scalars: [(&str, usize); 4] = [
             ("in_contact", v.in_contact.len()),
             ("contact_obstacle", v.contact_obstacle.len()),
@@ -278,6 +337,7 @@ fn check_step(s: &Step, shape: &Shape) -> Result<(), String> {
         if let Some(k) = v
             .contact_obstacle
             .iter()
+            .chain(&v.contact_obstacle2)
             .flatten()
             .find(|&&k| k >= shape.obstacles)
         {
@@ -315,15 +375,7 @@ pub fn read_messages(
     mut visit: impl FnMut(Message) -> Result<(), ReplayError>,
 ) -> Result<ReadStatus, ReplayError> {
     let err = |m: String| ReplayError::file(path, m);
-    let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
-    if bytes.len() < 8 || &bytes[..8] != mcap::MAGIC {
-        return Err(err(
-            "not an MCAP file (it does not start with the MCAP magic bytes); replay reads the \
-             .mcap that `gripsim run --mcap` writes"
-                .into(),
-        ));
-    }
-    let records = Records::new(&bytes);
+    let mut records = Records::open(path).map_err(err)?;
 
     // id -> (name, encoding)
     let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
@@ -335,10 +387,11 @@ pub fn read_messages(
     let mut last_step: Option<(u64, f64)> = None;
     let mut ended = false;
 
-    for record in records {
+    while let Some(record) = records.next() {
         let record = match record {
             Ok(r) => r,
             Err(e) => {
+                let e = records.explain(e);
                 if steps == 0 {
                     return Err(err(format!(
                         "not a readable MCAP file: its data stop before the first \
@@ -529,48 +582,180 @@ pub fn read_messages(
             "no /sim/step message: the run was cut before its first chunk was written".into(),
         ));
     }
+    if status.truncated.is_none() {
+        status.truncated = records.stopped.take();
+    }
     if status.truncated.is_none() && !ended {
         status.truncated = Some("the file ends without a summary or footer".into());
     }
     Ok(status)
 }
 
-/// Every record of an MCAP file in file order, chunks decompressed and their CRCs checked: what
-/// `mcap::read::ChunkFlattener` does, but with a record length limit. Without one, a damaged
-/// length field inside a chunk made the reader allocate that many bytes (8e18) and abort the
-/// process (found by fuzz/fuzz_targets/replay_mcap.rs; tests/regressions.rs replays it).
-struct Records<'a> {
-    buf: &'a [u8],
+/// Every record of an MCAP file in file order, read from the file record by record (memory:
+/// one chunk at a time), chunks decompressed and their CRCs checked before any of their
+/// records is handed out: what `mcap::read::ChunkFlattener` does, but streaming, with a record
+/// length limit and a check of uncompressed chunks. Without the limit, a damaged length field
+/// inside a chunk made the reader allocate that many bytes (8e18) and abort the process (found
+/// by fuzz/fuzz_targets/replay_mcap.rs; tests/regressions.rs replays it).
+struct Records {
+    src: std::io::BufReader<std::fs::File>,
+    /// Bytes of the current top-level record (or the leading magic), fed to `reader`.
+    queue: Vec<u8>,
+    pos: usize,
+    /// Bytes left in the file (a regular file), else unknown.
+    remaining: Option<u64>,
+    after_footer: bool,
+    eof: bool,
+    /// Chunk records handed to `reader` so far (the last one is the one being read).
+    chunks: u64,
+    chunk_offset: u64,
+    offset: u64,
+    /// Why feeding stopped before the end of the file, if it did.
+    stopped: Option<String>,
     reader: mcap::sans_io::LinearReader,
 }
 
-impl<'a> Records<'a> {
-    fn new(buf: &'a [u8]) -> Self {
+impl Records {
+    /// Open `path` and check its first 8 bytes (the MCAP magic) before anything else is read.
+    fn open(path: &Path) -> Result<Records, String> {
+        use std::io::Read;
+        let file = std::fs::File::open(path).map_err(|e| format!("cannot read the file: {e}"))?;
+        let meta = file
+            .metadata()
+            .map_err(|e| format!("cannot read the file: {e}"))?;
+        let size = meta.is_file().then(|| meta.len());
+        let mut src = std::io::BufReader::with_capacity(1 << 16, file);
+        let mut magic = Vec::with_capacity(8);
+        (&mut src)
+            .take(8)
+            .read_to_end(&mut magic)
+            .map_err(|e| format!("cannot read the file: {e}"))?;
+        if magic != mcap::MAGIC {
+            return Err(
+                "not an MCAP file (it does not start with the MCAP magic bytes); replay reads \
+                 the .mcap that `gripsim run --mcap` writes"
+                    .into(),
+            );
+        }
         // A record is a chunk (at most the file) or a message in one: no gripsim message is
         // 64 times larger than its whole file compressed, nor larger than 64 MiB in a small one.
-        let limit = buf.len().saturating_mul(64).max(64 << 20);
-        let buf = &buf[..sound_prefix(buf)];
+        let limit = size.unwrap_or(1 << 30).saturating_mul(64).max(64 << 20);
         let options = mcap::sans_io::LinearReaderOptions::default()
-            .with_validate_chunk_crcs(true)
-            .with_record_length_limit(limit);
-        Self {
-            buf,
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(usize::try_from(limit).unwrap_or(usize::MAX));
+        Ok(Records {
+            src,
+            queue: magic,
+            pos: 0,
+            remaining: size.map(|s| s.saturating_sub(8)),
+            after_footer: false,
+            eof: false,
+            chunks: 0,
+            chunk_offset: 0,
+            offset: 8,
+            stopped: None,
             reader: mcap::sans_io::LinearReader::new_with_options(options),
+        })
+    }
+
+    /// Put the next top-level record in `queue`; false at the end (or where reading stops).
+    fn fill(&mut self) -> bool {
+        use std::io::Read;
+        self.queue.clear();
+        self.pos = 0;
+        if self.eof {
+            return false;
+        }
+        let at = self.offset;
+        let mut head = Vec::with_capacity(9);
+        let want = if self.after_footer { 8 } else { 9 };
+        if (&mut self.src).take(want).read_to_end(&mut head).is_err() || head.is_empty() {
+            self.eof = true;
+            return false;
+        }
+        self.offset += head.len() as u64;
+        if self.after_footer || head.len() < 9 {
+            self.queue = head;
+            self.eof = true;
+            return true;
+        }
+        let len = u64::from_le_bytes(head[1..9].try_into().expect("9 bytes"));
+        let left = self.remaining.map(|r| r.saturating_sub(9));
+        self.queue = head;
+        if left.is_some_and(|l| len > l) {
+            // The record runs past the end of the file: the file was cut (or the length is
+            // damaged). Hand over the header only; the reader says where it stops.
+            self.eof = true;
+            return true;
+        }
+        if (&mut self.src)
+            .take(len)
+            .read_to_end(&mut self.queue)
+            .is_err()
+        {
+            self.eof = true;
+        }
+        let got = (self.queue.len() - 9) as u64;
+        self.offset += got;
+        self.remaining = self.remaining.map(|r| r.saturating_sub(9 + got));
+        match self.queue[0] {
+            mcap::records::op::CHUNK => {
+                if !chunk_records_fit(&self.queue[9..]) {
+                    // The mcap crate (0.26) subtracts such a record's length from what is left
+                    // of the chunk unchecked (a panic in a debug build, found by fuzzing).
+                    self.stopped = Some(format!(
+                        "reading stopped early: chunk {} (at byte {at}) holds a record that runs \
+                         past the chunk's end: the file is damaged there",
+                        self.chunks + 1
+                    ));
+                    self.queue.clear();
+                    self.eof = true;
+                    return false;
+                }
+                self.chunks += 1;
+                self.chunk_offset = at;
+            }
+            mcap::records::op::FOOTER => self.after_footer = true,
+            _ => {}
+        }
+        true
+    }
+
+    /// The reader's error in words that name the chunk where it concerns one.
+    fn explain(&self, e: mcap::McapError) -> String {
+        match e {
+            mcap::McapError::BadChunkCrc { saved, calculated } => format!(
+                "chunk {} (at byte {}) fails its CRC (stored {saved:#010x}, computed \
+                 {calculated:#010x}): the file is damaged there",
+                self.chunks, self.chunk_offset
+            ),
+            // Damage that the decompressor or the record parser finds first.
+            other if self.queue.first() == Some(&mcap::records::op::CHUNK) => format!(
+                "chunk {} (at byte {}) is damaged ({other})",
+                self.chunks, self.chunk_offset
+            ),
+            other => other.to_string(),
         }
     }
 }
 
-impl Iterator for Records<'_> {
+impl Iterator for Records {
     type Item = mcap::McapResult<mcap::records::Record<'static>>;
 
     fn next(&mut self) -> Option<Self::Item> {
         while let Some(event) = self.reader.next_event() {
             match event {
                 Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
-                    let len = need.min(self.buf.len());
-                    self.reader.insert(len).copy_from_slice(&self.buf[..len]);
+                    if self.pos == self.queue.len() && !self.fill() {
+                        self.reader.notify_read(0);
+                        continue;
+                    }
+                    let len = need.min(self.queue.len() - self.pos);
+                    self.reader
+                        .insert(len)
+                        .copy_from_slice(&self.queue[self.pos..self.pos + len]);
                     self.reader.notify_read(len);
-                    self.buf = &self.buf[len..];
+                    self.pos += len;
                 }
                 // Attachments are skipped unparsed: a replay has no use for them, and the mcap
                 // crate (0.26) slices a too-short attachment record unchecked, a panic (found by
@@ -585,32 +770,6 @@ impl Iterator for Records<'_> {
         }
         None
     }
-}
-
-/// The length of `buf` up to the first uncompressed chunk whose records do not fit in it
-/// (gripsim compresses every chunk; another writer may not). The mcap crate (0.26) subtracts
-/// such a record's length from what is left of the chunk unchecked: an overflow panic in a
-/// debug build (found by fuzz/fuzz_targets/replay_mcap.rs), a wrap in a release one. Reading
-/// stops there instead, as at any damaged chunk.
-fn sound_prefix(buf: &[u8]) -> usize {
-    const CHUNK: u8 = 0x06;
-    let mut pos = mcap::MAGIC.len();
-    while let Some(len) = u64_at(buf, pos + 1) {
-        let end = usize::try_from(len)
-            .ok()
-            .and_then(|l| (pos + 9).checked_add(l));
-        if buf[pos] == CHUNK {
-            let body = &buf[pos + 9..end.unwrap_or(usize::MAX).min(buf.len())];
-            if !chunk_records_fit(body) {
-                return pos;
-            }
-        }
-        match end {
-            Some(e) if e <= buf.len() => pos = e,
-            _ => break,
-        }
-    }
-    buf.len()
 }
 
 /// Whether every record of an uncompressed chunk ends within the chunk's records length, as far
@@ -731,10 +890,16 @@ impl Run {
                 "/sim/meta rods do not match its own scenario_text".into(),
             ));
         }
-        // A retried step can leave contact events of a rejected attempt; keep them all (they
-        // are what the solver did), but drop events past the last step read.
-        let last = steps.last().map(|s| s.step).unwrap_or(0);
-        contacts.retain(|c| c.step <= last);
+        // Only the changes of accepted steps: a change of an attempt the solver threw away
+        // (a rejected adaptive step, a back-off, a time-of-impact split; recordings before
+        // they were filtered at the source) has its step's number but another time.
+        let dynamic = scenario.solve.mode == Mode::Dynamic;
+        contacts.retain(|c| {
+            let k = steps.partition_point(|s| s.step < c.step);
+            steps
+                .get(k)
+                .is_some_and(|s| s.step == c.step && (!dynamic || s.t == c.t))
+        });
         Ok(Run {
             path: path.to_path_buf(),
             meta,

@@ -49,6 +49,11 @@ impl Simulation {
                     o.in_contact[i] = false;
                 }
             }
+            // The second surface of a corner.
+            let second = c.filter(|_| !rod.clamped[i]).and_then(|c| c.second);
+            o.normal2[2 * i] = second.map_or(0.0, |s| s.normal[0]);
+            o.normal2[2 * i + 1] = second.map_or(0.0, |s| s.normal[1]);
+            o.obstacle2[i] = second.map_or(usize::MAX, |s| s.obstacle);
             o.gap[i] = contact::gap(&surfaces, [w.q[2 * i], w.q[2 * i + 1]], rod.length);
         }
         if initial {
@@ -76,6 +81,8 @@ impl Simulation {
                 drive_force: &o.drive_force,
                 normal: &o.normal,
                 contact_obstacle: &o.obstacle,
+                normal2: &o.normal2,
+                contact_obstacle2: &o.obstacle2,
                 in_contact: &o.in_contact,
                 bending_stress: &o.stress,
                 gap: &o.gap,

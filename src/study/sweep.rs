@@ -140,6 +140,12 @@ pub struct Metrics {
     pub releases: u64,
     /// Warning events of the run (a driven node entering an obstacle, …).
     pub warnings: usize,
+    /// Velocity spikes and sticking episodes `gripsim replay check` would report on this
+    /// case's recording (found while it ran, by the same detector, with its defaults).
+    #[serde(default)]
+    pub spikes: usize,
+    #[serde(default)]
+    pub sticking: usize,
     pub wall_time_s: f64,
 }
 
@@ -196,6 +202,8 @@ impl Metrics {
             max_penetration_m: s.max_penetration_m,
             releases,
             warnings,
+            spikes: 0,
+            sticking: 0,
             wall_time_s: s.wall_time_s,
         }
     }
@@ -542,13 +550,16 @@ fn run_case(
     }
     let mut collector = SummaryCollector::new();
     let mut trace = Trace::new(&scenario);
+    let mut detector = crate::replay::detect::DetectObserver::new(&scenario, &Default::default());
     let start = Instant::now();
     let result = {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);
         fan.push(&mut trace as &mut dyn Observer);
-        sim.run(&mut fan)
+        fan.push(&mut detector as &mut dyn Observer);
+        sim.run(&mut crate::record::accepted::AcceptedContacts::new(fan))
     };
+    let found = detector.detector.finish().counts();
     let wall = start.elapsed().as_secs_f64();
     if matches!(result, Err(SimError::Interrupted { .. })) {
         let _ = std::fs::remove_dir_all(&tmp);
@@ -580,7 +591,11 @@ fn run_case(
         scenario_hash: case.hash.clone(),
         gripsim_version: env!("CARGO_PKG_VERSION").to_string(),
         command: command_line(&opts.scenario.display().to_string(), &case.sets),
-        metrics: Metrics::from_summary(&summary, trace.releases, trace.warnings.len()),
+        metrics: Metrics {
+            spikes: found.spikes,
+            sticking: found.sticking,
+            ..Metrics::from_summary(&summary, trace.releases, trace.warnings.len())
+        },
         warnings: trace.warnings.clone(),
         plot_error,
     };
@@ -891,6 +906,8 @@ fn csv_header(manifest: &Manifest) -> Vec<String> {
             "max_penetration_m",
             "releases",
             "warnings",
+            "spikes",
+            "sticking",
             "error",
             "wall_time_s",
         ]
@@ -954,6 +971,8 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
         num(m.max_penetration_m),
         m.releases.to_string(),
         m.warnings.to_string(),
+        m.spikes.to_string(),
+        m.sticking.to_string(),
         opt(&m.error),
         num(m.wall_time_s),
     ]);
