@@ -301,6 +301,9 @@ pub struct Sticking {
 pub struct Findings {
     pub spikes: Vec<Spike>,
     pub sticking: Vec<Sticking>,
+    /// A fruit that slipped in the gripper during the lift, or was dropped.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub grasp: Vec<super::grasp::GraspFlag>,
 }
 
 /// Counts by kind.
@@ -311,6 +314,8 @@ pub struct Counts {
     pub unexplained: usize,
     pub sticking: usize,
     pub toggling: usize,
+    pub slip: usize,
+    pub drop: usize,
 }
 
 impl Findings {
@@ -323,11 +328,13 @@ impl Findings {
             unexplained: s("unexplained"),
             sticking: self.sticking.len(),
             toggling: t("toggling"),
+            slip: self.grasp.iter().filter(|g| g.kind == "slip").count(),
+            drop: self.grasp.iter().filter(|g| g.kind == "drop").count(),
         }
     }
 
     pub fn is_empty(&self) -> bool {
-        self.spikes.is_empty() && self.sticking.is_empty()
+        self.spikes.is_empty() && self.sticking.is_empty() && self.grasp.is_empty()
     }
 
     fn sort(&mut self) {
@@ -486,6 +493,8 @@ pub struct Detector {
     /// Steps seen (with step 0) and the last time.
     pub steps: u64,
     pub t_end: f64,
+    /// The grasp rules, when the scenario has a free body.
+    grasp: Option<super::grasp::GraspRule>,
 }
 
 impl Detector {
@@ -511,6 +520,22 @@ impl Detector {
             out: Findings::default(),
             steps: 0,
             t_end: 0.0,
+            grasp: super::grasp::GraspRule::of(sc),
+        }
+    }
+
+    /// The grasp rules for one step (after [`Detector::step`]): the rods' positions, the first
+    /// free body's centroid and whether a prong touches it.
+    pub fn grasp(
+        &mut self,
+        step: u64,
+        t: f64,
+        q: &[&[f64]],
+        fruit: Option<[f64; 2]>,
+        touching: bool,
+    ) {
+        if let (Some(g), Some(f)) = (self.grasp.as_mut(), fruit) {
+            g.step(step, t, q, f, touching);
         }
     }
 
@@ -542,6 +567,9 @@ impl Detector {
 
     /// Everything found; open episodes are closed at the last step.
     pub fn finish(mut self) -> Findings {
+        if let Some(g) = self.grasp.take() {
+            self.out.grasp = g.flags;
+        }
         for (r, nodes) in self.nodes.iter_mut().enumerate() {
             for (i, n) in nodes.iter_mut().enumerate() {
                 if let Some(ep) = n.toggle_open.take() {
@@ -760,10 +788,24 @@ impl Observer for DetectObserver {
                 })
             }
             Event::StepEnd {
-                step, t, dt, rods, ..
+                step,
+                t,
+                dt,
+                rods,
+                bodies,
+                contacts,
+                ..
             } => {
                 let samples: Vec<RodSample<'_>> = rods.iter().map(RodSample::from).collect();
                 self.detector.step(*step, *t, *dt, &samples);
+                if let Some(b) = bodies.first() {
+                    let q: Vec<&[f64]> = rods.iter().map(|r| r.q).collect();
+                    let touching = contacts
+                        .iter()
+                        .any(|c| c.rod != usize::MAX && c.obstacle == b.obstacle);
+                    self.detector
+                        .grasp(*step, *t, &q, Some(b.position), touching);
+                }
             }
             _ => {}
         }
@@ -780,6 +822,7 @@ pub fn detect(run: &super::read::Run, th: &Thresholds) -> Findings {
         }
         let samples: Vec<RodSample<'_>> = st.rods.iter().map(|r| r.sample()).collect();
         d.step(st.step, st.t, st.dt, &samples);
+        st.grasp(&mut d);
     }
     d.finish()
 }

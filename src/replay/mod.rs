@@ -13,6 +13,7 @@
 
 pub mod detect;
 pub mod diff;
+pub mod grasp;
 pub mod overlay;
 pub mod read;
 
@@ -163,6 +164,10 @@ pub struct CheckReport {
     pub flagged: bool,
     pub spikes: Vec<detect::Spike>,
     pub sticking: Vec<detect::Sticking>,
+    /// A fruit that slipped in the gripper during the lift or was dropped (runs with a free
+    /// body only).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub grasp: Vec<grasp::GraspFlag>,
 }
 
 impl CheckReport {
@@ -194,6 +199,7 @@ impl CheckReport {
             flagged: !found.is_empty(),
             spikes: found.spikes,
             sticking: found.sticking,
+            grasp: found.grasp,
         }
     }
 
@@ -245,6 +251,7 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<(CheckReport, Option<String
                     let samples: Vec<detect::RodSample<'_>> =
                         st.rods.iter().map(|r| r.sample()).collect();
                     d.step(st.step, st.t, st.dt, &samples);
+                    st.grasp(d);
                 }
                 last = Some((st.step, st.t));
                 steps += 1;
@@ -320,6 +327,22 @@ pub fn format_check(rep: &CheckReport) -> String {
         c.spikes, c.impact, c.unexplained
     );
     let _ = writeln!(s, "sticking  {:>5}  (toggling {})", c.sticking, c.toggling);
+    if c.slip + c.drop > 0 {
+        let _ = writeln!(
+            s,
+            "grasp     {:>5}  (slip {}, drop {})",
+            c.slip + c.drop,
+            c.slip,
+            c.drop
+        );
+        for f in &rep.grasp {
+            let _ = writeln!(
+                s,
+                "  {:<5} step {} t = {:.6} s: the fruit moved {:.3e} m in the gripper (tolerance {:.3e} m)",
+                f.kind, f.step, f.t, f.slip_m, f.hold_tolerance_m
+            );
+        }
+    }
     if !rep.spikes.is_empty() {
         let _ = writeln!(s, "\nspikes");
         let _ = writeln!(

@@ -458,6 +458,7 @@ pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), Repla
     let found = Findings {
         spikes: rep.spikes.clone(),
         sticking: rep.sticking.clone(),
+        grasp: rep.grasp.clone(),
     };
     let marks = marks(run, &found, false);
     let mut next = 0;

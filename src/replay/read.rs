@@ -84,6 +84,41 @@ pub struct Step {
     #[serde(default)]
     pub passes: u32,
     pub rods: Vec<RodState>,
+    /// Free bodies and active contacts (recordings with a free fruit).
+    #[serde(default)]
+    pub bodies: Vec<BodyState>,
+    #[serde(default)]
+    pub contacts: Vec<ContactState>,
+}
+
+/// A free body of a `/sim/step` message (what replay uses of it).
+#[derive(Debug, Clone, Deserialize)]
+pub struct BodyState {
+    pub obstacle: usize,
+    pub position: [f64; 2],
+    #[serde(default)]
+    pub velocity: [f64; 2],
+}
+
+/// An active contact of a `/sim/step` message (what replay uses of it).
+#[derive(Debug, Clone, Deserialize)]
+pub struct ContactState {
+    pub rod: Option<usize>,
+    pub obstacle: usize,
+}
+
+impl Step {
+    /// Feed the grasp rules of `d` with this step (after `d.step`).
+    pub fn grasp(&self, d: &mut super::detect::Detector) {
+        if let Some(b) = self.bodies.first() {
+            let q: Vec<&[f64]> = self.rods.iter().map(|r| r.q.as_slice()).collect();
+            let touching = self
+                .contacts
+                .iter()
+                .any(|c| c.rod.is_some() && c.obstacle == b.obstacle);
+            d.grasp(self.step, self.t, &q, Some(b.position), touching);
+        }
+    }
 }
 
 /// One rod of a `/sim/step` message (interleaved vectors `[x0, y0, x1, y1, …]`).

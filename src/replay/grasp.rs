@@ -1,0 +1,109 @@
+//! The grasp rules of `replay check`: a fruit that slips in the gripper during the lift, and a
+//! fruit that is dropped. The same decisions as the run summary's `grasp` section
+//! (`record::grasp`): the gripper is the centroid of the clamped nodes, the lift begins when it
+//! has risen by a quarter of the fruit's hold tolerance above where it was when a prong first
+//! touched the fruit, and the verdict ends when the gripper first moves down again.
+
+use serde::Serialize;
+
+/// A flagged moment of a grasp.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GraspFlag {
+    /// `slip`: the fruit moved more than its hold tolerance relative to the gripper during the
+    /// lift; `drop`: no prong touches it any more.
+    pub kind: &'static str,
+    pub step: u64,
+    pub t: f64,
+    /// The fruit's displacement relative to the gripper since the lift began (m).
+    pub slip_m: f64,
+    pub hold_tolerance_m: f64,
+}
+
+/// What the rule needs of the scenario, and its state.
+#[derive(Debug, Clone)]
+pub struct GraspRule {
+    clamped: Vec<Vec<usize>>,
+    up: [f64; 2],
+    tolerance: f64,
+    first_touch: Option<f64>,
+    reference: Option<[f64; 2]>,
+    top: f64,
+    over: bool,
+    slipped: bool,
+    pub flags: Vec<GraspFlag>,
+}
+
+impl GraspRule {
+    /// For the first free body of a scenario (None without one).
+    pub fn of(sc: &crate::Scenario) -> Option<GraspRule> {
+        let b = sc.bodies.first()?;
+        let g = sc.solve.gravity;
+        let w = g[0].hypot(g[1]);
+        Some(GraspRule {
+            clamped: sc.rods.iter().map(|r| r.clamped.clone()).collect(),
+            up: if w > 0.0 {
+                [-g[0] / w, -g[1] / w]
+            } else {
+                [0.0, 1.0]
+            },
+            tolerance: b.hold_tolerance,
+            first_touch: None,
+            reference: None,
+            top: f64::NEG_INFINITY,
+            over: false,
+            slipped: false,
+            flags: Vec::new(),
+        })
+    }
+
+    /// One step: the rods' positions, the fruit's centroid, whether a prong touches it.
+    pub fn step(&mut self, step: u64, t: f64, q: &[&[f64]], fruit: [f64; 2], touching: bool) {
+        if self.over {
+            return;
+        }
+        let (mut c, mut n) = ([0.0; 2], 0.0);
+        for (r, qs) in q.iter().enumerate() {
+            for &i in self.clamped.get(r).map(Vec::as_slice).unwrap_or(&[]) {
+                if 2 * i + 1 < qs.len() {
+                    c = [c[0] + qs[2 * i], c[1] + qs[2 * i + 1]];
+                    n += 1.0;
+                }
+            }
+        }
+        if n == 0.0 {
+            return;
+        }
+        let c = [c[0] / n, c[1] / n];
+        let rel = [fruit[0] - c[0], fruit[1] - c[1]];
+        let height = c[0] * self.up[0] + c[1] * self.up[1];
+        if touching && self.first_touch.is_none() {
+            self.first_touch = Some(height);
+        }
+        let Some(h0) = self.first_touch else { return };
+        if self.reference.is_none() && height - h0 > 0.25 * self.tolerance {
+            self.reference = Some(rel);
+        }
+        let Some(r0) = self.reference else { return };
+        self.top = self.top.max(height);
+        if height < self.top - 1e-6 {
+            self.over = true;
+            return;
+        }
+        let slip = (rel[0] - r0[0]).hypot(rel[1] - r0[1]);
+        let flag = |kind| GraspFlag {
+            kind,
+            step,
+            t,
+            slip_m: slip,
+            hold_tolerance_m: self.tolerance,
+        };
+        if !self.slipped && slip > self.tolerance {
+            self.flags.push(flag("slip"));
+            self.slipped = true;
+        }
+        if !touching {
+            self.flags.push(flag("drop"));
+            self.over = true;
+        }
+    }
+}
