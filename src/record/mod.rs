@@ -432,7 +432,15 @@ impl Observer for SurveyObserver {
             crate::events::Event::RunStart(info) => {
                 self.clamped = info.rods.iter().map(|r| r.clamped.clone()).collect();
             }
-            crate::events::Event::StepEnd { dt, rods, .. } => self.step(*dt, rods),
+            crate::events::Event::StepEnd {
+                dt, rods, bodies, ..
+            } => {
+                self.step(*dt, rods);
+                // Free bodies (fruit): their centroids; the margin covers their size.
+                for b in bodies.iter() {
+                    self.survey.visited.add(b.position);
+                }
+            }
             _ => {}
         }
     }
