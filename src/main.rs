@@ -50,7 +50,7 @@ enum Command {
     /// the run completes; Ctrl-C (SIGINT) or SIGTERM stops the run after the current step and
     /// closes the files properly (exit status 130 or 143).
     #[command(
-        after_help = "Examples:\n  gripsim run scenarios/seed-grasp-r5.toml\n  gripsim run scenarios/seed-grasp-r5.toml --detail iteration --rrd out/r5.rrd --mcap out/r5.mcap\n  gripsim run scenarios/seed-grasp-r5.toml --csv out/r5.csv --no-record\n  gripsim run scenarios/seed-grasp-r5.toml --set rod.0.E=1e9 --summary out/e1gpa.json --no-record\n\nOpen a .rrd with `rerun FILE.rrd`; open a .mcap in Foxglove (see recordings/README.md)."
+        after_help = "Examples:\n  gripsim run scenarios/seed-grasp-r5.toml\n  gripsim run scenarios/seed-grasp-r5.toml --detail iteration --rrd out/r5.rrd --mcap out/r5.mcap\n  gripsim run scenarios/seed-grasp-r5.toml --csv out/r5.csv\n  gripsim run scenarios/seed-grasp-r5.toml --set rod.0.E=1e9 --summary out/e1gpa.json --no-record\n\nOpen a .rrd with `rerun FILE.rrd`; open a .mcap in Foxglove (see recordings/README.md)."
     )]
     Run {
         /// Scenario file (TOML).
@@ -71,6 +71,10 @@ enum Command {
         /// [output] flush_every, else 100].
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
         flush_every: Option<u64>,
+        /// How the .rrd and the MCAP scene scale force arrows: linear (one scale per recording,
+        /// from the run's largest force, printed in the scene) or log.
+        #[arg(long, value_enum, default_value_t = ArrowsArg::Linear)]
+        arrows: ArrowsArg,
         /// Do not write the default recordings (recordings/<name>.rrd and .mcap).
         #[arg(long, conflicts_with_all = ["rrd", "mcap", "csv"])]
         no_record: bool,
@@ -146,6 +150,14 @@ enum Command {
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ArrowsArg {
+    /// Length proportional to the force.
+    Linear,
+    /// Length proportional to log10(1 + f/f0), f0 = the run's largest force / 1000.
+    Log,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum DetailArg {
     /// Every step's state, contact changes and solver events.
     Step,
@@ -217,6 +229,7 @@ struct Outputs {
     flush_every: Option<u64>,
     /// `--check`: the thresholds and where to write the report.
     check: Option<(gripsim::replay::Thresholds, Option<PathBuf>)>,
+    arrows: gripsim::record::ArrowScale,
 }
 
 fn main() -> ExitCode {
@@ -229,6 +242,7 @@ fn main() -> ExitCode {
             csv,
             detail,
             flush_every,
+            arrows,
             no_record,
             summary,
             sets,
@@ -248,6 +262,10 @@ fn main() -> ExitCode {
                 },
                 flush_every,
                 check: check.then_some((thresholds, check_json)),
+                arrows: match arrows {
+                    ArrowsArg::Linear => gripsim::record::ArrowScale::Linear,
+                    ArrowsArg::Log => gripsim::record::ArrowScale::Log,
+                },
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
@@ -357,13 +375,28 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     }
     // From here a signal stops the run and the files are closed properly.
     install_signal_handlers();
+    // Wall time from here: the survey and the recording are part of what the command costs.
+    let start = std::time::Instant::now();
+    // The drawing sinks draw every frame with one force scale and one box, chosen from the
+    // whole run: an unrecorded first run of the physics (deterministic) surveys it.
+    let view = if out.rrd.is_some() || out.mcap.is_some() {
+        gripsim::record::ViewOptions {
+            survey: Some(gripsim::record::Survey::of(
+                &sc,
+                Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0)),
+            )),
+            arrows: out.arrows,
+        }
+    } else {
+        gripsim::record::ViewOptions::default()
+    };
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
     let created = (|| {
         if let Some(p) = &out.rrd {
-            sinks.push(Box::new(RerunSink::create(p, opts, &sc)?));
+            sinks.push(Box::new(RerunSink::create(p, opts, &sc)?.with_view(view)));
         }
         if let Some(p) = &out.mcap {
-            sinks.push(Box::new(McapSink::create(p, opts)?));
+            sinks.push(Box::new(McapSink::create(p, opts)?.with_view(view)));
         }
         if let Some(p) = &out.csv {
             sinks.push(Box::new(CsvSink::create(p, opts)?));
@@ -397,7 +430,6 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         .check
         .as_ref()
         .map(|(th, _)| gripsim::replay::detect::DetectObserver::new(&sc, th));
-    let start = std::time::Instant::now();
     let result = {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);

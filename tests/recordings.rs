@@ -316,7 +316,12 @@ fn seed_grasp_recordings_agree_with_the_summary() {
             "reaction",
             "impulse",
             "in_contact",
-            "bending_stress"
+            "bending_stress",
+            "nx",
+            "ny",
+            "gap",
+            "dt",
+            "passes"
         ]
     );
     let mut csv_peak = vec![0.0f64; peak.len()];

@@ -1,8 +1,9 @@
 //! The CSV sink: the run in tidy long format, one row per (step, rod, node).
 //!
 //! Columns: `step, t, rod, node, x, y, vx, vy, rx, ry, reaction, impulse, in_contact,
-//! bending_stress` (see docs/recording-format.md). Floats are printed as the shortest text
-//! that reads back to the same f64, so the file holds the exact numbers of the run.
+//! bending_stress, nx, ny, gap, dt, passes` (see docs/recording-format.md). Floats are
+//! printed as the shortest text that reads back to the same f64, so the file holds the exact
+//! numbers of the run.
 
 use super::{node_norm, Finished, OutputFile, RecordError, RecordOptions, Recording};
 use crate::events::{Event, Observer};
@@ -31,6 +32,12 @@ struct Row<'a> {
     impulse: f64,
     in_contact: u8,
     bending_stress: f64,
+    nx: f64,
+    ny: f64,
+    /// Empty when the scenario has no obstacle.
+    gap: Option<f64>,
+    dt: f64,
+    passes: u32,
 }
 
 /// Writes a CSV file.
@@ -66,7 +73,14 @@ impl CsvSink {
         })
     }
 
-    fn write_step(&mut self, step: u64, t: f64, rods: &[crate::events::RodStepView<'_>]) {
+    fn write_step(
+        &mut self,
+        step: u64,
+        t: f64,
+        dt: f64,
+        passes: u32,
+        rods: &[crate::events::RodStepView<'_>],
+    ) {
         if self.file.is_none() {
             return;
         }
@@ -93,6 +107,11 @@ impl CsvSink {
                     impulse: node_norm(v.impulse, i),
                     in_contact: v.in_contact[i] as u8,
                     bending_stress: v.bending_stress[i],
+                    nx: v.normal[2 * i],
+                    ny: v.normal[2 * i + 1],
+                    gap: Some(v.gap[i]).filter(|g| g.is_finite()),
+                    dt,
+                    passes,
                 });
                 if result.is_err() {
                     break 'rods;
@@ -139,7 +158,14 @@ impl Observer for CsvSink {
             Event::RunStart(info) => {
                 self.rods = info.rods.iter().map(|r| r.name.clone()).collect();
             }
-            Event::StepEnd { step, t, rods, .. } => self.write_step(*step, *t, rods),
+            Event::StepEnd {
+                step,
+                t,
+                dt,
+                passes,
+                rods,
+                ..
+            } => self.write_step(*step, *t, *dt, *passes, rods),
             Event::RunEnd { error, .. } => self.completed = error.is_none(),
             _ => {}
         }

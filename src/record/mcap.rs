@@ -18,8 +18,9 @@
 //! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
 
 use super::{
-    error_chain, node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording,
-    RodStyle, SceneStyle, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
+    error_chain, node_norm, obstacle_outline, Detail, Finished, OutputFile, RecordError,
+    RecordOptions, Recording, SceneStyle, ViewOptions, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR,
+    OBSTACLE_COLOR, PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
     BodyView, ContactChange, ContactView, Event, Observer, Phase, ReleaseReason, RodInfo,
@@ -97,9 +98,14 @@ pub struct McapSink {
     obstacles: Vec<Obstacle>,
     /// Free bodies: drawn at their pose every step, not with the fixed obstacles.
     bodies: Vec<BodySpec>,
+    view: ViewOptions,
     style: Option<SceneStyle>,
-    /// The obstacles' scene entity as JSON (the same in every `/scene` message).
+    /// The obstacles' and the legend's scene entities as JSON (the same in every `/scene`
+    /// message).
     obstacle_entity: String,
+    /// Simulated time of the current step's start: the log time of its Newton iterations and
+    /// contact changes.
+    step_start: f64,
     completed: bool,
     end: BTreeMap<String, String>,
     error: Option<RecordError>,
@@ -145,13 +151,21 @@ impl McapSink {
             rods: Vec::new(),
             obstacles: Vec::new(),
             bodies: Vec::new(),
+            view: ViewOptions::default(),
             style: None,
             obstacle_entity: String::new(),
+            step_start: 0.0,
             completed: false,
             end: BTreeMap::new(),
             error: None,
             failed: Default::default(),
         })
+    }
+
+    /// Draw `/scene` with the run's survey and this arrow scale (call before the run starts).
+    pub fn with_view(mut self, view: ViewOptions) -> Self {
+        self.view = view;
+        self
     }
 
     /// The log time of an event: simulated ns (static runs: the step number in s), never
@@ -249,7 +263,13 @@ impl McapSink {
 
     fn step_end(&mut self, ev: StepEnd<'_, '_>) {
         if self.style.is_none() {
-            let style = SceneStyle::new(&self.rods, ev.rods, &self.obstacles);
+            let style = SceneStyle::new(
+                &self.rods,
+                ev.rods,
+                &self.obstacles,
+                self.view.survey.as_ref(),
+                self.view.arrows,
+            );
             self.obstacle_entity = obstacle_entity(&self.obstacles, &self.bodies, &style);
             self.style = Some(style);
         }
@@ -286,7 +306,7 @@ impl McapSink {
             .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
         self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
         for (r, v) in rods.iter().enumerate() {
-            let entity = rod_entity(&self.rods[r], &style.rods[r], v, stamp);
+            let entity = rod_entity(&self.rods[r], style, r, v, stamp);
             self.buf.push(b',');
             if let Err(e) = serde_json::to_writer(&mut self.buf, &entity) {
                 return self.fail(e);
@@ -307,7 +327,8 @@ impl McapSink {
     }
 
     fn contact(&mut self, c: &ContactChange, released: Option<ReleaseReason>) {
-        let time = self.time(c.step, c.t);
+        // Logged at the step's start, like the Newton iterations around it.
+        let time = self.time(c.step, self.step_start);
         let msg = ContactMsg {
             change: if released.is_some() {
                 "released"
@@ -360,7 +381,7 @@ impl Observer for McapSink {
         }
         match *event {
             Event::RunStart(info) => self.run_start(info),
-            Event::StepBegin { .. } => {}
+            Event::StepBegin { t, .. } => self.step_start = t,
             Event::Iteration {
                 step,
                 t,
@@ -373,7 +394,7 @@ impl Observer for McapSink {
                 q,
             } => {
                 if self.opts.detail == Detail::Iteration {
-                    let time = self.time(step, t);
+                    let time = self.time(step, self.step_start.min(t));
                     let msg = IterationMsg {
                         step,
                         t,
@@ -923,80 +944,126 @@ impl Entity {
     }
 }
 
-/// The obstacles as one entity of outlines, serialised once.
+/// The obstacles as one entity of outlines (planes and sines clipped to the region the run
+/// visits; free bodies are drawn at their pose every step) and the legend (force scale bar and
+/// its text), serialised once.
 fn obstacle_entity(obstacles: &[Obstacle], bodies: &[BodySpec], style: &SceneStyle) -> String {
     let mut e = Entity::new("obstacles".into(), Stamp { sec: 0, nsec: 0 });
     for (k, o) in obstacles.iter().enumerate() {
         if bodies.iter().any(|b| b.obstacle == k) {
             continue;
         }
-        let outline = o.outline(style.lo, style.hi);
-        e.lines.push(Line::strip(
-            outline.into_iter(),
-            2.0,
-            Color::rgb(OBSTACLE_COLOR),
-        ));
+        for line in obstacle_outline(o, style.lo, style.hi) {
+            e.lines.push(Line::strip(
+                line.into_iter(),
+                2.0,
+                Color::rgb(OBSTACLE_COLOR),
+            ));
+        }
     }
-    serde_json::to_string(&e).expect("a scene entity serialises")
+    let mut legend = Entity::new("legend".into(), Stamp { sec: 0, nsec: 0 });
+    let fs = &style.forces;
+    let h = style.hi[1] - style.lo[1];
+    let (x0, y0) = (
+        0.5 * (style.lo[0] + style.hi[0]) - 0.5 * fs.unit_length,
+        style.hi[1] + 0.07 * h,
+    );
+    let r = style.rods.first().map(|r| r.node_radius).unwrap_or(1e-3);
+    legend.arrows.push(Arrow::new(
+        x0,
+        y0,
+        [1.0, 0.0],
+        fs.unit_length,
+        0.5 * r,
+        Color::rgb(REACTION_COLOR),
+    ));
+    legend.texts.push(Text {
+        pose: Pose::at(x0, y0 + 0.03 * h, 0.0),
+        billboard: true,
+        font_size: 14.0,
+        scale_invariant: true,
+        color: Color::rgb([255, 255, 255]),
+        text: fs.describe(),
+    });
+    format!(
+        "{},{}",
+        serde_json::to_string(&e).expect("a scene entity serialises"),
+        serde_json::to_string(&legend).expect("a scene entity serialises")
+    )
 }
 
-/// One rod: centre line, nodes coloured by reaction, normals and reactions at contacts, and
-/// the reaction magnitudes as text.
-fn rod_entity(info: &RodInfo, style: &RodStyle, v: &RodStepView<'_>, stamp: Stamp) -> Entity {
+/// One rod: centre line, nodes coloured by reaction (the recording's colour map), reactions
+/// (length by the recording's force scale, from the node's edge) with their magnitudes as text,
+/// normals beside them, and the predictor's positions on corrected steps.
+fn rod_entity(
+    info: &RodInfo,
+    style: &SceneStyle,
+    r: usize,
+    v: &RodStepView<'_>,
+    stamp: Stamp,
+) -> Entity {
+    let rs = &style.rods[r];
     let mut e = Entity::new(format!("rod/{}", info.name), stamp);
     let n = v.in_contact.len();
     let p = |i: usize| [v.q[2 * i], v.q[2 * i + 1]];
     e.lines
         .push(Line::strip((0..n).map(p), 2.0, Color::rgb(ROD_COLOR)));
-    let r = style.node_radius;
+    let rad = rs.node_radius;
+    let sphere = |x: f64, y: f64, d: f64, c: [u8; 3], a: f32| Sphere {
+        pose: Pose::at(x, y, 0.0),
+        size: Vec3 {
+            x: d as f32,
+            y: d as f32,
+            z: d as f32,
+        },
+        color: Color { a, ..Color::rgb(c) },
+    };
+    let corrected = v.q_predictor.len() == v.q.len() && v.q_predictor != v.q;
     for i in 0..n {
         let [x, y] = p(i);
         let f = node_norm(v.reaction, i);
-        let level = style.level(f);
         let color = if info.clamped.get(i).copied().unwrap_or(false) {
             DRIVEN_COLOR
         } else {
-            RodStyle::heat(level)
+            style.forces.color(f)
         };
-        e.spheres.push(Sphere {
-            pose: Pose::at(x, y, 0.0),
-            size: Vec3 {
-                x: (2.0 * r) as f32,
-                y: (2.0 * r) as f32,
-                z: (2.0 * r) as f32,
-            },
-            color: Color::rgb(color),
-        });
+        e.spheres.push(sphere(x, y, 2.0 * rad, color, 1.0));
+        if corrected {
+            let (px, py) = (v.q_predictor[2 * i], v.q_predictor[2 * i + 1]);
+            e.spheres
+                .push(sphere(px, py, 3.2 * rad, PREDICTOR_COLOR, 0.45));
+        }
         if v.in_contact[i] {
             let nrm = [v.normal[2 * i], v.normal[2 * i + 1]];
+            let side = 2.2 * rad;
             e.arrows.push(Arrow::new(
-                x,
-                y,
+                x - side * nrm[1],
+                y + side * nrm[0],
                 nrm,
-                style.normal_length,
-                0.5 * r,
+                rs.normal_length,
+                0.4 * rad,
                 Color::rgb(NORMAL_COLOR),
             ));
         }
         if f > 0.0 {
-            let rv = [v.reaction[2 * i], v.reaction[2 * i + 1]];
-            let len = style.reaction_length * level;
+            let dir = [v.reaction[2 * i] / f, v.reaction[2 * i + 1] / f];
+            let len = style.forces.length(f);
+            let (ox, oy) = (x + rad * dir[0], y + rad * dir[1]);
             e.arrows.push(Arrow::new(
-                x,
-                y,
-                rv,
+                ox,
+                oy,
+                dir,
                 len,
-                r,
-                Color::rgb(RodStyle::heat(1.0)),
+                0.9 * rad,
+                Color::rgb(REACTION_COLOR),
             ));
-            let tip = [x + len * rv[0] / f, y + len * rv[1] / f];
             e.texts.push(Text {
-                pose: Pose::at(tip[0], tip[1], 0.0),
+                pose: Pose::at(ox + len * dir[0], oy + len * dir[1], 0.0),
                 billboard: true,
                 font_size: 14.0,
                 scale_invariant: true,
                 color: Color::rgb([255, 255, 255]),
-                text: format!("{f:.3} N"),
+                text: format!("{} N", super::fmt_force(f)),
             });
         }
     }

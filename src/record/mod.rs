@@ -569,44 +569,272 @@ fn error_reason(e: &RecordError) -> String {
 }
 
 /// A box around the rods' shape, the bounded obstacles and the nearest points of the unbounded
-/// ones (planes, sines), with a margin of half its size: where unbounded obstacles are drawn.
+/// ones (planes, sines), with a margin of half its size: where unbounded obstacles are drawn
+/// when nothing is known of the run beyond its first state (see [`Survey`] for the box of
+/// the whole run).
 pub fn scene_box(rods: &[RodStepView<'_>], obstacles: &[Obstacle]) -> ([f64; 2], [f64; 2]) {
-    let mut lo = [f64::INFINITY; 2];
-    let mut hi = [f64::NEG_INFINITY; 2];
-    let mut add = |p: [f64; 2]| {
-        for a in 0..2 {
-            if p[a].is_finite() {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
-    };
+    let mut b = BoxAcc::default();
     for o in obstacles {
         let unbounded = matches!(o, Obstacle::Plane(_) | Obstacle::Sine(_));
         if unbounded {
             // The part of the surface the rods face: the closest point to every node.
             for r in rods {
                 for p in r.q.chunks_exact(2) {
-                    add(o.query([p[0], p[1]]).closest);
+                    b.add(o.query([p[0], p[1]]).closest);
                 }
             }
         } else {
             for p in o.outline([0.0; 2], [0.0; 2]) {
-                add(p);
+                b.add(p);
             }
         }
     }
     for r in rods {
-        for p in r.q.chunks_exact(2) {
-            add([p[0], p[1]]);
+        b.add_all(r.q);
+    }
+    b.with_margin(0.5)
+}
+
+/// A growing axis-aligned box.
+#[derive(Debug, Clone, Copy)]
+pub struct BoxAcc {
+    pub lo: [f64; 2],
+    pub hi: [f64; 2],
+}
+
+impl Default for BoxAcc {
+    fn default() -> Self {
+        Self {
+            lo: [f64::INFINITY; 2],
+            hi: [f64::NEG_INFINITY; 2],
         }
     }
-    if !(lo[0] <= hi[0] && lo[1] <= hi[1]) {
-        return ([-1.0, -1.0], [1.0, 1.0]);
+}
+
+impl BoxAcc {
+    pub fn add(&mut self, p: [f64; 2]) {
+        for a in 0..2 {
+            if p[a].is_finite() {
+                self.lo[a] = self.lo[a].min(p[a]);
+                self.hi[a] = self.hi[a].max(p[a]);
+            }
+        }
     }
-    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-3);
-    let m = 0.5 * size;
-    ([lo[0] - m, lo[1] - m], [hi[0] + m, hi[1] + m])
+
+    /// Add every point of an interleaved `[x0, y0, x1, y1, …]` array.
+    pub fn add_all(&mut self, q: &[f64]) {
+        for p in q.chunks_exact(2) {
+            self.add([p[0], p[1]]);
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        !(self.lo[0] <= self.hi[0] && self.lo[1] <= self.hi[1])
+    }
+
+    /// The box grown on every side by `margin` × its larger size (at least 1 mm);
+    /// ±1 m when empty.
+    pub fn with_margin(&self, margin: f64) -> ([f64; 2], [f64; 2]) {
+        if self.is_empty() {
+            return ([-1.0, -1.0], [1.0, 1.0]);
+        }
+        let size = (self.hi[0] - self.lo[0])
+            .max(self.hi[1] - self.lo[1])
+            .max(1e-3);
+        let m = margin * size;
+        (
+            [self.lo[0] - m, self.lo[1] - m],
+            [self.hi[0] + m, self.hi[1] + m],
+        )
+    }
+}
+
+/// What a whole run does, known before it is recorded: the sinks draw with it so that every
+/// frame of a recording shares one force scale and one drawing box chosen from the run itself.
+///
+/// `gripsim run` makes it with a first, unrecorded run of the scenario ([`Survey::of`]: the
+/// physics alone, deterministic, so the recorded run does exactly the same); `gripsim replay`
+/// with a first pass over the stored steps. Feed it [`Event::StepEnd`]s through its
+/// [`Observer`] implementation.
+#[derive(Debug, Clone, Copy)]
+pub struct Survey {
+    /// Every node position (and predictor position) of every step.
+    pub visited: BoxAcc,
+    /// The largest eq. 2 reaction |R| of any node at any step (N).
+    pub force_max: f64,
+    /// The largest corrector correction |q − q_predictor| of any node at any step (m).
+    pub correction_max: f64,
+    /// The largest departure of a free node from free flight in one step,
+    /// |q − (q_previous + dt u_previous)| (m).
+    pub motion_max: f64,
+    /// Steps seen.
+    pub steps: u64,
+    prev_valid: bool,
+}
+
+impl Default for Survey {
+    fn default() -> Self {
+        Self {
+            visited: BoxAcc::default(),
+            force_max: 0.0,
+            correction_max: 0.0,
+            motion_max: 0.0,
+            steps: 0,
+            prev_valid: false,
+        }
+    }
+}
+
+/// [`Survey`] with the previous step's positions (for the per-step motion).
+#[derive(Debug, Default)]
+pub struct SurveyObserver {
+    pub survey: Survey,
+    clamped: Vec<Vec<bool>>,
+    prev: Vec<Vec<f64>>,
+    prev_u: Vec<Vec<f64>>,
+}
+
+impl Survey {
+    /// Run `scenario` unrecorded and survey it. The run's error, if any, is ignored here: the
+    /// recorded run that follows meets it again and reports it.
+    pub fn of(
+        scenario: &crate::Scenario,
+        interrupt: Option<Box<dyn Fn() -> bool + Send>>,
+    ) -> Survey {
+        let mut sim = crate::Simulation::new(scenario);
+        sim.interrupt = interrupt;
+        let mut obs = SurveyObserver::default();
+        let _ = sim.run(&mut obs);
+        obs.survey
+    }
+}
+
+impl SurveyObserver {
+    /// Take in one accepted step of size `dt`.
+    pub fn step(&mut self, dt: f64, rods: &[RodStepView<'_>]) {
+        let s = &mut self.survey;
+        s.steps += 1;
+        if self.prev.len() != rods.len() {
+            self.prev = rods.iter().map(|v| v.q.to_vec()).collect();
+            self.prev_u = rods.iter().map(|v| v.u.to_vec()).collect();
+            s.prev_valid = false;
+        }
+        for (r, v) in rods.iter().enumerate() {
+            s.visited.add_all(v.q);
+            let n = v.in_contact.len();
+            let corrected = v.q_predictor.len() == v.q.len();
+            if corrected {
+                s.visited.add_all(v.q_predictor);
+            }
+            for i in 0..n {
+                s.force_max = s.force_max.max(node_norm(v.reaction, i));
+                if corrected {
+                    let d = (v.q[2 * i] - v.q_predictor[2 * i])
+                        .hypot(v.q[2 * i + 1] - v.q_predictor[2 * i + 1]);
+                    s.correction_max = s.correction_max.max(d);
+                }
+                let clamped = self
+                    .clamped
+                    .get(r)
+                    .and_then(|c| c.get(i))
+                    .copied()
+                    .unwrap_or(false);
+                if s.prev_valid && !clamped {
+                    let (p, u) = (&self.prev[r], &self.prev_u[r]);
+                    let d = (v.q[2 * i] - p[2 * i] - dt * u[2 * i])
+                        .hypot(v.q[2 * i + 1] - p[2 * i + 1] - dt * u[2 * i + 1]);
+                    if d.is_finite() {
+                        s.motion_max = s.motion_max.max(d);
+                    }
+                }
+            }
+            self.prev[r].copy_from_slice(v.q);
+            self.prev_u[r].copy_from_slice(v.u);
+        }
+        s.prev_valid = true;
+    }
+}
+
+impl Observer for SurveyObserver {
+    fn on_event(&mut self, event: &crate::events::Event<'_>) {
+        match event {
+            crate::events::Event::RunStart(info) => {
+                self.clamped = info.rods.iter().map(|r| r.clamped.clone()).collect();
+            }
+            crate::events::Event::StepEnd {
+                dt, rods, bodies, ..
+            } => {
+                self.step(*dt, rods);
+                // Free bodies (fruit): their centroids; the margin covers their size.
+                for b in bodies.iter() {
+                    self.survey.visited.add(b.position);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The part of the segment a–b inside the box `[lo, hi]` (Liang–Barsky), if any.
+pub fn clip_segment(
+    a: [f64; 2],
+    b: [f64; 2],
+    lo: [f64; 2],
+    hi: [f64; 2],
+) -> Option<([f64; 2], [f64; 2])> {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for k in 0..2 {
+        for (p, q) in [(-d[k], a[k] - lo[k]), (d[k], hi[k] - a[k])] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+    }
+    (t0 <= t1).then(|| {
+        (
+            [a[0] + t0 * d[0], a[1] + t0 * d[1]],
+            [a[0] + t1 * d[0], a[1] + t1 * d[1]],
+        )
+    })
+}
+
+/// An obstacle's outline for drawing: bounded obstacles whole, planes and sines clipped to the
+/// box `[lo, hi]` (one polyline per piece inside the box).
+pub fn obstacle_outline(o: &Obstacle, lo: [f64; 2], hi: [f64; 2]) -> Vec<Vec<[f64; 2]>> {
+    let line = o.outline(lo, hi);
+    if !matches!(o, Obstacle::Plane(_) | Obstacle::Sine(_)) {
+        return vec![line];
+    }
+    let mut pieces: Vec<Vec<[f64; 2]>> = Vec::new();
+    let mut open = false;
+    for w in line.windows(2) {
+        match clip_segment(w[0], w[1], lo, hi) {
+            Some((a, b)) => {
+                if !open {
+                    pieces.push(vec![a]);
+                    open = true;
+                }
+                let piece = pieces.last_mut().expect("opened above");
+                piece.push(b);
+                // Leaving the box: close this piece.
+                if b != w[1] {
+                    open = false;
+                }
+            }
+            None => open = false,
+        }
+    }
+    pieces
 }
 
 /// 64-bit FNV-1a: a hash that is the same on every machine and every build (for recording ids).
@@ -625,39 +853,240 @@ pub fn node_norm(v: &[f64], i: usize) -> f64 {
     v[2 * i].hypot(v[2 * i + 1])
 }
 
-/// How the scene is drawn, shared by the Rerun and the Foxglove (MCAP `/scene`) views, fixed at
-/// the first step so that every frame uses the same scale.
+/// How force arrows are scaled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ArrowScale {
+    /// Length proportional to the force: one scale for the whole recording.
+    #[default]
+    Linear,
+    /// Length proportional to log10(1 + f/f0), f0 = a thousandth of the run's largest force:
+    /// three decades of force on one picture (the scale bar gives two points of the curve).
+    Log,
+}
+
+impl ArrowScale {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ArrowScale::Linear => "linear",
+            ArrowScale::Log => "log",
+        }
+    }
+}
+
+impl std::str::FromStr for ArrowScale {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "linear" => Ok(ArrowScale::Linear),
+            "log" => Ok(ArrowScale::Log),
+            _ => Err(format!("unknown arrow scale {s:?}: expected linear or log")),
+        }
+    }
+}
+
+/// What the drawing sinks (Rerun, MCAP `/scene`) draw with beyond the record options: the
+/// run's [`Survey`] (its force range, the region it visits, its corrections) and the arrow
+/// scale.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ViewOptions {
+    pub survey: Option<Survey>,
+    pub arrows: ArrowScale,
+}
+
+/// How the scene is drawn, shared by the Rerun and the Foxglove (MCAP `/scene`) views, fixed
+/// before the first step so that every frame uses the same scales.
 #[derive(Debug, Clone)]
 pub struct SceneStyle {
-    /// The drawing box (see [`scene_box`]).
+    /// The drawing box: the region the run visits plus a margin (see [`Survey`]), or around
+    /// the first state when there is no survey. Planes and sines are clipped to it.
     pub lo: [f64; 2],
     pub hi: [f64; 2],
     pub rods: Vec<RodStyle>,
+    pub forces: ForceScale,
+    /// Magnification of the step motion and of the corrector's correction (1 = none), see
+    /// [`SceneStyle::magnification`].
+    pub magnify: f64,
 }
 
-/// Sizes and force scale of one rod's drawing (all lengths in m).
+/// The one force scale of a recording: arrow length and node colour from |R|.
+#[derive(Debug, Clone, Copy)]
+pub struct ForceScale {
+    pub mode: ArrowScale,
+    /// The largest force of the run (N): the top of the colour scale.
+    pub force_max: f64,
+    /// A round length (m) and the force (N) an arrow of that length shows: the scale bar.
+    pub unit_length: f64,
+    pub unit_force: f64,
+    /// Log mode: f0 (N).
+    pub f0: f64,
+}
+
+impl ForceScale {
+    /// A scale for forces up to `force_max` whose longest arrow is at most `target` long:
+    /// `unit_length` is a power of ten below `target`, `unit_force` the 1-2-5 number of N it
+    /// stands for (linear), or the run's largest force drawn `target` long (log).
+    pub fn new(mode: ArrowScale, force_max: f64, target: f64) -> Self {
+        let force_max = if force_max.is_finite() && force_max > 0.0 {
+            force_max
+        } else {
+            1.0
+        };
+        let unit_length = 10f64.powi(target.log10().floor() as i32);
+        let unit_force = match mode {
+            ArrowScale::Linear => nice_up(force_max * unit_length / target),
+            ArrowScale::Log => force_max,
+        };
+        let unit_length = match mode {
+            ArrowScale::Linear => unit_length,
+            ArrowScale::Log => target,
+        };
+        Self {
+            mode,
+            force_max,
+            unit_length,
+            unit_force,
+            f0: 1e-3 * force_max,
+        }
+    }
+
+    /// Arrow length (m) of a force of magnitude `f` (N).
+    pub fn length(&self, f: f64) -> f64 {
+        if !(f > 0.0) {
+            return 0.0;
+        }
+        match self.mode {
+            ArrowScale::Linear => f * self.unit_length / self.unit_force,
+            ArrowScale::Log => {
+                self.unit_length * (1.0 + f / self.f0).log10()
+                    / (1.0 + self.unit_force / self.f0).log10()
+            }
+        }
+    }
+
+    /// Node colour of a force `f`: the colour map over 0 … `force_max`.
+    pub fn color(&self, f: f64) -> [u8; 3] {
+        colormap((f / self.force_max).clamp(0.0, 1.0))
+    }
+
+    /// What the scale bar says: "1 cm = 5 N" (linear) or "log: 3 cm = 194.4 N".
+    pub fn bar_label(&self) -> String {
+        let tag = match self.mode {
+            ArrowScale::Linear => "",
+            ArrowScale::Log => "log: ",
+        };
+        format!(
+            "{tag}{} = {} N",
+            fmt_length(self.unit_length),
+            fmt_force(self.unit_force)
+        )
+    }
+
+    /// What the legend says.
+    pub fn describe(&self) -> String {
+        let bar = match self.mode {
+            ArrowScale::Linear => format!(
+                "arrows linear: {} = {} N",
+                fmt_length(self.unit_length),
+                fmt_force(self.unit_force)
+            ),
+            ArrowScale::Log => format!(
+                "arrows log10(1 + f/{} N): {} = {} N",
+                fmt_force(self.f0),
+                fmt_length(self.unit_length),
+                fmt_force(self.unit_force)
+            ),
+        };
+        format!("{bar}; colour 0 … {} N", fmt_force(self.force_max))
+    }
+}
+
+/// The smallest 1, 2, 5 × 10^k at or above `x` (> 0).
+pub fn nice_up(x: f64) -> f64 {
+    if !(x > 0.0) || !x.is_finite() {
+        return 1.0;
+    }
+    let e = 10f64.powi(x.log10().floor() as i32);
+    for m in [1.0, 2.0, 5.0, 10.0] {
+        if m * e >= x * (1.0 - 1e-12) {
+            return m * e;
+        }
+    }
+    10.0 * e
+}
+
+/// The largest 1, 2, 5 × 10^k at or below `x` (> 0).
+pub fn nice_down(x: f64) -> f64 {
+    if !(x > 0.0) || !x.is_finite() {
+        return 1.0;
+    }
+    let e = 10f64.powi(x.log10().floor() as i32);
+    for m in [10.0, 5.0, 2.0, 1.0] {
+        if m * e <= x * (1.0 + 1e-12) {
+            return m * e;
+        }
+    }
+    e
+}
+
+/// A length for a label: "1 cm", "0.1 mm", "2 µm" …
+pub fn fmt_length(m: f64) -> String {
+    let (v, unit) = if m >= 1.0 {
+        (m, "m")
+    } else if m >= 1e-2 {
+        (m * 100.0, "cm")
+    } else if m >= 1e-3 {
+        (m * 1e3, "mm")
+    } else {
+        (m * 1e6, "µm")
+    };
+    format!("{} {unit}", fmt_g(v))
+}
+
+/// A force for a label, with 4 significant digits and no trailing zeros.
+pub fn fmt_force(f: f64) -> String {
+    fmt_g(f)
+}
+
+fn fmt_g(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let s = format!("{v:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+/// Sizes of one rod's drawing (all lengths in m).
 #[derive(Debug, Clone, Copy)]
 pub struct RodStyle {
     /// Radius of the node markers.
     pub node_radius: f64,
     /// Length of a contact normal arrow.
     pub normal_length: f64,
-    /// Length a reaction arrow tends to for very large forces.
-    pub reaction_length: f64,
-    /// The rod's weight (N): a reaction of this size is drawn half-way up the colour and
-    /// length scales (see [`RodStyle::level`]).
-    pub force_ref: f64,
+    /// The rod's length (a particle: a fifth of the drawing box).
+    pub reach: f64,
 }
 
 impl SceneStyle {
+    /// The style of a run: from `survey` when there is one (the box the run visits, its force
+    /// range, its corrections), else from the first state alone.
     pub fn new(
         rods: &[crate::events::RodInfo],
         first: &[RodStepView<'_>],
         obstacles: &[Obstacle],
+        survey: Option<&Survey>,
+        arrows: ArrowScale,
     ) -> Self {
-        let (lo, hi) = scene_box(first, obstacles);
+        let (lo, hi) = match survey {
+            Some(s) if !s.visited.is_empty() => s.visited.with_margin(0.15),
+            _ => scene_box(first, obstacles),
+        };
         let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-        let rods = rods
+        let rods: Vec<RodStyle> = rods
             .iter()
             .map(|r| {
                 let length: f64 = r.rest_length.iter().sum();
@@ -665,45 +1094,212 @@ impl SceneStyle {
                 let node_radius = if shortest.is_finite() {
                     (0.25 * shortest).min(0.01 * size)
                 } else {
-                    0.04 * size // a particle
+                    0.02 * size // a particle
                 };
                 let reach = if length > 0.0 { length } else { 0.2 * size };
                 RodStyle {
                     node_radius,
                     normal_length: 0.12 * reach,
-                    reaction_length: 0.25 * reach,
-                    force_ref: (r.mass.iter().sum::<f64>() * 9.81).max(1e-9),
+                    reach,
                 }
             })
             .collect();
-        Self { lo, hi, rods }
-    }
-}
-
-impl RodStyle {
-    /// Where a force of magnitude `f` sits on the colour and arrow-length scales, in [0, 1):
-    /// f / (f + weight). Saturating, so a 200 N impact and a 1 N resting contact both read.
-    pub fn level(&self, f: f64) -> f64 {
-        if f > 0.0 {
-            f / (f + self.force_ref)
-        } else {
-            0.0
+        let reach = rods.iter().map(|r| r.reach).fold(0.0, f64::max).max(1e-6);
+        let weight: f64 = rods_weight(first.len(), survey);
+        let force_max = survey.map(|s| s.force_max).filter(|f| *f > 0.0);
+        let forces = ForceScale::new(arrows, force_max.unwrap_or(weight), 0.3 * reach);
+        let magnify = survey.map(|s| Self::magnification(s, reach)).unwrap_or(1.0);
+        Self {
+            lo,
+            hi,
+            rods,
+            forces,
+            magnify,
         }
     }
 
-    /// Colour of a node carrying a force at `level`: blue (free) to red (large reaction).
-    pub fn heat(level: f64) -> [u8; 3] {
-        let s = level.clamp(0.0, 1.0);
-        let mix = |a: f64, b: f64| (a + (b - a) * s).round() as u8;
-        [mix(40.0, 230.0), mix(100.0, 30.0), mix(230.0, 30.0)]
+    /// A round magnification (1, 2, 5 × 10^k) that draws the run's largest corrector correction
+    /// a tenth of the rod long, but its largest one-step departure from free flight at most
+    /// half the rod long; 1 when that would not magnify.
+    pub fn magnification(s: &Survey, reach: f64) -> f64 {
+        let mut k = f64::INFINITY;
+        if s.correction_max > 0.0 {
+            k = k.min(0.1 * reach / s.correction_max);
+        }
+        if s.motion_max > 0.0 {
+            k = k.min(0.5 * reach / s.motion_max);
+        }
+        if !k.is_finite() || k < 2.0 {
+            return 1.0;
+        }
+        nice_down(k)
     }
+
+    /// What the magnified view says.
+    pub fn describe_magnify(&self) -> String {
+        format!(
+            "departure from free flight ×{} (1 mm = {})",
+            fmt_g(self.magnify),
+            fmt_length(1e-3 / self.magnify)
+        )
+    }
+}
+
+/// A stand-in force range before anything is known: 1 N per rod.
+fn rods_weight(rods: usize, _survey: Option<&Survey>) -> f64 {
+    rods.max(1) as f64
+}
+
+/// Viridis (a perceptually uniform colour map), from its 0.25 point (a blue that reads on the
+/// viewer's dark background) at `x` = 0 to yellow at `x` = 1.
+pub fn colormap(x: f64) -> [u8; 3] {
+    // Viridis at 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, 1.
+    const STOPS: [[f64; 3]; 7] = [
+        [59.0, 82.0, 139.0],
+        [44.0, 114.0, 142.0],
+        [33.0, 145.0, 140.0],
+        [39.0, 173.0, 129.0],
+        [94.0, 201.0, 98.0],
+        [170.0, 220.0, 50.0],
+        [253.0, 231.0, 37.0],
+    ];
+    let x = if x.is_finite() {
+        x.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let f = x * (STOPS.len() - 1) as f64;
+    let k = (f.floor() as usize).min(STOPS.len() - 2);
+    let u = f - k as f64;
+    let c = |a: usize| (STOPS[k][a] + u * (STOPS[k + 1][a] - STOPS[k][a])).round() as u8;
+    [c(0), c(1), c(2)]
+}
+
+/// Distinct series colours: 20 qualitative colours, then golden-angle hues at alternating
+/// lightness, so any number of series get different colours, the same ones in every recording.
+pub fn series_color(i: usize) -> [u8; 3] {
+    const BASE: [[u8; 3]; 20] = [
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [214, 39, 40],
+        [148, 103, 189],
+        [140, 86, 75],
+        [227, 119, 194],
+        [188, 189, 34],
+        [23, 190, 207],
+        [250, 250, 250],
+        [174, 199, 232],
+        [255, 187, 120],
+        [152, 223, 138],
+        [255, 152, 150],
+        [197, 176, 213],
+        [196, 156, 148],
+        [247, 182, 210],
+        [219, 219, 141],
+        [158, 218, 229],
+        [160, 160, 160],
+    ];
+    if i < BASE.len() {
+        return BASE[i];
+    }
+    let k = i - BASE.len();
+    let h = (k as f64 * 137.507_764) % 360.0;
+    let l = [0.55, 0.7, 0.4][k % 3];
+    hsl(h, 0.75, l)
+}
+
+fn hsl(h: f64, s: f64, l: f64) -> [u8; 3] {
+    let c = (1.0 - (2.0 * l - 1.0).abs()) * s;
+    let hp = h / 60.0;
+    let x = c * (1.0 - (hp % 2.0 - 1.0).abs());
+    let (r, g, b) = match hp as u32 {
+        0 => (c, x, 0.0),
+        1 => (x, c, 0.0),
+        2 => (0.0, c, x),
+        3 => (0.0, x, c),
+        4 => (x, 0.0, c),
+        _ => (c, 0.0, x),
+    };
+    let m = l - c / 2.0;
+    let v = |a: f64| ((a + m) * 255.0).round().clamp(0.0, 255.0) as u8;
+    [v(r), v(g), v(b)]
 }
 
 /// Colour of the rigid obstacles.
 pub const OBSTACLE_COLOR: [u8; 3] = [110, 170, 90];
 /// Colour of the rods' centre lines.
-pub const ROD_COLOR: [u8; 3] = [120, 130, 150];
+pub const ROD_COLOR: [u8; 3] = [150, 160, 180];
 /// Colour of the driven (clamped) nodes.
 pub const DRIVEN_COLOR: [u8; 3] = [120, 120, 120];
-/// Colour of the contact normal arrows.
-pub const NORMAL_COLOR: [u8; 3] = [250, 180, 20];
+/// Colour of the contact normal arrows (drawn beside the reaction, not over it).
+pub const NORMAL_COLOR: [u8; 3] = [235, 235, 235];
+/// Colour of the eq. 2 reaction arrows.
+pub const REACTION_COLOR: [u8; 3] = [240, 50, 50];
+/// Colour of predictor iterates and positions.
+pub const PREDICTOR_COLOR: [u8; 3] = [255, 160, 0];
+/// Colour of corrector iterates.
+pub const CORRECTOR_COLOR: [u8; 3] = [235, 70, 235];
+/// Colour of static load-step iterates.
+pub const STATIC_COLOR: [u8; 3] = [120, 200, 255];
+
+/// The colour of an iterate of `phase`.
+pub fn phase_color(phase: crate::events::Phase) -> [u8; 3] {
+    match phase {
+        crate::events::Phase::Predictor => PREDICTOR_COLOR,
+        crate::events::Phase::Corrector => CORRECTOR_COLOR,
+        crate::events::Phase::Static => STATIC_COLOR,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nice_numbers_round_to_1_2_5() {
+        assert_eq!(nice_up(64.8), 100.0);
+        assert_eq!(nice_up(1.5), 2.0);
+        assert_eq!(nice_up(5.0), 5.0);
+        assert_eq!(nice_down(1282.0), 1000.0);
+        assert_eq!(nice_down(475.0), 200.0);
+        assert_eq!(nice_down(0.03), 0.02);
+    }
+
+    #[test]
+    fn linear_arrows_are_proportional_and_within_the_target() {
+        // The seed grasp: 194.4471 N largest, rod 0.1 m long, target 0.03 m.
+        let s = ForceScale::new(ArrowScale::Linear, 194.4471, 0.03);
+        assert!((s.unit_length - 0.01).abs() < 1e-15 && s.unit_force == 100.0);
+        assert_eq!(s.bar_label(), "1 cm = 100 N");
+        let (a, b) = (s.length(194.4471), s.length(3.9));
+        assert!((a / b - 194.4471 / 3.9).abs() < 1e-12);
+        assert!(a <= 0.03 && (a - 0.01944471).abs() < 1e-12);
+        assert_eq!(s.length(0.0), 0.0);
+        // Log: the largest force is drawn at the target length, smaller ones longer than linear.
+        let l = ForceScale::new(ArrowScale::Log, 194.4471, 0.03);
+        assert!((l.length(194.4471) - 0.03).abs() < 1e-12);
+        assert!(l.length(3.9) > 0.3 * l.length(194.4471));
+    }
+
+    #[test]
+    fn segments_are_clipped_to_the_box() {
+        let (lo, hi) = ([0.0, 0.0], [1.0, 1.0]);
+        let (a, b) = clip_segment([-1.0, 0.5], [2.0, 0.5], lo, hi).unwrap();
+        assert_eq!((a, b), ([0.0, 0.5], [1.0, 0.5]));
+        assert!(clip_segment([-1.0, 2.0], [2.0, 2.0], lo, hi).is_none());
+        // A plane through the box is drawn only inside it.
+        let plane = Obstacle::Plane(crate::obstacle::Plane::new([0.0, 0.0], [1.0, 0.0]));
+        let lines = obstacle_outline(&plane, [-0.01, -0.12], [0.02, 0.01]);
+        assert_eq!(lines.len(), 1);
+        for p in &lines[0] {
+            assert!(p[1] >= -0.12 - 1e-12 && p[1] <= 0.01 + 1e-12, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn series_colours_differ() {
+        let c: std::collections::BTreeSet<[u8; 3]> = (0..60).map(series_color).collect();
+        assert_eq!(c.len(), 60);
+    }
+}

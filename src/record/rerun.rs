@@ -11,29 +11,37 @@
 //! | entity | archetype | what |
 //! |---|---|---|
 //! | `scene` | Transform3D (static) | flips y so the scene is drawn y-up |
-//! | `scene/obstacles` | LineStrips2D (static) | obstacle outlines |
-//! | `scene/<rod>/nodes` | Points2D | nodes, blue (free) to red (large reaction); grey = driven |
+//! | `scene/obstacles` | LineStrips2D (static) | obstacle outlines, planes and sines clipped to the region the run visits |
+//! | `scene/legend/scale`, `…/colors` | Arrows2D, Points2D (static) | the force scale bar and colour bar, labelled |
+//! | `scene/<rod>/nodes` | Points2D | nodes coloured by \|R\| (viridis over the run's range); grey = driven |
 //! | `scene/<rod>/centerline` | LineStrips2D | the rod |
-//! | `scene/<rod>/normals` | Arrows2D | outward obstacle normals at constrained nodes |
-//! | `scene/<rod>/reactions` | Arrows2D | eq. 2 reactions, length f/(f+W) (W = rod weight), labels in N |
-//! | `scene/<rod>/predictor` | Points2D | predictor positions, on steps with corrector passes |
-//! | `scene/<rod>/iterate` | LineStrips2D | each Newton iterate (`--detail iteration`) |
-//! | `plots/reaction/<rod>/node_<i>` | Scalars | \|reaction\| (N) |
+//! | `scene/<rod>/reactions` | Arrows2D | eq. 2 reactions, length ∝ \|R\| (one scale per recording), labels in N |
+//! | `scene/<rod>/normals` | Arrows2D | outward obstacle normals at constrained nodes, beside the reaction |
+//! | `scene/<rod>/predictor` | Points2D | predictor positions (orange rings), on steps with corrector passes |
+//! | `scene/<rod>/iterate` | LineStrips2D + `phase`, `pass`, `newton_iteration` | each Newton iterate (`--detail iteration`), orange = predictor, magenta = corrector |
+//! | `magnified/<rod>/…` | | (own 2D view) each step's departure from free flight magnified ×K: `iterate`, `iterate_nodes`, `surface` (the obstacle surface), `predictor`, `step`, `correction` |
+//! | `plots/reaction/<rod>/node_<i>` | Scalars | \|reaction\| (N), eq. 2 |
+//! | `plots/force_ic/<rod>/node_<i>` | Scalars | impulse-consistent force (N): contact impulse over the last 1 ms / 1 ms |
 //! | `plots/impulse/<rod>/node_<i>` | Scalars | \|impulse\| (N s) |
 //! | `plots/bending_stress/<rod>/node_<i>` | Scalars | bending stress (Pa) |
-//! | `solver/residual`, `solver/update` | Scalars | per Newton iteration (`--detail iteration`) |
+//! | `solver/<rod>/log10_residual`, `solver/<rod>/pass` | Scalars | per Newton iteration (`--detail iteration`) |
 //! | `solver/newton_iterations`, `solver/corrector_passes`, `solver/dt` | Scalars | per step |
 //! | `events` | TextLog | contacts added/released, dt changes, Newton failures, warnings, run end |
+//! | `events/bookmarks` | TextLog (level BOOKMARK) | first contact, each contact change, the peak forces, dt changes, Newton trouble |
 //!
-//! Scene entities are logged row by row; the many scalar series are buffered and sent as
-//! columns at every flush (every `flush_every` steps), which is much cheaper.
+//! Every series has a static SeriesLines with its own colour and a short name. Scene entities
+//! are logged row by row; the many scalar series are buffered and sent as columns at every
+//! flush (every `flush_every` steps), which is much cheaper.
 
+use super::summary::Window;
 use super::{
-    node_norm, Detail, Finished, OutputFile, RecordError, RecordOptions, Recording, RodStyle,
-    SceneStyle, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, ROD_COLOR,
+    node_norm, obstacle_outline, phase_color, series_color, Detail, Finished, OutputFile,
+    RecordError, RecordOptions, Recording, RodStyle, SceneStyle, ViewOptions, CORRECTOR_COLOR,
+    DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
-    BodyView, ContactChange, ContactView, Event, Observer, ReleaseReason, RodInfo, RodStepView,
+    BodyView, ContactChange, ContactView, Event, Observer, Phase, ReleaseReason, RodInfo,
+    RodStepView,
 };
 use crate::obstacle::Obstacle;
 use crate::scenario::Scenario;
@@ -44,8 +52,9 @@ use ::rerun::blueprint::{
 };
 use ::rerun::log::ChunkBatcherConfig;
 use ::rerun::{
-    Arrows2D, AsComponents, Color, EntityPath, EntityPathPart, LineStrips2D, Points2D, Radius,
-    RecordingStream, RecordingStreamBuilder, Scalars, TextLog, TimeColumn, Transform3D,
+    AnyValues, Arrows2D, AsComponents, Color, EntityPath, EntityPathPart, LineStrips2D, Points2D,
+    Radius, RecordingStream, RecordingStreamBuilder, Scalars, SeriesLines, TextLog, TimeColumn,
+    Transform3D,
 };
 use std::path::Path;
 
@@ -57,6 +66,7 @@ pub struct RerunSink {
     out: OutputFile,
     rec: Option<RecordingStream>,
     opts: RecordOptions,
+    view: ViewOptions,
     rods: Vec<RodEntities>,
     obstacles: Vec<Obstacle>,
     bodies: Vec<crate::world::body::BodySpec>,
@@ -64,7 +74,12 @@ pub struct RerunSink {
     /// The `iteration` timeline's next value.
     iteration: i64,
     per_step: Series,
-    per_iteration: Series,
+    /// Per rod: log10 residual and pass of each of its Newton iterations.
+    per_iteration: Vec<Series>,
+    /// Per rod and node: the impulse-consistent force's window.
+    windows: Vec<Vec<Window>>,
+    last_t: f64,
+    marks: Bookmarks,
     completed: bool,
     error: Option<RecordError>,
     /// Set with `error`, for [`Recording::failure`].
@@ -72,6 +87,19 @@ pub struct RerunSink {
     /// The file the stream writes to.
     file: RrdFile,
 }
+
+/// Time points worth a bookmark, found while the run is logged and written at its end.
+#[derive(Debug, Default, Clone)]
+struct Bookmarks {
+    first_contact: bool,
+    /// (|R|, step, t, iteration, rod, node) of the largest eq. 2 reaction.
+    peak: Option<(f64, u64, f64, i64, usize, usize)>,
+    /// The same for the impulse-consistent force.
+    peak_ic: Option<(f64, u64, f64, i64, usize, usize)>,
+}
+
+/// The window of the impulse-consistent force (s), as in the run summary.
+pub const FORCE_WINDOW: f64 = 1e-3;
 
 /// Entity paths of one rod, and what its transient entities showed at the last step.
 pub struct RodEntities {
@@ -82,8 +110,22 @@ pub struct RodEntities {
     reactions: EntityPath,
     predictor: EntityPath,
     iterate: EntityPath,
+    mag_iterate: EntityPath,
+    mag_iterate_nodes: EntityPath,
+    mag_surface: EntityPath,
+    mag_predictor: EntityPath,
+    mag_step: EntityPath,
+    mag_correction: EntityPath,
+    /// Positions and velocities at the start of the current step (the end of the last one),
+    /// and the free-flight positions start + dt u that the magnified view is drawn about.
+    start: Vec<f64>,
+    start_u: Vec<f64>,
+    reference: Vec<f64>,
+    /// Step whose magnified surface is drawn (its iterates share it).
+    surface_step: Option<u64>,
     had_contacts: bool,
     had_predictor: bool,
+    had_iterate: bool,
 }
 
 /// How a rod is drawn.
@@ -92,9 +134,9 @@ pub enum Look {
     /// A run as recorded: nodes coloured by reaction, centre line, normals, reactions and the
     /// predictor's positions.
     Live,
-    /// A second run drawn for comparison (`replay diff --rrd`): grey, translucent nodes and
-    /// centre line only, under the live run.
-    Ghost,
+    /// A second run drawn for comparison (`replay diff --rrd`): its own colour, nodes as rings
+    /// around A's dots, its reactions as thinner arrows.
+    Other,
 }
 
 /// Scalar time series that share their time points, buffered until the next flush.
@@ -144,45 +186,102 @@ fn path(parts: &[&str]) -> EntityPath {
     EntityPath::new(parts.iter().map(|p| EntityPathPart::new(*p)).collect())
 }
 
-/// The layout the file opens with: the scene on the left; reaction forces, solver plots and
-/// the event log on the right.
-pub fn blueprint() -> Blueprint {
-    blueprint_with(Vec::new())
+/// The layout the file opens with, for rods named `rods`: the scene on the left; per rod the
+/// eq. 2 reaction beside the impulse-consistent force, solver plots and the event log on the
+/// right.
+pub fn blueprint(rods: &[String]) -> Blueprint {
+    blueprint_with(rods, Vec::new())
 }
 
 /// [`blueprint`] with `extra` views as the first tabs of the plot tabs (replay overlays add
 /// their difference plots there).
-pub fn blueprint_with(extra: Vec<ContainerLike>) -> Blueprint {
+pub fn blueprint_with(rods: &[String], extra: Vec<ContainerLike>) -> Blueprint {
     let scene = Spatial2DView::new("Scene")
         .with_origin("/")
         .with_contents(["+ /scene/**"]);
-    let reactions = TimeSeriesView::new("Reaction force |R| (N)").with_origin("/plots/reaction");
-    let solver = Tabs::new(
-        extra.into_iter().chain([
-            TimeSeriesView::new("Solver: residual (N) and Newton iterations")
-                .with_origin("/solver")
-                .with_contents(["+ /solver/**", "- /solver/dt", "- /solver/update"])
-                .into(),
-            TimeSeriesView::new("Step size dt (s)")
-                .with_origin("/solver/dt")
-                .into(),
-            TimeSeriesView::new("Contact impulse (N s)")
-                .with_origin("/plots/impulse")
-                .into(),
-            TimeSeriesView::new("Bending stress (Pa)")
-                .with_origin("/plots/bending_stress")
-                .into(),
-        ]),
+    let magnified = Spatial2DView::new("Departure from free flight, magnified")
+        .with_origin("/")
+        .with_contents(["+ /magnified/**"]);
+    // Forces: per rod, eq. 2 beside the impulse-consistent force (one tab per rod).
+    let forces: Vec<ContainerLike> = rods
+        .iter()
+        .map(|r| {
+            let label = if rods.len() > 1 {
+                format!("{r}: ")
+            } else {
+                String::new()
+            };
+            Horizontal::new([
+                TimeSeriesView::new(format!("{label}|R| eq. 2 (N)"))
+                    .with_origin(format!("/plots/reaction/{r}"))
+                    .into(),
+                TimeSeriesView::new(format!("{label}impulse-consistent, 1 ms (N)"))
+                    .with_origin(format!("/plots/force_ic/{r}"))
+                    .into(),
+            ])
+            .into()
+        })
+        .collect();
+    let forces: ContainerLike = if forces.len() == 1 {
+        forces.into_iter().next().expect("one")
+    } else {
+        Tabs::new(forces).into()
+    };
+    let mut tabs: Vec<ContainerLike> = extra;
+    tabs.push(
+        TimeSeriesView::new("log10 residual (N), per rod")
+            .with_origin("/solver")
+            .with_contents(["+ /solver/*/log10_residual"])
+            .into(),
     );
-    let events = TextLogView::new("Events").with_origin("/events");
+    tabs.push(
+        TimeSeriesView::new("Newton its, passes")
+            .with_origin("/solver")
+            .with_contents(["+ /solver/newton_iterations", "+ /solver/corrector_passes"])
+            .into(),
+    );
+    tabs.push(
+        TimeSeriesView::new("dt (s)")
+            .with_origin("/solver/dt")
+            .into(),
+    );
+    tabs.push(
+        TimeSeriesView::new("Grip force (N), safety margin")
+            .with_origin("/plots/grasp")
+            .into(),
+    );
+    tabs.push(
+        TimeSeriesView::new("Fruit height (m)")
+            .with_origin("/plots/fruit")
+            .into(),
+    );
+    for r in rods {
+        let tag = if rods.len() > 1 {
+            format!(" {r}")
+        } else {
+            String::new()
+        };
+        tabs.push(
+            TimeSeriesView::new(format!("Impulse{tag} (N s)"))
+                .with_origin(format!("/plots/impulse/{r}"))
+                .into(),
+        );
+        tabs.push(
+            TimeSeriesView::new(format!("Stress{tag} (Pa)"))
+                .with_origin(format!("/plots/bending_stress/{r}"))
+                .into(),
+        );
+    }
+    let events = TextLogView::new("Events and bookmarks").with_origin("/events");
     Blueprint::new(
         Horizontal::new([
             scene.into(),
-            Vertical::new([reactions.into(), solver.into(), events.into()])
-                .with_row_shares([0.4, 0.35, 0.25])
+            magnified.into(),
+            Vertical::new([forces, Tabs::new(tabs).into(), events.into()])
+                .with_row_shares([0.4, 0.3, 0.3])
                 .into(),
         ])
-        .with_column_shares([0.55, 0.45]),
+        .with_column_shares([0.3, 0.25, 0.45]),
     )
     // Side panels folded away so the views get the window; the time panel shows its
     // playback bar only.
@@ -203,7 +302,8 @@ impl RerunSink {
         opts: RecordOptions,
         scenario: &Scenario,
     ) -> Result<Self, RecordError> {
-        Self::create_named(path, opts, &scenario.name, &scenario.text, blueprint())
+        let rods: Vec<String> = scenario.rods.iter().map(|r| r.name.clone()).collect();
+        Self::create_named(path, opts, &scenario.name, &scenario.text, blueprint(&rods))
     }
 
     /// Create `path` for a run of the scenario named `name` with TOML `text` (the recording id
@@ -248,18 +348,33 @@ impl RerunSink {
                 flush_every: opts.flush_every.max(1),
                 ..opts
             },
+            view: ViewOptions::default(),
             rods: Vec::new(),
             obstacles: Vec::new(),
             bodies: Vec::new(),
             style: None,
             iteration: 0,
             per_step: Series::default(),
-            per_iteration: Series::default(),
+            per_iteration: Vec::new(),
+            windows: Vec::new(),
+            last_t: 0.0,
+            marks: Bookmarks::default(),
             completed: false,
             error: None,
             failed: Default::default(),
             file,
         })
+    }
+
+    /// Draw with the run's survey and this arrow scale (call before the run starts).
+    pub fn with_view(mut self, view: ViewOptions) -> Self {
+        self.view = view;
+        self
+    }
+
+    /// The scene style, once the first step is known.
+    pub fn style(&self) -> Option<&SceneStyle> {
+        self.style.as_ref()
     }
 
     /// The recording stream (None once finished), for replay overlays that log their own
@@ -288,13 +403,6 @@ impl RerunSink {
         rec.set_time_sequence("iteration", iteration);
     }
 
-    fn log(&mut self, path: &EntityPath, what: &dyn AsComponents) {
-        if let Some(rec) = &self.rec {
-            let r = rec.log(path.clone(), what);
-            self.check(r);
-        }
-    }
-
     fn text(&mut self, step: u64, t: f64, level: &str, text: String) {
         let Some(rec) = self.rec.clone() else {
             return;
@@ -310,19 +418,54 @@ impl RerunSink {
         for r in info.rods {
             self.rods.push(RodEntities::new(&["scene"], r.clone()));
         }
-        for kind in ["reaction", "impulse", "bending_stress"] {
+        // Per-node series, each with its colour and name (static, so every time point has them).
+        let mut lines: Vec<(EntityPath, [u8; 3], String)> = Vec::new();
+        for kind in ["reaction", "force_ic", "impulse", "bending_stress"] {
             for r in info.rods {
                 for i in 0..r.nodes {
-                    self.per_step
-                        .add(path(&["plots", kind, &r.name, &format!("node_{i}")]));
+                    let p = path(&["plots", kind, &r.name, &format!("node_{i}")]);
+                    self.per_step.add(p.clone());
+                    lines.push((p, series_color(i), format!("node {i}")));
                 }
             }
         }
-        for s in ["newton_iterations", "corrector_passes", "dt"] {
-            self.per_step.add(path(&["solver", s]));
+        for (k, s) in ["newton_iterations", "corrector_passes", "dt"]
+            .into_iter()
+            .enumerate()
+        {
+            let p = path(&["solver", s]);
+            self.per_step.add(p.clone());
+            lines.push((p, series_color(k), s.replace('_', " ")));
         }
-        for s in ["residual", "update"] {
-            self.per_iteration.add(path(&["solver", s]));
+        for (r, rod) in info.rods.iter().enumerate() {
+            let mut series = Series::default();
+            for s in ["log10_residual", "pass"] {
+                let p = path(&["solver", &rod.name, s]);
+                series.add(p.clone());
+                lines.push((
+                    p,
+                    series_color(r),
+                    format!("{} {}", rod.name, s.replace('_', " ")),
+                ));
+            }
+            self.per_iteration.push(series);
+        }
+        self.windows = info
+            .rods
+            .iter()
+            .map(|r| vec![Window::default(); r.nodes])
+            .collect();
+        if let Some(rec) = self.rec.clone() {
+            for (p, c, name) in lines {
+                let r = rec.log_static(
+                    p,
+                    &SeriesLines::new()
+                        .with_colors([rgb(c)])
+                        .with_names([name])
+                        .with_widths([1.5]),
+                );
+                self.check(r);
+            }
         }
         self.text(
             0,
@@ -339,25 +482,36 @@ impl RerunSink {
         );
     }
 
-    /// Static data once the first state is known: the y-up flip and the obstacle outlines.
+    /// Static data once the first state is known: the y-up flip, the obstacle outlines and the
+    /// legend (force scale bar, colour bar, magnification).
     fn first_step(&mut self, rods: &[RodStepView<'_>]) {
         let infos: Vec<RodInfo> = self.rods.iter().map(|r| r.info.clone()).collect();
-        let style = SceneStyle::new(&infos, rods, &self.obstacles);
-        if let Some(rec) = &self.rec {
+        let style = SceneStyle::new(
+            &infos,
+            rods,
+            &self.obstacles,
+            self.view.survey.as_ref(),
+            self.view.arrows,
+        );
+        for (e, v) in self.rods.iter_mut().zip(rods) {
+            e.start = v.q.to_vec();
+            e.start_u = v.u.to_vec();
+            e.reference = v.q.to_vec();
+        }
+        if let Some(rec) = self.rec.clone() {
             let outlines: Vec<Vec<[f32; 2]>> = self
                 .obstacles
                 .iter()
                 .enumerate()
                 .filter(|(k, _)| !self.bodies.iter().any(|b| b.obstacle == *k))
-                .map(|(_, o)| {
-                    o.outline(style.lo, style.hi)
-                        .into_iter()
-                        .map(|p| [p[0] as f32, p[1] as f32])
-                        .collect()
-                })
+                .flat_map(|(_, o)| obstacle_outline(o, style.lo, style.hi))
+                .map(|line| line.into_iter().map(f32x2).collect())
                 .collect();
             let r = rec
                 .log_static("scene", &Transform3D::from_scale((1.0, -1.0, 1.0)))
+                .and_then(|_| {
+                    rec.log_static("magnified", &Transform3D::from_scale((1.0, -1.0, 1.0)))
+                })
                 .and_then(|_| {
                     rec.log_static(
                         "scene/obstacles",
@@ -366,7 +520,8 @@ impl RerunSink {
                             .with_radii([Radius::new_ui_points(1.5)])
                             .with_draw_order(DRAW_OBSTACLES),
                     )
-                });
+                })
+                .and_then(|_| log_legend(&rec, &style));
             self.check(r);
         }
         self.style = Some(style);
@@ -390,21 +545,42 @@ impl RerunSink {
         let it = self.iteration;
         self.iteration += 1;
         self.set_time(&rec, step, t, it);
+        let style = self.style.clone().expect("set above");
         for (r, v) in rods.iter().enumerate() {
-            let style = self.style.as_ref().expect("set above").rods[r];
-            self.draw_rod(r, &style, v, passes > 0);
+            let res = self.rods[r].draw(&rec, &style, r, v, passes > 0, Look::Live);
+            self.check(res);
+            let res = self.rods[r].draw_magnified(&rec, &style, r, v, passes > 0, step);
+            self.check(res);
         }
         // Scalars: per rod and node, then the solver's.
+        let t0 = if step == 0 { t } else { self.last_t };
+        self.last_t = t;
         self.per_step.at(step, t, it);
         let mut k = 0;
-        for pick in [0, 1, 2] {
-            for v in rods {
+        for pick in 0..4 {
+            for (r, v) in rods.iter().enumerate() {
                 for i in 0..v.in_contact.len() {
                     let x = match pick {
                         0 => node_norm(v.reaction, i),
-                        1 => node_norm(v.impulse, i),
+                        1 => {
+                            let f = self.windows[r][i].push(
+                                t0,
+                                t,
+                                v.impulse[2 * i],
+                                v.impulse[2 * i + 1],
+                                FORCE_WINDOW,
+                            );
+                            if step > 0 {
+                                note_peak(&mut self.marks.peak_ic, f, step, t, it, r, i);
+                            }
+                            f
+                        }
+                        2 => node_norm(v.impulse, i),
                         _ => v.bending_stress[i],
                     };
+                    if pick == 0 {
+                        note_peak(&mut self.marks.peak, x, step, t, it, r, i);
+                    }
                     self.per_step.values[k].push(x);
                     k += 1;
                 }
@@ -494,14 +670,6 @@ impl RerunSink {
         self.check(r);
     }
 
-    fn draw_rod(&mut self, r: usize, style: &RodStyle, v: &RodStepView<'_>, corrected: bool) {
-        let Some(rec) = self.rec.clone() else {
-            return;
-        };
-        let res = self.rods[r].draw(&rec, style, v, corrected, Look::Live);
-        self.check(res);
-    }
-
     fn iteration(&mut self, ev: IterationEvent<'_>) {
         let Some(rec) = self.rec.clone() else {
             return;
@@ -509,38 +677,83 @@ impl RerunSink {
         let it = self.iteration;
         self.iteration += 1;
         self.set_time(&rec, ev.step, ev.t, it);
-        self.per_iteration.at(ev.step, ev.t, it);
-        self.per_iteration.values[0].push(ev.residual);
-        self.per_iteration.values[1].push(ev.update);
-        if let Some(e) = self.rods.get(ev.rod) {
-            let iterate = e.iterate.clone();
-            let strip: Vec<[f32; 2]> =
-                ev.q.chunks_exact(2)
-                    .map(|c| [c[0] as f32, c[1] as f32])
-                    .collect();
-            self.log(
-                &iterate,
-                &LineStrips2D::new([strip])
-                    .with_colors([Color::from_unmultiplied_rgba(120, 200, 255, 160)])
-                    .with_radii([Radius::new_ui_points(1.0)])
-                    .with_draw_order(DRAW_GHOSTS),
-            );
+        if let Some(s) = self.per_iteration.get_mut(ev.rod) {
+            s.at(ev.step, ev.t, it);
+            s.values[0].push(ev.residual.max(1e-300).log10());
+            s.values[1].push(ev.pass as f64);
+        }
+        let Some(style) = self.style.clone() else {
+            return;
+        };
+        if let Some(e) = self.rods.get_mut(ev.rod) {
+            let r = e.draw_iterate(&rec, &style, ev.rod, &ev, &self.obstacles);
+            self.check(r);
         }
     }
 
     fn contact(&mut self, c: &ContactChange, released: Option<ReleaseReason>) {
         let rod = self.rod_name(c.rod);
+        let at = format!(
+            "t = {:.6} s, step {}, iteration {}",
+            c.t, c.step, self.iteration
+        );
         let text = match released {
             None => format!(
-                "step {}: constraint added: rod {rod:?} node {} on obstacle {} (pass {}), normal ({:.6}, {:.6}), gap {:.3e} m, z {:.3e} m/s",
-                c.step, c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap, c.z
+                "contact added: rod {rod:?} node {} on obstacle {} before corrector pass {} ({at}); normal ({:.4}, {:.4}), predictor gap {:.3e} m, z {:.3e} m/s",
+                c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap, c.z
             ),
             Some(ReleaseReason::Adhesive) => format!(
-                "step {}: constraint released (adhesive reaction, R = ({:.4}, {:.4}) N): rod {rod:?} node {} from obstacle {} (pass {}), normal ({:.6}, {:.6}), gap {:.3e} m",
-                c.step, c.reaction[0], c.reaction[1], c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap
+                "contact released (adhesive R = ({:.4}, {:.4}) N): rod {rod:?} node {} from obstacle {} before corrector pass {} ({at}); normal ({:.4}, {:.4}), gap {:.3e} m",
+                c.reaction[0], c.reaction[1], c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap
             ),
         };
-        self.text(c.step, c.t, TextLogLevelName::INFO, text);
+        if released.is_none() && !self.marks.first_contact {
+            self.marks.first_contact = true;
+            self.bookmark(
+                c.step,
+                c.t,
+                self.iteration,
+                format!("first contact: rod {rod:?} node {} ({at})", c.node),
+            );
+        }
+        self.bookmark(c.step, c.t, self.iteration, text);
+    }
+
+    /// A line in `events/bookmarks` at (step, t, iteration).
+    fn bookmark(&mut self, step: u64, t: f64, iteration: i64, text: String) {
+        let Some(rec) = self.rec.clone() else {
+            return;
+        };
+        self.set_time(&rec, step, t, iteration);
+        let r = rec.log(
+            "events/bookmarks",
+            &TextLog::new(format!("★ {text}")).with_level(TextLogLevelName::BOOKMARK),
+        );
+        self.check(r);
+    }
+
+    /// The bookmarks known only at the end: the peak forces, at their own time points.
+    fn end_bookmarks(&mut self) {
+        let peaks = [
+            ("peak eq. 2 reaction", self.marks.peak),
+            (
+                "peak impulse-consistent force (1 ms window)",
+                self.marks.peak_ic,
+            ),
+        ];
+        for (what, p) in peaks {
+            if let Some((f, step, t, it, r, i)) = p.filter(|p| p.0 > 0.0) {
+                let rod = self.rod_name(r);
+                self.bookmark(
+                    step,
+                    t,
+                    it,
+                    format!(
+                        "{what} {f:.4} N: rod {rod:?} node {i} (t = {t:.6} s, step {step}, iteration {it})"
+                    ),
+                );
+            }
+        }
     }
 
     fn rod_name(&self, r: usize) -> String {
@@ -554,10 +767,10 @@ impl RerunSink {
     /// SDK's writer thread is bounded: a writer that died (disk full) or hangs fails the
     /// recording instead of the run waiting forever.
     fn flush(&mut self, rec: &RecordingStream) {
-        let r = self
-            .per_step
-            .send(rec)
-            .and_then(|_| self.per_iteration.send(rec));
+        let mut r = self.per_step.send(rec);
+        for s in &mut self.per_iteration {
+            r = r.and_then(|_| s.send(rec));
+        }
         self.check(r);
         if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
             let e = match e {
@@ -723,135 +936,353 @@ impl ::rerun::sink::LogSink for RrdFile {
     }
 }
 
+/// Keep the largest `f` with where and when it happened.
+fn note_peak(
+    peak: &mut Option<(f64, u64, f64, i64, usize, usize)>,
+    f: f64,
+    step: u64,
+    t: f64,
+    it: i64,
+    r: usize,
+    i: usize,
+) {
+    if f > peak.map(|p| p.0).unwrap_or(0.0) {
+        *peak = Some((f, step, t, it, r, i));
+    }
+}
+
+// The magnified view's rows, data and clearing rows alike (the same columns).
+fn mag_step_strip(strips: Vec<Vec<[f32; 2]>>) -> LineStrips2D {
+    LineStrips2D::new(strips)
+        .with_colors([rgb(ROD_COLOR)])
+        .with_radii([Radius::new_ui_points(1.0)])
+        .with_draw_order(DRAW_MAGNIFIED)
+}
+
+fn mag_predictor_points(points: Vec<[f32; 2]>, rad: f64) -> Points2D {
+    Points2D::new(points)
+        .with_colors([rgb(PREDICTOR_COLOR)])
+        .with_radii([1.2 * rad as f32])
+        .with_draw_order(DRAW_MAGNIFIED)
+}
+
+fn mag_correction_arrows(
+    origins: Vec<[f32; 2]>,
+    vectors: Vec<[f32; 2]>,
+    labels: Vec<String>,
+    rad: f64,
+) -> Arrows2D {
+    Arrows2D::from_vectors(vectors)
+        .with_origins(origins)
+        .with_labels(labels)
+        .with_colors([rgb(CORRECTOR_COLOR)])
+        .with_radii([0.35 * rad as f32])
+        .with_draw_order(DRAW_MAGNIFIED + 1.0)
+}
+
+fn mag_iterate_strip(
+    strips: Vec<Vec<[f32; 2]>>,
+    color: Color,
+    labels: Vec<String>,
+) -> LineStrips2D {
+    LineStrips2D::new(strips)
+        .with_colors([color])
+        .with_labels(labels)
+        .with_show_labels(true)
+        .with_radii([Radius::new_ui_points(2.0)])
+        .with_draw_order(DRAW_MAGNIFIED)
+}
+
+fn mag_iterate_points(points: Vec<[f32; 2]>, color: Color, rad: f64) -> Points2D {
+    Points2D::new(points)
+        .with_colors([color])
+        .with_radii([0.8 * rad as f32])
+        .with_draw_order(DRAW_MAGNIFIED)
+}
+
+/// One row of `…/iterate`: the strip (none: a clearing row) with its phase, pass, Newton
+/// iteration and label as components.
+fn iterate_row(
+    strip: Option<Vec<[f32; 2]>>,
+    color: Color,
+    phase: &[&str],
+    pass: &[u32],
+    newton: &[u32],
+    label: &[&str],
+) -> Vec<::rerun::SerializedComponentBatch> {
+    use ::rerun::external::arrow::array::{ArrayRef, UInt32Array};
+    let pass: ArrayRef = std::sync::Arc::new(UInt32Array::from(pass.to_vec()));
+    let newton: ArrayRef = std::sync::Arc::new(UInt32Array::from(newton.to_vec()));
+    let mut row = LineStrips2D::new(strip)
+        .with_colors([color])
+        .with_radii([Radius::new_ui_points(2.5)])
+        .with_draw_order(DRAW_ITERATE)
+        .as_serialized_batches();
+    row.extend(
+        AnyValues::default()
+            .with_component::<::rerun::components::Text>("phase", phase.iter().copied())
+            .with_component_from_data("pass", pass)
+            .with_component_from_data("newton_iteration", newton)
+            .with_component::<::rerun::components::Text>("label", label.iter().copied())
+            .as_serialized_batches(),
+    );
+    row
+}
+
+fn f32x2(p: [f64; 2]) -> [f32; 2] {
+    [p[0] as f32, p[1] as f32]
+}
+
+/// The legend, static, in a band above the drawing box (the 2D view fits it in): the force
+/// scale bar (an arrow of the scale's round length, labelled with it), the colour bar
+/// (labelled with its range), and the magnification with the colour key of the magnified view.
+fn log_legend(rec: &RecordingStream, style: &SceneStyle) -> ::rerun::RecordingStreamResult<()> {
+    let fs = &style.forces;
+    let w = style.hi[0] - style.lo[0];
+    let h = style.hi[1] - style.lo[1];
+    let cx = 0.5 * (style.lo[0] + style.hi[0]);
+    let row = |k: f64| style.hi[1] + 0.07 * k * h;
+    rec.log_static(
+        "scene/legend/scale",
+        &Arrows2D::from_vectors([[fs.unit_length as f32, 0.0]])
+            .with_origins([f32x2([cx - 0.5 * fs.unit_length, row(1.0)])])
+            .with_colors([rgb(REACTION_COLOR)])
+            .with_labels([fs.bar_label()])
+            .with_show_labels(true)
+            .with_radii([Radius::new_ui_points(2.0)])
+            .with_draw_order(DRAW_LEGEND),
+    )?;
+    let n = 11;
+    let span = 0.3 * w;
+    let pts: Vec<[f32; 2]> = (0..n)
+        .map(|k| f32x2([cx - 0.5 * span + span * k as f64 / (n - 1) as f64, row(2.0)]))
+        .collect();
+    let colors: Vec<Color> = (0..n)
+        .map(|k| rgb(super::colormap(k as f64 / (n - 1) as f64)))
+        .collect();
+    let mut labels = vec![String::new(); n];
+    labels[0] = "0 N".into();
+    labels[n - 1] = format!("{} N", super::fmt_force(fs.force_max));
+    rec.log_static(
+        "scene/legend/colors",
+        &Points2D::new(pts)
+            .with_colors(colors)
+            .with_radii([Radius::new_ui_points(5.0)])
+            .with_labels(labels)
+            .with_show_labels(true)
+            .with_draw_order(DRAW_LEGEND),
+    )?;
+    if style.magnify > 1.0 {
+        rec.log_static(
+            "magnified/legend",
+            &Points2D::new([f32x2([cx, row(1.0)])])
+                .with_colors([rgb(CORRECTOR_COLOR)])
+                .with_radii([Radius::new_ui_points(3.0)])
+                .with_labels([format!(
+                    "{}\norange predictor, magenta corrector,\ngreen: obstacle surface, grey: step end",
+                    style.describe_magnify()
+                )])
+                .with_show_labels(true)
+                .with_draw_order(DRAW_LEGEND),
+        )?;
+    }
+    Ok(())
+}
+
 impl RodEntities {
     /// The entities of rod `info` under `root`: `root/<rod>/nodes`, `…/centerline`,
-    /// `…/normals`, `…/reactions`, `…/predictor`, `…/iterate` (a live run uses `["scene"]`).
+    /// `…/normals`, `…/reactions`, `…/predictor`, `…/iterate` (a live run uses `["scene"]`),
+    /// and `magnified/<rod>/…`.
     pub fn new(root: &[&str], info: RodInfo) -> Self {
-        let rod = |kind: &str| {
+        let rod = |kind: &[&str]| {
             let mut parts: Vec<&str> = root.to_vec();
-            parts.extend([info.name.as_str(), kind]);
+            parts.push(info.name.as_str());
+            parts.extend(kind);
             path(&parts)
         };
+        // The magnified view is its own 2D view: entities under `magnified/<rod>/`.
+        let mag = |kind: &str| path(&["magnified", info.name.as_str(), kind]);
         Self {
-            nodes: rod("nodes"),
-            centerline: rod("centerline"),
-            normals: rod("normals"),
-            reactions: rod("reactions"),
-            predictor: rod("predictor"),
-            iterate: rod("iterate"),
+            nodes: rod(&["nodes"]),
+            centerline: rod(&["centerline"]),
+            normals: rod(&["normals"]),
+            reactions: rod(&["reactions"]),
+            predictor: rod(&["predictor"]),
+            iterate: rod(&["iterate"]),
+            mag_iterate: mag("iterate"),
+            mag_iterate_nodes: mag("iterate_nodes"),
+            mag_surface: mag("surface"),
+            mag_predictor: mag("predictor"),
+            mag_step: mag("step"),
+            mag_correction: mag("correction"),
+            start: Vec::new(),
+            start_u: Vec::new(),
+            reference: Vec::new(),
+            surface_step: None,
             had_contacts: true,
             had_predictor: true,
+            had_iterate: false,
             info,
         }
     }
 
-    /// Log the rod's state `v` at the stream's current time. `corrected`: a corrector pass
-    /// moved the rod this step (its predictor positions are shown).
+    fn clamped(&self, i: usize) -> bool {
+        self.info.clamped.get(i).copied().unwrap_or(false)
+    }
+
+    /// Log the rod's state `v` (rod number `r` of `style`) at the stream's current time.
+    /// `corrected`: a corrector pass moved the rod this step (its predictor positions are
+    /// shown).
     pub fn draw(
         &mut self,
         rec: &RecordingStream,
-        style: &RodStyle,
+        style: &SceneStyle,
+        r: usize,
         v: &RodStepView<'_>,
         corrected: bool,
         look: Look,
     ) -> ::rerun::RecordingStreamResult<()> {
+        let rs = style.rods[r];
         let n = v.in_contact.len();
-        let p = |i: usize| [v.q[2 * i] as f32, v.q[2 * i + 1] as f32];
-        let radius = style.node_radius as f32;
-        let points: Vec<[f32; 2]> = (0..n).map(p).collect();
-        if look == Look::Ghost {
-            // Opaque light grey: translucent points render dark in some viewers.
-            rec.log(
-                self.nodes.clone(),
-                &Points2D::new(points.iter().copied())
-                    .with_radii([0.8 * radius])
-                    .with_colors([rgb(GHOST_COLOR)])
-                    .with_draw_order(DRAW_GHOSTS),
-            )?;
-            return rec.log(
-                self.centerline.clone(),
-                &LineStrips2D::new([points])
-                    .with_colors([rgb(GHOST_COLOR)])
-                    .with_radii([Radius::new_ui_points(1.5)])
-                    .with_draw_order(DRAW_GHOSTS),
-            );
-        }
-        let colors: Vec<Color> = (0..n)
-            .map(|i| {
-                if self.info.clamped.get(i).copied().unwrap_or(false) {
-                    rgb(DRIVEN_COLOR)
-                } else {
-                    rgb(RodStyle::heat(style.level(node_norm(v.reaction, i))))
-                }
-            })
-            .collect();
+        let radius = rs.node_radius as f32;
+        let points: Vec<[f32; 2]> = v.q.chunks_exact(2).map(|c| f32x2([c[0], c[1]])).collect();
+        let (node_colors, node_radius, line, line_width, draw_nodes, draw_line): (
+            Vec<Color>,
+            f32,
+            [u8; 3],
+            f32,
+            f32,
+            f32,
+        ) = match look {
+            Look::Live => (
+                (0..n)
+                    .map(|i| {
+                        if self.clamped(i) {
+                            rgb(DRIVEN_COLOR)
+                        } else {
+                            rgb(style.forces.color(node_norm(v.reaction, i)))
+                        }
+                    })
+                    .collect(),
+                radius,
+                ROD_COLOR,
+                1.5,
+                DRAW_NODES,
+                DRAW_ROD,
+            ),
+            // Run B: larger dots under A's, so a node where both runs agree shows as A's dot
+            // in a B-coloured ring, and a thicker line under A's.
+            Look::Other => (
+                vec![rgb(OTHER_COLOR)],
+                1.7 * radius,
+                OTHER_COLOR,
+                4.0,
+                DRAW_OTHER_NODES,
+                DRAW_OTHER_ROD,
+            ),
+        };
         rec.log(
             self.nodes.clone(),
             &Points2D::new(points.iter().copied())
-                .with_radii([radius])
-                .with_colors(colors)
-                .with_draw_order(DRAW_NODES),
+                .with_radii([node_radius])
+                .with_colors(node_colors)
+                .with_draw_order(draw_nodes),
         )?;
         rec.log(
             self.centerline.clone(),
             &LineStrips2D::new([points])
-                .with_colors([rgb(ROD_COLOR)])
-                .with_radii([Radius::new_ui_points(1.5)])
-                .with_draw_order(DRAW_ROD),
+                .with_colors([rgb(line)])
+                .with_radii([Radius::new_ui_points(line_width)])
+                .with_draw_order(draw_line),
         )?;
+        self.draw_forces(rec, style, r, v, look)?;
+        if look == Look::Live {
+            self.draw_predictor(rec, &rs, v, corrected)?;
+        }
+        Ok(())
+    }
 
-        // Normals and reactions at constrained nodes; logged empty once when contact ends.
+    /// Normals and reactions at constrained nodes; logged empty once when contact ends.
+    /// Reactions start at the edge of the node marker, length by the recording's force scale;
+    /// normals start beside them (offset along the surface) so the two never overlap.
+    fn draw_forces(
+        &mut self,
+        rec: &RecordingStream,
+        style: &SceneStyle,
+        r: usize,
+        v: &RodStepView<'_>,
+        look: Look,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        let rs = style.rods[r];
+        let n = v.in_contact.len();
         let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
-        if !contacts.is_empty() || self.had_contacts {
-            let origins: Vec<[f32; 2]> = contacts.iter().map(|&i| p(i)).collect();
-            let nl = style.normal_length;
-            let nvec = contacts.iter().map(|&i| {
-                [
-                    (nl * v.normal[2 * i]) as f32,
-                    (nl * v.normal[2 * i + 1]) as f32,
-                ]
-            });
-            rec.log(
-                self.normals.clone(),
-                &Arrows2D::from_vectors(nvec)
-                    .with_origins(origins.iter().copied())
-                    .with_colors([rgb(NORMAL_COLOR)])
-                    .with_radii([0.25 * radius])
-                    .with_draw_order(DRAW_NORMALS),
-            )?;
-            let mut rvec = Vec::with_capacity(contacts.len());
-            let mut labels = Vec::with_capacity(contacts.len());
-            for &i in &contacts {
-                let f = node_norm(v.reaction, i);
-                let s = if f > 0.0 {
-                    style.reaction_length * style.level(f) / f
-                } else {
-                    0.0
-                };
-                rvec.push([
-                    (s * v.reaction[2 * i]) as f32,
-                    (s * v.reaction[2 * i + 1]) as f32,
-                ]);
-                labels.push(format!("{f:.3} N"));
-            }
-            rec.log(
-                self.reactions.clone(),
-                &Arrows2D::from_vectors(rvec)
-                    .with_origins(origins)
-                    .with_labels(labels)
-                    .with_colors([rgb(RodStyle::heat(1.0))])
-                    .with_radii([0.5 * radius])
-                    .with_draw_order(DRAW_REACTIONS),
-            )?;
+        if contacts.is_empty() && !self.had_contacts {
+            return Ok(());
         }
         self.had_contacts = !contacts.is_empty();
+        let rad = rs.node_radius;
+        let (mut n_orig, mut n_vec) = (Vec::new(), Vec::new());
+        let (mut r_orig, mut r_vec, mut labels) = (Vec::new(), Vec::new(), Vec::new());
+        for &i in &contacts {
+            let p = [v.q[2 * i], v.q[2 * i + 1]];
+            let nv = [v.normal[2 * i], v.normal[2 * i + 1]];
+            let tangent = [-nv[1], nv[0]];
+            let side = 2.2 * rad;
+            n_orig.push(f32x2([p[0] + side * tangent[0], p[1] + side * tangent[1]]));
+            n_vec.push(f32x2([rs.normal_length * nv[0], rs.normal_length * nv[1]]));
+            let f = node_norm(v.reaction, i);
+            let dir = if f > 0.0 {
+                [v.reaction[2 * i] / f, v.reaction[2 * i + 1] / f]
+            } else {
+                nv
+            };
+            let len = style.forces.length(f);
+            r_orig.push(f32x2([p[0] + rad * dir[0], p[1] + rad * dir[1]]));
+            r_vec.push(f32x2([len * dir[0], len * dir[1]]));
+            labels.push(match look {
+                Look::Live => format!("{} N", super::fmt_force(f)),
+                Look::Other => format!("B {} N", super::fmt_force(f)),
+            });
+        }
+        let (color, width, order) = match look {
+            Look::Live => (REACTION_COLOR, 0.45 * rad, DRAW_REACTIONS),
+            Look::Other => (OTHER_COLOR, 0.8 * rad, DRAW_OTHER_REACTIONS),
+        };
+        if look == Look::Live {
+            rec.log(
+                self.normals.clone(),
+                &Arrows2D::from_vectors(n_vec)
+                    .with_origins(n_orig)
+                    .with_colors([rgb(NORMAL_COLOR)])
+                    .with_radii([0.2 * rad as f32])
+                    .with_draw_order(DRAW_NORMALS),
+            )?;
+        }
+        rec.log(
+            self.reactions.clone(),
+            &Arrows2D::from_vectors(r_vec)
+                .with_origins(r_orig)
+                .with_labels(labels)
+                .with_colors([rgb(color)])
+                .with_radii([width as f32])
+                .with_draw_order(order),
+        )
+    }
 
-        // The predictor's positions where a corrector pass moved the rod.
+    /// The predictor's positions where a corrector pass moved the rod: orange rings around the
+    /// nodes (a larger dot under the node), over everything else.
+    fn draw_predictor(
+        &mut self,
+        rec: &RecordingStream,
+        rs: &RodStyle,
+        v: &RodStepView<'_>,
+        corrected: bool,
+    ) -> ::rerun::RecordingStreamResult<()> {
         if corrected || self.had_predictor {
             let ghost: Vec<[f32; 2]> = if corrected {
                 v.q_predictor
                     .chunks_exact(2)
-                    .map(|c| [c[0] as f32, c[1] as f32])
+                    .map(|c| f32x2([c[0], c[1]]))
                     .collect()
             } else {
                 Vec::new()
@@ -859,26 +1290,239 @@ impl RodEntities {
             rec.log(
                 self.predictor.clone(),
                 &Points2D::new(ghost)
-                    .with_radii([0.8 * radius])
-                    .with_colors([Color::from_unmultiplied_rgba(150, 150, 150, 110)])
-                    .with_draw_order(DRAW_GHOSTS),
+                    .with_radii([1.6 * rs.node_radius as f32])
+                    .with_colors([rgb(PREDICTOR_COLOR)])
+                    .with_draw_order(DRAW_PREDICTOR),
             )?;
         }
         self.had_predictor = corrected;
         Ok(())
     }
+
+    /// The step of size `dt` begins: its free-flight positions, start + dt u.
+    pub fn step_begin(&mut self, dt: f64) {
+        self.reference.clear();
+        self.reference.extend(
+            self.start
+                .iter()
+                .zip(&self.start_u)
+                .map(|(q, u)| q + dt * u),
+        );
+        self.surface_step = None;
+    }
+
+    /// `p` magnified ×`k` about node `i`'s free-flight position of this step.
+    fn magnified(&self, k: f64, i: usize, p: [f64; 2]) -> [f32; 2] {
+        let s = [self.reference[2 * i], self.reference[2 * i + 1]];
+        f32x2([s[0] + k * (p[0] - s[0]), s[1] + k * (p[1] - s[1])])
+    }
+
+    /// The obstacle surface near each free node, magnified about the node's position at the
+    /// step's start: a short tick across the nearest obstacle's normal, where the node would
+    /// touch after moving ×k less. Nodes whose magnified surface is far off get none.
+    fn log_surface(
+        &mut self,
+        rec: &RecordingStream,
+        style: &SceneStyle,
+        r: usize,
+        obstacles: &[Obstacle],
+        step: u64,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        if self.surface_step == Some(step) {
+            return Ok(());
+        }
+        self.surface_step = Some(step);
+        let rs = style.rods[r];
+        let k = style.magnify;
+        let w = 2.5 * rs.node_radius;
+        let mut ticks = Vec::new();
+        for i in 0..self.reference.len() / 2 {
+            if self.clamped(i) {
+                continue;
+            }
+            let p = [self.reference[2 * i], self.reference[2 * i + 1]];
+            let near = obstacles
+                .iter()
+                .map(|o| o.query(p))
+                .min_by(|a, b| a.distance.total_cmp(&b.distance));
+            let Some(q) = near else { continue };
+            if !(k * q.distance.abs() < 0.5 * rs.reach) {
+                continue;
+            }
+            let c = [
+                p[0] - k * q.distance * q.normal[0],
+                p[1] - k * q.distance * q.normal[1],
+            ];
+            let t = [-q.normal[1], q.normal[0]];
+            ticks.push(vec![
+                f32x2([c[0] - w * t[0], c[1] - w * t[1]]),
+                f32x2([c[0] + w * t[0], c[1] + w * t[1]]),
+            ]);
+        }
+        rec.log(
+            self.mag_surface.clone(),
+            &LineStrips2D::new(ticks)
+                .with_colors([rgb(OBSTACLE_COLOR)])
+                .with_radii([Radius::new_ui_points(2.5)])
+                .with_draw_order(DRAW_MAGNIFIED),
+        )
+    }
+
+    /// One Newton iterate: at true scale over the rod (phase colour, with phase, pass and
+    /// iteration as data), and magnified about the step's start.
+    fn draw_iterate(
+        &mut self,
+        rec: &RecordingStream,
+        style: &SceneStyle,
+        r: usize,
+        ev: &IterationEvent<'_>,
+        obstacles: &[Obstacle],
+    ) -> ::rerun::RecordingStreamResult<()> {
+        let color = rgb(phase_color(ev.phase));
+        let what = format!(
+            "{} pass {} Newton iteration {}",
+            ev.phase.as_str(),
+            ev.pass,
+            ev.iteration
+        );
+        let strip: Vec<[f32; 2]> = ev.q.chunks_exact(2).map(|c| f32x2([c[0], c[1]])).collect();
+        let row = iterate_row(
+            Some(strip),
+            color,
+            &[ev.phase.as_str()],
+            &[ev.pass],
+            &[ev.iteration],
+            &[what.as_str()],
+        );
+        rec.log_serialized_batches(self.iterate.clone(), false, row)?;
+        self.had_iterate = true;
+        let k = style.magnify;
+        if k <= 1.0 || self.reference.len() != ev.q.len() {
+            return Ok(());
+        }
+        // The step-end drawings of the last step make way for the iterates (with the columns
+        // of their own rows, so that clearing rows share their chunks).
+        if self.surface_step != Some(ev.step) {
+            let rad = style.rods[r].node_radius;
+            rec.log(
+                self.mag_predictor.clone(),
+                &mag_predictor_points(Vec::new(), rad),
+            )?;
+            rec.log(self.mag_step.clone(), &mag_step_strip(Vec::new()))?;
+            rec.log(
+                self.mag_correction.clone(),
+                &mag_correction_arrows(Vec::new(), Vec::new(), Vec::new(), rad),
+            )?;
+        }
+        self.log_surface(rec, style, r, obstacles, ev.step)?;
+        let n = ev.q.len() / 2;
+        let mag: Vec<[f32; 2]> = (0..n)
+            .map(|i| self.magnified(k, i, [ev.q[2 * i], ev.q[2 * i + 1]]))
+            .collect();
+        rec.log(
+            self.mag_iterate.clone(),
+            &mag_iterate_strip(
+                vec![mag.clone()],
+                color,
+                vec![format!("{what}, motion ×{}", super::fmt_force(k))],
+            ),
+        )?;
+        rec.log(
+            self.mag_iterate_nodes.clone(),
+            &mag_iterate_points(mag, color, style.rods[r].node_radius),
+        )
+    }
+
+    /// At the step's end: the accepted positions and, on a corrected step, the predictor's
+    /// and the correction, all magnified about the step's start; the iterates are cleared.
+    fn draw_magnified(
+        &mut self,
+        rec: &RecordingStream,
+        style: &SceneStyle,
+        r: usize,
+        v: &RodStepView<'_>,
+        corrected: bool,
+        _step: u64,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        let k = style.magnify;
+        if self.had_iterate {
+            // The same columns as an iterate's row (so both kinds of row share their chunks),
+            // all empty.
+            let row = iterate_row(None, rgb(ROD_COLOR), &[], &[], &[], &[]);
+            rec.log_serialized_batches(self.iterate.clone(), false, row)?;
+            let rad = style.rods[r].node_radius;
+            rec.log(
+                self.mag_iterate.clone(),
+                &mag_iterate_strip(Vec::new(), rgb(ROD_COLOR), Vec::new()),
+            )?;
+            rec.log(
+                self.mag_iterate_nodes.clone(),
+                &mag_iterate_points(Vec::new(), rgb(ROD_COLOR), rad),
+            )?;
+            self.had_iterate = false;
+        }
+        if k > 1.0 && self.reference.len() == v.q.len() {
+            let rad = style.rods[r].node_radius;
+            let n = v.q.len() / 2;
+            let at = |q: &[f64], i: usize| self.magnified(k, i, [q[2 * i], q[2 * i + 1]]);
+            let end: Vec<[f32; 2]> = (0..n).map(|i| at(v.q, i)).collect();
+            rec.log(self.mag_step.clone(), &mag_step_strip(vec![end.clone()]))?;
+            let corrected = corrected && v.q_predictor.len() == v.q.len();
+            let (mut pred, mut orig, mut vecs, mut labels) =
+                (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            if corrected {
+                let dmax = (0..n)
+                    .map(|i| {
+                        (v.q[2 * i] - v.q_predictor[2 * i])
+                            .hypot(v.q[2 * i + 1] - v.q_predictor[2 * i + 1])
+                    })
+                    .fold(0.0, f64::max);
+                for i in 0..n {
+                    let a = at(v.q_predictor, i);
+                    pred.push(a);
+                    let d = (v.q[2 * i] - v.q_predictor[2 * i])
+                        .hypot(v.q[2 * i + 1] - v.q_predictor[2 * i + 1]);
+                    if d > 0.05 * dmax && d > 0.0 {
+                        orig.push(a);
+                        vecs.push([end[i][0] - a[0], end[i][1] - a[1]]);
+                        labels.push(format!(
+                            "correction {} (×{})",
+                            super::fmt_length(d),
+                            super::fmt_force(k)
+                        ));
+                    }
+                }
+            }
+            rec.log(self.mag_predictor.clone(), &mag_predictor_points(pred, rad))?;
+            rec.log(
+                self.mag_correction.clone(),
+                &mag_correction_arrows(orig, vecs, labels, rad),
+            )?;
+        }
+        self.surface_step = None;
+        self.start.clear();
+        self.start.extend_from_slice(v.q);
+        self.start_u.clear();
+        self.start_u.extend_from_slice(v.u);
+        Ok(())
+    }
 }
 
-// Draw order in the 2D view (higher on top): a normal shares its direction with the
-// node's reaction, so the thin normal is drawn over the thick reaction arrow.
+// Draw order in the 2D view (higher on top).
 const DRAW_OBSTACLES: f32 = 5.0;
-/// Colour of a second run drawn for comparison ([`Look::Ghost`]).
-const GHOST_COLOR: [u8; 3] = [185, 190, 200];
-const DRAW_GHOSTS: f32 = 10.0;
+/// Colour of a second run drawn for comparison ([`Look::Other`]).
+pub const OTHER_COLOR: [u8; 3] = [80, 200, 255];
+const DRAW_OTHER_ROD: f32 = 12.0;
+const DRAW_OTHER_REACTIONS: f32 = 14.0;
+const DRAW_OTHER_NODES: f32 = 16.0;
 const DRAW_ROD: f32 = 20.0;
 const DRAW_REACTIONS: f32 = 30.0;
 const DRAW_NORMALS: f32 = 35.0;
 const DRAW_NODES: f32 = 40.0;
+const DRAW_PREDICTOR: f32 = 38.0;
+const DRAW_MAGNIFIED: f32 = 45.0;
+const DRAW_ITERATE: f32 = 50.0;
+const DRAW_LEGEND: f32 = 60.0;
 
 /// Text log levels.
 struct TextLogLevelName;
@@ -887,6 +1531,7 @@ impl TextLogLevelName {
     const INFO: &'static str = "INFO";
     const WARN: &'static str = "WARN";
     const ERROR: &'static str = "ERROR";
+    const BOOKMARK: &'static str = "BOOKMARK";
 }
 
 fn rgb(c: [u8; 3]) -> Color {
@@ -897,9 +1542,11 @@ fn rgb(c: [u8; 3]) -> Color {
 struct IterationEvent<'a> {
     step: u64,
     t: f64,
+    phase: Phase,
+    pass: u32,
+    iteration: u32,
     rod: usize,
     residual: f64,
-    update: f64,
     q: &'a [f64],
 }
 
@@ -914,13 +1561,19 @@ impl Observer for RerunSink {
         }
         match *event {
             Event::RunStart(info) => self.run_start(info),
-            Event::StepBegin { .. } => {}
+            Event::StepBegin { dt, .. } => {
+                for e in &mut self.rods {
+                    e.step_begin(dt);
+                }
+            }
             Event::Iteration {
                 step,
                 t,
+                phase,
+                pass,
+                iteration,
                 rod,
                 residual,
-                update,
                 q,
                 ..
             } => {
@@ -928,9 +1581,11 @@ impl Observer for RerunSink {
                     self.iteration(IterationEvent {
                         step,
                         t,
+                        phase,
+                        pass,
+                        iteration,
                         rod,
                         residual,
-                        update,
                         q,
                     });
                 }
@@ -943,12 +1598,15 @@ impl Observer for RerunSink {
                 old,
                 new,
                 reason,
-            } => self.text(
-                step,
-                t,
-                TextLogLevelName::INFO,
-                format!("step {step}: dt {old:e} s -> {new:e} s ({reason})"),
-            ),
+            } => {
+                let at = self.iteration;
+                self.bookmark(
+                    step,
+                    t,
+                    at,
+                    format!("dt {old:e} s -> {new:e} s ({reason}) (t = {t:.6} s, step {step}, iteration {at})"),
+                )
+            }
             Event::NewtonFailed {
                 step,
                 t,
@@ -959,11 +1617,18 @@ impl Observer for RerunSink {
                 reason,
             } => {
                 let name = self.rod_name(rod);
+                let at = self.iteration;
                 self.text(
                     step,
                     t,
                     TextLogLevelName::WARN,
                     format!("step {step}: Newton failed on rod {name:?} node {node} with dt = {dt:e} s: {reason} (residual {residual:.3e} N)"),
+                );
+                self.bookmark(
+                    step,
+                    t,
+                    at,
+                    format!("Newton failed on rod {name:?} node {node}, retried with a smaller dt (t = {t:.6} s, step {step}, iteration {at})"),
                 )
             }
             Event::Warning { step, t, message } => {
@@ -993,6 +1658,7 @@ impl Observer for RerunSink {
             }
             Event::RunEnd { steps, t, error } => {
                 self.completed = error.is_none();
+                self.end_bookmarks();
                 match error {
                     None => self.text(
                         steps,

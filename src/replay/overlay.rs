@@ -20,8 +20,10 @@ use super::diff::{locate, DiffReport};
 use super::read::{read_messages, Message, Meta, Run, Step};
 use super::{CheckReport, ReplayError};
 use crate::events::{Event, Observer, RodInfo, RodStepView, RunInfo};
-use crate::record::rerun::{blueprint, blueprint_with, Look, RerunSink, RodEntities};
-use crate::record::{Detail, RecordOptions, Recording, SceneStyle};
+use crate::record::rerun::{blueprint, blueprint_with, Look, RerunSink, RodEntities, OTHER_COLOR};
+use crate::record::{
+    Detail, RecordOptions, Recording, SceneStyle, Survey, SurveyObserver, ViewOptions,
+};
 use crate::scenario::Scenario;
 use ::rerun::blueprint::{Blueprint, TimeSeriesView};
 use ::rerun::{
@@ -115,6 +117,7 @@ fn drive(
     mut after_step: impl FnMut(&RecordingStream, &Step, &SceneStyle) -> Result<(), ReplayError>,
 ) -> Result<Shown, ReplayError> {
     let werr = |e: crate::record::RecordError| ReplayError::file(out, e.to_string());
+    let survey = survey_stored(path)?;
     let mut spec = Some(spec);
     let mut sink: Option<RerunSink> = None;
     let mut scenario: Option<Scenario> = None;
@@ -122,6 +125,10 @@ fn drive(
     let mut style: Option<SceneStyle> = None;
     let mut steps = 0usize;
     let mut last: Option<(u64, f64)> = None;
+    // The stored run has no step-begin messages: send one at the first message of each step,
+    // and again after a dt change (a retry): dt is the step's own when its /sim/step comes
+    // first, else the last one known (the scenario's, the last step's, the dt change's).
+    let mut begun = Begun::default();
     let mut ended = false;
     let status = read_messages(path, iterations, |m| {
         match m {
@@ -137,7 +144,11 @@ fn drive(
                     flush_every: meta.flush_every.max(1),
                 };
                 let mut k = RerunSink::create_named(out, opts, &s.name, &s.text, s.blueprint)
-                    .map_err(werr)?;
+                    .map_err(werr)?
+                    .with_view(ViewOptions {
+                        survey: Some(survey),
+                        ..ViewOptions::default()
+                    });
                 infos = meta.rods.iter().map(|r| r.info()).collect();
                 let info = RunInfo {
                     scenario_name: &meta.scenario_name,
@@ -149,6 +160,7 @@ fn drive(
                     mode: sc.solve.mode,
                 };
                 k.on_event(&Event::RunStart(&info));
+                begun.dt = sc.solve.dt;
                 sink = Some(k);
                 scenario = Some(sc);
             }
@@ -156,9 +168,8 @@ fn drive(
                 let k = sink.as_mut().expect("meta first");
                 let owned = Views::of(&st);
                 let views = owned.views(&st);
-                if style.is_none() {
-                    let sc = scenario.as_ref().expect("meta first");
-                    style = Some(SceneStyle::new(&infos, &views, &sc.obstacles));
+                if st.step > 0 {
+                    begun.begin(k, st.step, st.t - st.dt, Some(st.dt));
                 }
                 k.on_event(&Event::StepEnd {
                     step: st.step,
@@ -170,6 +181,9 @@ fn drive(
                     bodies: &[],
                     contacts: &[],
                 });
+                if style.is_none() {
+                    style = k.style().cloned();
+                }
                 steps += 1;
                 last = Some((st.step, st.t));
                 if let Some(rec) = k.stream() {
@@ -178,6 +192,7 @@ fn drive(
             }
             Message::Contact(c) => {
                 let k = sink.as_mut().expect("meta first");
+                begun.begin(k, c.step, c.t, None);
                 if c.added() {
                     k.on_event(&Event::ConstraintAdded(c.change()));
                 } else {
@@ -186,6 +201,7 @@ fn drive(
             }
             Message::Iteration(it) => {
                 let k = sink.as_mut().expect("meta first");
+                begun.begin(k, it.step, it.t, None);
                 k.on_event(&Event::Iteration {
                     step: it.step,
                     t: it.t,
@@ -204,13 +220,17 @@ fn drive(
                 };
                 let reason = e.reason.as_deref().unwrap_or("");
                 match e.kind.as_str() {
-                    "dt_changed" => k.on_event(&Event::DtChanged {
-                        step: e.step,
-                        t: e.t,
-                        old: e.old_dt.unwrap_or(0.0),
-                        new: e.new_dt.unwrap_or(0.0),
-                        reason,
-                    }),
+                    "dt_changed" => {
+                        begun.step = None;
+                        begun.dt = e.new_dt.unwrap_or(begun.dt);
+                        k.on_event(&Event::DtChanged {
+                            step: e.step,
+                            t: e.t,
+                            old: e.old_dt.unwrap_or(0.0),
+                            new: e.new_dt.unwrap_or(0.0),
+                            reason,
+                        })
+                    }
                     "newton_failed" => k.on_event(&Event::NewtonFailed {
                         step: e.step,
                         t: e.t,
@@ -283,6 +303,59 @@ fn drive(
     Ok(Shown { steps, warning })
 }
 
+/// A first pass over a stored run's steps: the force range and the region it visits, so the
+/// `.rrd` is drawn with one scale, as a live run's is.
+fn survey_stored(path: &Path) -> Result<Survey, ReplayError> {
+    let mut obs = SurveyObserver::default();
+    read_messages(path, false, |m| {
+        match m {
+            Message::Meta(meta) => {
+                let infos: Vec<RodInfo> = meta.rods.iter().map(|r| r.info()).collect();
+                let sc = super::read::parse_scenario(path, &meta)?;
+                obs.on_event(&Event::RunStart(&RunInfo {
+                    scenario_name: &meta.scenario_name,
+                    scenario_text: &meta.scenario_text,
+                    rods: &infos,
+                    obstacles: &sc.obstacles,
+                    obstacle_names: &sc.obstacle_names,
+                    bodies: &sc.bodies,
+                    mode: sc.solve.mode,
+                }));
+            }
+            Message::Step(st) => {
+                let owned = Views::of(&st);
+                obs.step(st.dt, &owned.views(&st));
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    Ok(obs.survey)
+}
+
+/// Which step the sink was told began, and the dt to tell it.
+#[derive(Default)]
+struct Begun {
+    step: Option<u64>,
+    dt: f64,
+}
+
+impl Begun {
+    fn begin(&mut self, k: &mut RerunSink, step: u64, t: f64, dt: Option<f64>) {
+        if self.step != Some(step) {
+            self.step = Some(step);
+            k.on_event(&Event::StepBegin {
+                step,
+                t,
+                dt: dt.unwrap_or(self.dt),
+            });
+        }
+        if let Some(dt) = dt {
+            self.dt = dt;
+        }
+    }
+}
+
 /// `replay show`: the stored run as a `.rrd`, as a live run would have written it.
 pub fn show(path: &Path, out: &Path) -> Result<Shown, ReplayError> {
     drive(
@@ -292,7 +365,7 @@ pub fn show(path: &Path, out: &Path) -> Result<Shown, ReplayError> {
         |meta| SinkSpec {
             name: meta.scenario_name.clone(),
             text: meta.scenario_text.clone(),
-            blueprint: blueprint(),
+            blueprint: blueprint(&rod_names(meta)),
             iterations: meta.detail == "iteration",
         },
         |_, _, _| Ok(()),
@@ -307,6 +380,10 @@ const STICK_COLOR: [u8; 3] = [255, 150, 0];
 const DIVERGENCE_COLOR: [u8; 3] = [255, 30, 30];
 /// Rings sit over the nodes (they are outlines and hide nothing).
 const DRAW_HALO: f32 = 45.0;
+
+fn rod_names(meta: &Meta) -> Vec<String> {
+    meta.rods.iter().map(|r| r.name.clone()).collect()
+}
 
 fn color(c: [u8; 3]) -> Color {
     Color::from_rgb(c[0], c[1], c[2])
@@ -469,7 +546,7 @@ pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), Repla
         |meta| SinkSpec {
             name: format!("{} (check)", meta.scenario_name),
             text: meta.scenario_text.clone(),
-            blueprint: blueprint(),
+            blueprint: blueprint(&rod_names(meta)),
             iterations: false,
         },
         |rec, st, style| log_marks(rec, &marks, &mut next, st.t, style),
@@ -477,36 +554,53 @@ pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), Repla
     Ok(())
 }
 
-/// `replay diff --rrd`: A as recorded, B ghosted at A's times, both runs' findings and the
-/// first divergence marked, and the rod-wise largest differences plotted.
+/// A contact event that differs between the runs, for the events log at its (earlier) time.
+fn event_lines(rep: &DiffReport) -> Vec<(f64, String)> {
+    let mut out: Vec<(f64, String)> = rep
+        .contact_events
+        .iter()
+        .map(|e| {
+            let when = |t: Option<f64>, s: Option<u64>| match (t, s) {
+                (Some(t), Some(s)) => format!("t = {t:.6} s (step {s})"),
+                _ => "never".to_string(),
+            };
+            let what = match e.status {
+                "shifted" => format!("shifted by {:+.3e} s", e.shift.unwrap_or(0.0)),
+                "only_a" => "in A only".to_string(),
+                _ => "in B only".to_string(),
+            };
+            let t = e.t_a.into_iter().chain(e.t_b).fold(f64::INFINITY, f64::min);
+            (
+                t,
+                format!(
+                    "contact {} of rod {:?} node {} on obstacle {} {what}: A {}, B {}",
+                    e.change,
+                    e.rod_name,
+                    e.node,
+                    e.obstacle,
+                    when(e.t_a, e.step_a),
+                    when(e.t_b, e.step_b)
+                ),
+            )
+        })
+        .collect();
+    out.sort_by(|p, q| p.0.total_cmp(&q.0));
+    out
+}
+
+/// `replay diff --rrd`: A as recorded, B in its own colour at A's times (nodes as rings around
+/// A's, its reactions as wider arrows under A's), both runs' findings, the first divergence
+/// marked at its node from its time on (A's node, B's node and the gap between them), the
+/// contact events that differ in the events log, and the rod-wise largest differences plotted.
 pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), ReplayError> {
     let mut all = marks(a, &rep.findings_a, false);
     all.extend(marks(b, &rep.findings_b, true));
-    if let Some(d) = &rep.first_divergence {
-        all.push(Mark {
-            t: d.t,
-            rod: d.rod,
-            at: d.a,
-            entity: ent(&["scene", "divergence"]),
-            label: "first divergence".into(),
-            text: format!(
-                "first divergence: {} of rod {:?} node {}, |A - B| = {:.3e} > {:.3e} at t = {} s (A step {}, B step {})",
-                d.quantity, d.rod_name, d.node, d.difference, d.tolerance, d.t, d.step_a, d.step_b
-            ),
-            color: DIVERGENCE_COLOR,
-            scale: 3.2,
-            width: 3.0,
-            show_label: true,
-        });
-        // The position of the node, whatever quantity diverged.
-        let at = locate(a, d.t);
-        let p = at.vec2(a, d.rod, d.node, super::diff::pos);
-        if let Some(m) = all.last_mut() {
-            m.at = p;
-        }
-    }
     all.sort_by(|p, q| p.t.total_cmp(&q.t));
     let mut next = 0;
+    let lines = event_lines(rep);
+    let mut next_line = 0;
+    let divergence = rep.first_divergence.clone();
+    let mut divergence_told = false;
     let mut ghosts: Vec<RodEntities> = b
         .meta
         .rods
@@ -516,15 +610,18 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
     let b_end = b.t_end();
     let names: Vec<String> = a.meta.rods.iter().map(|r| r.name.clone()).collect();
     let extra = vec![
-        TimeSeriesView::new("Position difference |A - B| (m), max over each rod's nodes")
+        TimeSeriesView::new("Position |A - B| (m), max per rod")
             .with_origin("/diff/position")
             .into(),
-        TimeSeriesView::new("Velocity difference |A - B| (m/s), max over each rod's nodes")
+        TimeSeriesView::new("Velocity |A - B| (m/s), max per rod")
             .with_origin("/diff/velocity")
             .into(),
     ];
     let text = format!("{}\n{}", a.meta.scenario_text, b.meta.scenario_text);
     let title = format!("{} vs {}", a.meta.scenario_name, b.meta.scenario_name);
+    let fail = |what: &str, e: ::rerun::RecordingStreamError| {
+        ReplayError::new(format!("cannot log {what}: {e}"))
+    };
     drive(
         &a.path,
         out,
@@ -532,11 +629,40 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
         |_| SinkSpec {
             name: title,
             text,
-            blueprint: blueprint_with(extra),
+            blueprint: blueprint_with(&names, extra),
             iterations: false,
         },
         |rec, st, style| {
             let t = st.t;
+            if st.step == 0 {
+                for (r, name) in names.iter().enumerate() {
+                    for (kind, c) in [("position", r), ("velocity", r)] {
+                        rec.log_static(
+                            ent(&["diff", kind, name]),
+                            &::rerun::SeriesLines::new()
+                                .with_colors([color(crate::record::series_color(c))])
+                                .with_names([name.as_str()]),
+                        )
+                        .map_err(|e| fail("a series style", e))?;
+                    }
+                }
+                rec.log_static(
+                    ent(&["scene", "run_b", "legend"]),
+                    &::rerun::Points2D::new([[
+                        (style.lo[0] + 0.04 * (style.hi[0] - style.lo[0])) as f32,
+                        (style.lo[1] + 0.16 * (style.hi[1] - style.lo[1])) as f32,
+                    ]])
+                    .with_colors([color(OTHER_COLOR)])
+                    .with_radii([Radius::new_ui_points(5.0)])
+                    .with_labels([format!(
+                        "run B ({}): cyan rings, line and arrows under run A's",
+                        b.meta.scenario_name
+                    )])
+                    .with_show_labels(true),
+                )
+                .map_err(|e| fail("the legend", e))?;
+            }
+            let mut b_q: Vec<Vec<f64>> = Vec::new();
             if t <= b_end {
                 let at = locate(b, t);
                 let kb = at.k0;
@@ -563,8 +689,8 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
                         gap: &bs.gap,
                         q_predictor: &bs.q_predictor,
                     };
-                    g.draw(rec, &style.rods[r], &view, false, Look::Ghost)
-                        .map_err(|e| ReplayError::new(format!("cannot log run B: {e}")))?;
+                    g.draw(rec, style, r, &view, false, Look::Other)
+                        .map_err(|e| fail("run B", e))?;
                     // Largest differences over the rod's nodes.
                     let (mut dq, mut du) = (0.0f64, 0.0f64);
                     let va = &st.rods[r];
@@ -576,11 +702,63 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
                     }
                     for (kind, v) in [("position", dq), ("velocity", du)] {
                         rec.log(ent(&["diff", kind, &names[r]]), &Scalars::single(v))
-                            .map_err(|e| {
-                                ReplayError::new(format!("cannot log a difference: {e}"))
-                            })?;
+                            .map_err(|e| fail("a difference", e))?;
                     }
+                    b_q.push(q);
                 }
+            }
+            if let Some(d) = divergence.as_ref().filter(|d| t >= d.t) {
+                let qa = &st.rods[d.rod].q;
+                let pa = [qa[2 * d.node], qa[2 * d.node + 1]];
+                let pb = b_q
+                    .get(d.rod)
+                    .map(|q| [q[2 * d.node], q[2 * d.node + 1]])
+                    .unwrap_or(pa);
+                let rr = 3.2 * style.rods.get(d.rod).map(|s| s.node_radius).unwrap_or(1e-3);
+                let ring = |c: [f64; 2]| -> Vec<[f32; 2]> {
+                    (0..=32)
+                        .map(|j| {
+                            let a = j as f64 * std::f64::consts::TAU / 32.0;
+                            [(c[0] + rr * a.cos()) as f32, (c[1] + rr * a.sin()) as f32]
+                        })
+                        .collect()
+                };
+                let label = format!(
+                    "first divergence: {} of rod {:?} node {} at t = {:.6} s",
+                    d.quantity, d.rod_name, d.node, d.t
+                );
+                rec.log(
+                    ent(&["scene", "divergence"]),
+                    &LineStrips2D::new([
+                        ring(pa),
+                        vec![[pa[0] as f32, pa[1] as f32], [pb[0] as f32, pb[1] as f32]],
+                    ])
+                    .with_colors([color(DIVERGENCE_COLOR)])
+                    .with_radii([Radius::new_ui_points(3.0)])
+                    .with_labels([label.clone(), String::new()])
+                    .with_draw_order(DRAW_HALO),
+                )
+                .map_err(|e| fail("the divergence marker", e))?;
+                if !divergence_told {
+                    divergence_told = true;
+                    rec.log(
+                        ent(&["events", "bookmarks"]),
+                        &TextLog::new(format!(
+                            "★ first divergence: {} of rod {:?} node {}, |A - B| = {:.3e} > {:.3e} at t = {} s (A step {}, B step {})",
+                            d.quantity, d.rod_name, d.node, d.difference, d.tolerance, d.t, d.step_a, d.step_b
+                        ))
+                        .with_level("BOOKMARK"),
+                    )
+                    .map_err(|e| fail("an event", e))?;
+                }
+            }
+            while next_line < lines.len() && lines[next_line].0 <= t {
+                rec.log(
+                    "events",
+                    &TextLog::new(lines[next_line].1.as_str()).with_level("WARN"),
+                )
+                .map_err(|e| fail("an event", e))?;
+                next_line += 1;
             }
             log_marks(rec, &all, &mut next, t, style)
         },
