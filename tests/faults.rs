@@ -824,7 +824,7 @@ fn item8_a_killed_run_leaves_whole_csv_rows() {
             &text[text.len() - 80..]
         );
         let header = text.lines().next().unwrap().split(',').count();
-        assert_eq!(header, 14);
+        assert_eq!(header, 19);
         // Whole steps: every step has one row per node (10 nodes).
         let rows = text.lines().count() - 1;
         assert_eq!(rows % 10, 0, "{rows} rows");

@@ -694,15 +694,24 @@ pub struct SurveyObserver {
     prev_u: Vec<Vec<f64>>,
 }
 
+/// The survey looks at most this many steps (the first ones): a long run starts recording
+/// after a bounded delay, and the scales stay deterministic.
+pub const SURVEY_MAX_STEPS: u64 = 200_000;
+
 impl Survey {
-    /// Run `scenario` unrecorded and survey it. The run's error, if any, is ignored here: the
-    /// recorded run that follows meets it again and reports it.
+    /// Run `scenario` unrecorded and survey it (its first [`SURVEY_MAX_STEPS`] steps). The
+    /// run's error, if any, is ignored here: the recorded run that follows meets it again and
+    /// reports it.
     pub fn of(
         scenario: &crate::Scenario,
         interrupt: Option<Box<dyn Fn() -> bool + Send>>,
     ) -> Survey {
         let mut sim = crate::Simulation::new(scenario);
-        sim.interrupt = interrupt;
+        let steps = std::sync::atomic::AtomicU64::new(0);
+        sim.interrupt = Some(Box::new(move || {
+            let n = steps.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            n >= SURVEY_MAX_STEPS || interrupt.as_ref().is_some_and(|f| f())
+        }));
         let mut obs = SurveyObserver::default();
         let _ = sim.run(&mut obs);
         obs.survey

@@ -612,38 +612,8 @@ fn inside(p: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> bool {
     p[0] >= lo[0] && p[0] <= hi[0] && p[1] >= lo[1] && p[1] <= hi[1]
 }
 
-/// Liang–Barsky: the part of segment a–b inside the box.
-fn clip_segment(
-    a: [f64; 2],
-    b: [f64; 2],
-    lo: [f64; 2],
-    hi: [f64; 2],
-) -> Option<([f64; 2], [f64; 2])> {
-    let d = [b[0] - a[0], b[1] - a[1]];
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    for k in 0..2 {
-        for (p, q) in [(-d[k], a[k] - lo[k]), (d[k], hi[k] - a[k])] {
-            if p == 0.0 {
-                if q < 0.0 {
-                    return None;
-                }
-            } else {
-                let r = q / p;
-                if p < 0.0 {
-                    t0 = t0.max(r);
-                } else {
-                    t1 = t1.min(r);
-                }
-            }
-        }
-    }
-    (t0 <= t1).then(|| {
-        (
-            [a[0] + t0 * d[0], a[1] + t0 * d[1]],
-            [a[0] + t1 * d[0], a[1] + t1 * d[1]],
-        )
-    })
-}
+// Liang–Barsky clipping is the recordings' (record::clip_segment).
+use crate::record::clip_segment;
 
 /// The pieces of a polyline inside the box.
 fn clip_polyline(line: &[[f64; 2]], lo: [f64; 2], hi: [f64; 2]) -> Vec<Vec<[f64; 2]>> {

@@ -146,6 +146,21 @@ pub struct Metrics {
     pub spikes: usize,
     #[serde(default)]
     pub sticking: usize,
+    /// The grasp of the first free body (empty columns without one): held, dropped, peak grip
+    /// force per prong (N), minimum safety margin μ_s ΣN/(m g) during the lift, largest slip
+    /// relative to the gripper (m), first stick → slip of a prong contact (s).
+    #[serde(default)]
+    pub held: Option<bool>,
+    #[serde(default)]
+    pub dropped: Option<bool>,
+    #[serde(default)]
+    pub peak_grip_force_n: Option<f64>,
+    #[serde(default)]
+    pub min_safety_margin: Option<f64>,
+    #[serde(default)]
+    pub max_slip_m: Option<f64>,
+    #[serde(default)]
+    pub first_slip_s: Option<f64>,
     pub wall_time_s: f64,
 }
 
@@ -204,6 +219,12 @@ impl Metrics {
             warnings,
             spikes: 0,
             sticking: 0,
+            held: s.grasp.as_ref().map(|g| g.held),
+            dropped: s.grasp.as_ref().map(|g| g.dropped),
+            peak_grip_force_n: s.grasp.as_ref().map(|g| g.peak_grip_force_n),
+            min_safety_margin: s.grasp.as_ref().and_then(|g| g.min_safety_margin),
+            max_slip_m: s.grasp.as_ref().map(|g| g.max_slip_m),
+            first_slip_s: s.grasp.as_ref().and_then(|g| g.first_slip_time_s),
             wall_time_s: s.wall_time_s,
         }
     }
@@ -908,6 +929,12 @@ fn csv_header(manifest: &Manifest) -> Vec<String> {
             "warnings",
             "spikes",
             "sticking",
+            "held",
+            "dropped",
+            "peak_grip_force_n",
+            "min_safety_margin",
+            "max_slip_m",
+            "first_slip_s",
             "error",
             "wall_time_s",
         ]
@@ -973,6 +1000,12 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
         m.warnings.to_string(),
         m.spikes.to_string(),
         m.sticking.to_string(),
+        opt(&m.held),
+        opt(&m.dropped),
+        m.peak_grip_force_n.map(num).unwrap_or_default(),
+        m.min_safety_margin.map(num).unwrap_or_default(),
+        m.max_slip_m.map(num).unwrap_or_default(),
+        m.first_slip_s.map(num).unwrap_or_default(),
         opt(&m.error),
         num(m.wall_time_s),
     ]);
