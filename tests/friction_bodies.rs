@@ -246,3 +246,36 @@ fn fruit_momentum_changes_by_the_contact_and_gravity_impulses() {
     println!("momentum balance: worst relative error {worst:.2e}");
     assert!(worst < 1e-9, "{worst:e}");
 }
+
+#[test]
+fn free_body_mass_keys_set_mass_inertia_and_hold_tolerance() {
+    let r: f64 = 0.04;
+    let path = format!(
+        "{}/scenarios/fruit-on-table.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    assert_eq!(text.matches("mass = 0.15\n").count(), 1);
+    // mass = density × area × depth; inertia of a disc m r²/2; hold tolerance 10 % of r.
+    let sc = scenario(
+        &text.replace("mass = 0.15\n", "density = 900.0\ndepth = 0.03\n"),
+        &[],
+    );
+    let b = &sc.bodies[0];
+    let m = 900.0 * std::f64::consts::PI * r * r * 0.03;
+    assert!((b.mass - m).abs() < 1e-12 * m, "{} vs {m}", b.mass);
+    assert!((b.inertia - m * r * r / 2.0).abs() < 1e-12 * b.inertia);
+    assert!((b.hold_tolerance - 0.1 * r).abs() < 1e-15);
+    // An inertia override changes how the landing spin decays and where the fruit stops.
+    let stiff = shipped(
+        "fruit-on-table",
+        &["obstacle.1.inertia=1e-3", "obstacle.1.hold_tolerance=0.001"],
+    );
+    assert_eq!(stiff.bodies[0].inertia, 1e-3);
+    assert_eq!(stiff.bodies[0].hold_tolerance, 0.001);
+    let (a, _) = run(&shipped("fruit-on-table", &[]));
+    let (b2, _) = run(&stiff);
+    let d = (a.bodies[0].pose.c[0] - b2.bodies[0].pose.c[0]).abs();
+    println!("rest position moves by {d:.3e} m with the inertia override");
+    assert!(d > 1e-6);
+}
