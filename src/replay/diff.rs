@@ -493,18 +493,6 @@ impl<'a> Side<'a> {
             }
         };
         let scenario = super::read::parse_scenario(path, &meta)?;
-        if scenario.rods.len() != meta.rods.len()
-            || scenario
-                .rods
-                .iter()
-                .zip(&meta.rods)
-                .any(|(s, m)| s.nodes != m.nodes)
-        {
-            return Err(ReplayError::file(
-                path,
-                "/sim/meta rods do not match its own scenario_text".into(),
-            ));
-        }
         let head = Head {
             path: path.to_path_buf(),
             meta,

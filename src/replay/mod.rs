@@ -227,18 +227,6 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<(CheckReport, Option<String
         match m {
             read::Message::Meta(meta) => {
                 let sc = read::parse_scenario(path, &meta)?;
-                if sc.rods.len() != meta.rods.len()
-                    || sc
-                        .rods
-                        .iter()
-                        .zip(&meta.rods)
-                        .any(|(s, m)| s.nodes != m.nodes)
-                {
-                    return Err(ReplayError::file(
-                        path,
-                        "/sim/meta rods do not match its own scenario_text".into(),
-                    ));
-                }
                 det = Some((Detector::new(&sc, th), *meta));
             }
             read::Message::Contact(c) => {

@@ -913,18 +913,6 @@ impl Run {
         })?;
         let meta = meta.expect("read_messages checks /sim/meta");
         let scenario = parse_scenario(path, &meta)?;
-        if scenario.rods.len() != meta.rods.len()
-            || scenario
-                .rods
-                .iter()
-                .zip(&meta.rods)
-                .any(|(s, m)| s.nodes != m.nodes)
-        {
-            return Err(ReplayError::file(
-                path,
-                "/sim/meta rods do not match its own scenario_text".into(),
-            ));
-        }
         // Only the changes of accepted steps: a change of an attempt the solver threw away
         // (a rejected adaptive step, a back-off, a time-of-impact split; recordings before
         // they were filtered at the source) has its step's number but another time.
@@ -997,12 +985,26 @@ impl Run {
 }
 
 /// The scenario of a recording, from `/sim/meta` `scenario_text`.
+/// The recorded scenario of a run, checked against the rods `/sim/meta` lists.
 pub fn parse_scenario(path: &Path, meta: &Meta) -> Result<Scenario, ReplayError> {
     let file = format!("{} (/sim/meta scenario_text)", path.display());
-    Scenario::from_str(&meta.scenario_text, &file, &[]).map_err(|e| {
+    let sc = Scenario::from_str(&meta.scenario_text, &file, &[]).map_err(|e| {
         ReplayError::file(
             path,
             format!("its recorded scenario does not read back: {e}"),
         )
-    })
+    })?;
+    if sc.rods.len() != meta.rods.len()
+        || sc
+            .rods
+            .iter()
+            .zip(&meta.rods)
+            .any(|(s, m)| s.nodes != m.nodes)
+    {
+        return Err(ReplayError::file(
+            path,
+            "/sim/meta rods do not match its own scenario_text".into(),
+        ));
+    }
+    Ok(sc)
 }
