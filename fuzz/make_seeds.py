@@ -21,7 +21,7 @@ RAW = os.path.join(ROOT, "fuzz", "seeds", "replay_mcap")
 MSG = os.path.join(ROOT, "fuzz", "seeds", "replay_messages")
 RUNS = {
     # a point mass landing on a plane (a spike, contact held)
-    "ball": ["scenarios/point-mass-plane-dt1e-4.toml",
+    "ball": ["recordings/golden/point-mass-plane-dt1e-4.toml",
              "--set", "particle.0.position=[0.0, 0.00002]", "--set", "solve.t_end=0.0025"],
     # a free rod landing on a plane
     "rod": ["fuzz/seeds/scenario/rod-on-plane.toml", "--set", "solve.t_end=0.0025",

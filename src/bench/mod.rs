@@ -14,7 +14,7 @@ use std::time::Instant;
 /// The scenarios the bench uses, embedded so it runs from any folder.
 pub const SEED_R5: &str = include_str!("../../scenarios/seed-grasp-r5.toml");
 pub const TWO_PRONG: &str = include_str!("../../scenarios/two-prong-grasp.toml");
-pub const DROP: &str = include_str!("../../scenarios/point-mass-plane-dt1e-4.toml");
+pub const DROP: &str = include_str!("../../recordings/golden/point-mass-plane-dt1e-4.toml");
 pub const CANTILEVER: &str = include_str!("../../scenarios/cantilever-gravity.toml");
 
 #[derive(Debug, Clone)]

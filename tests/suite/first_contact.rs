@@ -3,10 +3,8 @@
 
 use std::path::Path;
 use std::process::{Command, Output};
+use crate::common::{gripsim};
 
-fn gripsim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_gripsim"))
-}
 
 fn text(out: &Output) -> (String, String) {
     (

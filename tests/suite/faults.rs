@@ -8,20 +8,10 @@ use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+use crate::common::{gripsim, scenario, ROOT};
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-fn gripsim() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_gripsim"));
-    c.current_dir(ROOT);
-    c
-}
 
-fn scenario(name: &str) -> PathBuf {
-    Path::new(ROOT)
-        .join("scenarios")
-        .join(format!("{name}.toml"))
-}
 
 /// What a finished child did: exit code (None when a signal ended it), stdout, stderr and its
 /// peak resident memory (VmHWM of /proc/PID/status, read every few ms while it runs; the

@@ -8,18 +8,10 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
+use crate::common::{gripsim, scenario, venv, ROOT};
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-fn gripsim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_gripsim"))
-}
 
-fn scenario(name: &str) -> PathBuf {
-    Path::new(ROOT)
-        .join("scenarios")
-        .join(format!("{name}.toml"))
-}
 
 fn run_ok(cmd: &mut Command) -> Output {
     let out = cmd.output().expect("gripsim starts");
@@ -33,19 +25,6 @@ fn run_ok(cmd: &mut Command) -> Output {
     out
 }
 
-/// The test venv (created once per machine; the script takes a lock).
-fn venv() -> &'static Path {
-    static VENV: OnceLock<PathBuf> = OnceLock::new();
-    VENV.get_or_init(|| {
-        let out = Command::new("python3")
-            .arg(Path::new(ROOT).join("tests/py/setup_venv.py"))
-            .stderr(Stdio::inherit())
-            .output()
-            .expect("python3 runs tests/py/setup_venv.py");
-        assert!(out.status.success(), "setting up the test venv failed");
-        PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
-    })
-}
 
 /// The report of tests/py/read_rrd.py.
 fn read_rrd(path: &Path) -> Value {

@@ -54,8 +54,7 @@ fn strip(mut v: Value, clamped: &[Vec<bool>]) -> Value {
 fn shipped_scenarios_match_the_frictionless_solver_bit_for_bit() {
     let root = env!("CARGO_MANIFEST_DIR");
     for name in SCENARIOS {
-        let path = format!("{root}/scenarios/{name}.toml");
-        let sc = Scenario::load(std::path::Path::new(&path), &[]).unwrap();
+        let sc = Scenario::load(&crate::common::scenario(name), &[]).unwrap();
         assert!(!sc.friction.any() && sc.bodies.is_empty());
         let mut sim = Simulation::new(&sc);
         let mut col = SummaryCollector::new();

@@ -11,20 +11,10 @@ use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use crate::common::{gripsim, scenario, ROOT};
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-fn gripsim() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_gripsim"));
-    c.current_dir(ROOT);
-    c
-}
 
-fn scenario(name: &str) -> PathBuf {
-    Path::new(ROOT)
-        .join("scenarios")
-        .join(format!("{name}.toml"))
-}
 
 /// Run; expect exit 2, no panic; return stderr.
 fn fails(cmd: &mut Command) -> String {

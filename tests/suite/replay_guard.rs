@@ -7,14 +7,9 @@ use gripsim::replay::detect::{Detector, Findings, RodSample, Thresholds};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use crate::common::{gripsim, scenario, ROOT};
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-fn gripsim() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_gripsim"));
-    c.current_dir(ROOT);
-    c
-}
 
 fn text(out: &Output) -> String {
     format!(
@@ -37,11 +32,6 @@ fn expect(cmd: &mut Command, code: i32) -> Output {
     out
 }
 
-fn scenario(name: &str) -> PathBuf {
-    Path::new(ROOT)
-        .join("scenarios")
-        .join(format!("{name}.toml"))
-}
 
 /// Write a scenario text into `dir` and return its path.
 fn write_scenario(dir: &Path, name: &str, text: &str) -> PathBuf {

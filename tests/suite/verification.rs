@@ -409,9 +409,7 @@ impl Observer for NoPenetration {
 }
 
 fn shipped(name: &str, sets: &[&str]) -> Scenario {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenarios")
-        .join(format!("{name}.toml"));
+    let path = crate::common::scenario(name);
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
     Scenario::load(&path, &sets).unwrap_or_else(|e| panic!("{e}"))
 }

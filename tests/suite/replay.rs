@@ -11,20 +11,10 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
+use crate::common::{gripsim, scenario, venv, ROOT};
 
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-fn gripsim() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_gripsim"));
-    c.current_dir(ROOT);
-    c
-}
 
-fn scenario(name: &str) -> PathBuf {
-    Path::new(ROOT)
-        .join("scenarios")
-        .join(format!("{name}.toml"))
-}
 
 fn text(out: &Output) -> String {
     format!(
@@ -60,19 +50,6 @@ fn json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
-/// The test venv of tests/py/setup_venv.py (shared with tests/recordings.rs).
-fn venv() -> &'static Path {
-    static VENV: OnceLock<PathBuf> = OnceLock::new();
-    VENV.get_or_init(|| {
-        let out = Command::new("python3")
-            .arg(Path::new(ROOT).join("tests/py/setup_venv.py"))
-            .stderr(Stdio::inherit())
-            .output()
-            .expect("python3 runs tests/py/setup_venv.py");
-        assert!(out.status.success(), "setting up the test venv failed");
-        PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
-    })
-}
 
 fn rerun_rrd(sub: &str, files: &[&Path]) -> Output {
     Command::new(venv().join("bin/rerun"))

@@ -1,0 +1,42 @@
+//! What the test modules share: the CLI under test, the shipped scenarios and the Python venv
+//! that holds the independent readers (rerun-sdk, mcap).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+
+/// The repository root.
+pub const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// The `gripsim` binary, run from the repository root.
+pub fn gripsim() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_gripsim"));
+    c.current_dir(ROOT);
+    c
+}
+
+/// A scenario's path: a shipped one (scenarios/) or a golden guard's (recordings/golden/).
+pub fn scenario(name: &str) -> PathBuf {
+    let file = format!("{name}.toml");
+    let shipped = Path::new(ROOT).join("scenarios").join(&file);
+    if shipped.exists() {
+        shipped
+    } else {
+        Path::new(ROOT).join("recordings/golden").join(file)
+    }
+}
+
+/// The test venv of tests/py/setup_venv.py (created once per machine; the script takes a lock,
+/// so concurrent test processes are safe too).
+pub fn venv() -> &'static Path {
+    static VENV: OnceLock<PathBuf> = OnceLock::new();
+    VENV.get_or_init(|| {
+        let out = Command::new("python3")
+            .arg(Path::new(ROOT).join("tests/py/setup_venv.py"))
+            .stderr(Stdio::inherit())
+            .output()
+            .expect("python3 runs tests/py/setup_venv.py");
+        assert!(out.status.success(), "setting up the test venv failed");
+        PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
+    })
+}

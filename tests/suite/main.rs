@@ -1,0 +1,22 @@
+//! The integration tests, one binary (each module was a test binary of its own; linking 20
+//! copies of the Rerun SDK cost minutes and gigabytes). alloc.rs and replay_memory.rs stay
+//! separate: they install a counting global allocator.
+
+mod common;
+mod bad_input;
+mod bad_recordings;
+mod bench;
+mod faults;
+mod first_contact;
+mod friction_bodies;
+mod frictionless_golden;
+mod pick_and_place;
+mod properties;
+mod recordings;
+mod regressions;
+mod replay;
+mod replay_guard;
+mod rrd_view;
+mod stepping;
+mod sweep;
+mod verification;
