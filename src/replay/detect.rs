@@ -304,6 +304,9 @@ pub struct Findings {
     /// A fruit that slipped in the gripper during the lift, or was dropped.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub grasp: Vec<super::grasp::GraspFlag>,
+    /// Slips and drops the scenario expects (`[expect] grasp`): reported, not flagged.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub grasp_expected: Vec<super::grasp::GraspFlag>,
 }
 
 /// Counts by kind.
@@ -316,6 +319,8 @@ pub struct Counts {
     pub toggling: usize,
     pub slip: usize,
     pub drop: usize,
+    /// A fruit held where the scenario expects a slip or a drop.
+    pub held: usize,
 }
 
 impl Findings {
@@ -330,6 +335,7 @@ impl Findings {
             toggling: t("toggling"),
             slip: self.grasp.iter().filter(|g| g.kind == "slip").count(),
             drop: self.grasp.iter().filter(|g| g.kind == "drop").count(),
+            held: self.grasp.iter().filter(|g| g.kind == "held").count(),
         }
     }
 
@@ -568,7 +574,9 @@ impl Detector {
     /// Everything found; open episodes are closed at the last step.
     pub fn finish(mut self) -> Findings {
         if let Some(g) = self.grasp.take() {
-            self.out.grasp = g.flags;
+            let found = g.finish();
+            self.out.grasp = found.flags;
+            self.out.grasp_expected = found.expected;
         }
         for (r, nodes) in self.nodes.iter_mut().enumerate() {
             for (i, n) in nodes.iter_mut().enumerate() {

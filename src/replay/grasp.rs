@@ -3,14 +3,20 @@
 //! (`record::grasp`): the gripper is the centroid of the clamped nodes, the lift begins when it
 //! has risen by a quarter of the fruit's hold tolerance above where it was when a prong first
 //! touched the fruit, and the verdict ends when the gripper first moves down again.
+//!
+//! A scenario may expect a slip or a drop (`[expect] grasp`, e.g. a demonstration of too little
+//! friction): then that event is reported as expected, not flagged, and a fruit that is held
+//! instead is flagged (`held`).
 
+use crate::scenario::expect::GraspOutcome;
 use serde::Serialize;
 
 /// A flagged moment of a grasp.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GraspFlag {
     /// `slip`: the fruit moved more than its hold tolerance relative to the gripper during the
-    /// lift; `drop`: no prong touches it any more.
+    /// lift; `drop`: no prong touches it any more; `held`: neither, where the scenario expects
+    /// one of them (`[expect] grasp`).
     pub kind: &'static str,
     pub step: u64,
     pub t: f64,
@@ -30,7 +36,17 @@ pub struct GraspRule {
     top: f64,
     over: bool,
     slipped: bool,
+    dropped: bool,
+    expect: GraspOutcome,
+    last: (u64, f64, f64),
     pub flags: Vec<GraspFlag>,
+}
+
+/// What the rule found: the flags, and the events the scenario expects (reported, not flagged).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GraspFindings {
+    pub flags: Vec<GraspFlag>,
+    pub expected: Vec<GraspFlag>,
 }
 
 impl GraspRule {
@@ -52,8 +68,38 @@ impl GraspRule {
             top: f64::NEG_INFINITY,
             over: false,
             slipped: false,
+            dropped: false,
+            expect: sc.expect.grasp,
+            last: (0, 0.0, 0.0),
             flags: Vec::new(),
         })
+    }
+
+    /// The verdict against the scenario's expectation.
+    pub fn finish(self) -> GraspFindings {
+        let expected = |f: &GraspFlag| match self.expect {
+            GraspOutcome::Held => false,
+            GraspOutcome::Slipped => f.kind == "slip",
+            GraspOutcome::Dropped => true,
+        };
+        let (expected, mut flags): (Vec<_>, Vec<_>) =
+            self.flags.iter().cloned().partition(|f| expected(f));
+        let missing = match self.expect {
+            GraspOutcome::Held => false,
+            GraspOutcome::Slipped => !self.slipped,
+            GraspOutcome::Dropped => !self.dropped,
+        };
+        if missing {
+            let (step, t, slip_m) = self.last;
+            flags.push(GraspFlag {
+                kind: "held",
+                step,
+                t,
+                slip_m,
+                hold_tolerance_m: self.tolerance,
+            });
+        }
+        GraspFindings { flags, expected }
     }
 
     /// One step: the rods' positions, the fruit's centroid, whether a prong touches it.
@@ -90,6 +136,7 @@ impl GraspRule {
             return;
         }
         let slip = (rel[0] - r0[0]).hypot(rel[1] - r0[1]);
+        self.last = (step, t, slip);
         let flag = |kind| GraspFlag {
             kind,
             step,
@@ -103,6 +150,7 @@ impl GraspRule {
         }
         if !touching {
             self.flags.push(flag("drop"));
+            self.dropped = true;
             self.over = true;
         }
     }

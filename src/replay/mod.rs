@@ -168,6 +168,9 @@ pub struct CheckReport {
     /// body only).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub grasp: Vec<grasp::GraspFlag>,
+    /// The slips and drops the scenario expects (`[expect] grasp`): not flagged.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub grasp_expected: Vec<grasp::GraspFlag>,
 }
 
 impl CheckReport {
@@ -200,6 +203,7 @@ impl CheckReport {
             spikes: found.spikes,
             sticking: found.sticking,
             grasp: found.grasp,
+            grasp_expected: found.grasp_expected,
         }
     }
 
@@ -315,18 +319,24 @@ pub fn format_check(rep: &CheckReport) -> String {
         c.spikes, c.impact, c.unexplained
     );
     let _ = writeln!(s, "sticking  {:>5}  (toggling {})", c.sticking, c.toggling);
-    if c.slip + c.drop > 0 {
+    if c.slip + c.drop + c.held > 0 || !rep.grasp_expected.is_empty() {
         let _ = writeln!(
             s,
-            "grasp     {:>5}  (slip {}, drop {})",
-            c.slip + c.drop,
+            "grasp     {:>5}  (slip {}, drop {}, held though the scenario expects otherwise {})",
+            c.slip + c.drop + c.held,
             c.slip,
-            c.drop
+            c.drop,
+            c.held
         );
-        for f in &rep.grasp {
+        let lines = rep.grasp.iter().map(|f| (f, "")).chain(
+            rep.grasp_expected
+                .iter()
+                .map(|f| (f, " (expected by the scenario: not flagged)")),
+        );
+        for (f, note) in lines {
             let _ = writeln!(
                 s,
-                "  {:<5} step {} t = {:.6} s: the fruit moved {:.3e} m in the gripper (tolerance {:.3e} m)",
+                "  {:<5} step {} t = {:.6} s: the fruit moved {:.3e} m in the gripper (tolerance {:.3e} m){note}",
                 f.kind, f.step, f.t, f.slip_m, f.hold_tolerance_m
             );
         }

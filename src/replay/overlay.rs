@@ -536,6 +536,7 @@ pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), Repla
         spikes: rep.spikes.clone(),
         sticking: rep.sticking.clone(),
         grasp: rep.grasp.clone(),
+        grasp_expected: rep.grasp_expected.clone(),
     };
     let marks = marks(run, &found, false);
     let mut next = 0;

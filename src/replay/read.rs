@@ -631,7 +631,7 @@ pub fn read_messages(
 /// records is handed out: what `mcap::read::ChunkFlattener` does, but streaming, with a record
 /// length limit and a check of uncompressed chunks. Without the limit, a damaged length field
 /// inside a chunk made the reader allocate that many bytes (8e18) and abort the process (found
-/// by fuzz/fuzz_targets/replay_mcap.rs; tests/regressions.rs replays it).
+/// by fuzz/fuzz_targets/replay_mcap.rs; tests/suite/regressions.rs replays it).
 struct Records {
     src: std::io::BufReader<std::fs::File>,
     /// Bytes of the current top-level record (or the leading magic), fed to `reader`.

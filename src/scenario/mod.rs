@@ -3,6 +3,7 @@
 //! See `docs/scenario-format.md` for every key.
 
 pub mod actuation;
+pub mod expect;
 pub mod friction;
 pub mod geometry;
 pub mod obstacle;
@@ -237,6 +238,8 @@ pub struct Scenario {
     pub friction: FrictionTable,
     /// `[[actuator]]`s: programs of phases for groups of rods.
     pub actuators: Vec<ActuatorSpec>,
+    /// `[expect]`: the outcome the scenario is built to show (judged by `replay check`).
+    pub expect: expect::Expect,
     /// Flush recordings every this many steps.
     pub flush_every: u64,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
@@ -257,6 +260,7 @@ const TOP_KEYS: &[&str] = &[
     "friction",
     "output",
     "actuator",
+    "expect",
 ];
 const SOLVE_KEYS: &[&str] = &[
     "mode",
@@ -598,6 +602,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "use mode = \"dynamic\", or remove [friction]",
         ));
     }
+    let expect = expect::parse(&top)?;
     let mut flush_every = 100;
     if let Some(o) = top.opt_table("output", OUTPUT_KEYS)? {
         if let Some(n) = o.opt_usize("flush_every")? {
@@ -619,6 +624,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         bodies,
         friction,
         actuators,
+        expect,
         flush_every,
         text: String::new(),
         file: file.into(),
