@@ -7,14 +7,11 @@
 //! /sim/meta), a missing /sim/step channel, a /sim/step body that does not match its schema, a
 //! missing file, and a diff of a one-rod with a two-rod run. The classes here are the others.
 
+use crate::common::{gripsim, scenario};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use crate::common::{gripsim, scenario, ROOT};
-
-
-
 
 /// Run; expect exit 2, no panic; return stderr.
 fn fails(cmd: &mut Command) -> String {

@@ -3,15 +3,12 @@
 //! names the item it covers; docs/robustness.md ("The file layer under faults") lists
 //! them. Tests that need root powers (mknod, mount) skip with a printed reason without them.
 
+use crate::common::{gripsim, scenario};
 use std::io::Read as _;
 use std::os::unix::fs::FileTypeExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use crate::common::{gripsim, scenario, ROOT};
-
-
-
 
 /// What a finished child did: exit code (None when a signal ended it), stdout, stderr and its
 /// peak resident memory (VmHWM of /proc/PID/status, read every few ms while it runs; the

@@ -1,10 +1,9 @@
 //! First contact: what a new user sees first — the help of every command (each shows an
 //! example), and errors that say how to fix them.
 
+use crate::common::gripsim;
 use std::path::Path;
-use std::process::{Command, Output};
-use crate::common::{gripsim};
-
+use std::process::Output;
 
 fn text(out: &Output) -> (String, String) {
     (

@@ -2,10 +2,10 @@
 //! copies of the Rerun SDK cost minutes and gigabytes). alloc.rs and replay_memory.rs stay
 //! separate: they install a counting global allocator.
 
-mod common;
 mod bad_input;
 mod bad_recordings;
 mod bench;
+mod common;
 mod faults;
 mod first_contact;
 mod friction_bodies;

@@ -2,16 +2,12 @@
 //! independent readers (the Rerun CLI and the `mcap` Python package, installed into `.venv`
 //! by tests/py/setup_venv.py) and by the `mcap` crate.
 
+use crate::common::{gripsim, scenario, venv, ROOT};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-use std::sync::OnceLock;
 use std::time::{Duration, Instant};
-use crate::common::{gripsim, scenario, venv, ROOT};
-
-
-
 
 fn run_ok(cmd: &mut Command) -> Output {
     let out = cmd.output().expect("gripsim starts");
@@ -24,7 +20,6 @@ fn run_ok(cmd: &mut Command) -> Output {
     );
     out
 }
-
 
 /// `rerun rrd <args>` from the test venv.
 fn rerun_rrd(args: &[&Path], sub: &str) -> Output {

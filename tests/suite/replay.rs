@@ -2,19 +2,15 @@
 //! checked, runs are diffed, stored runs are turned into .rrd files, bad input is refused,
 //! and the README's CI example runs against the committed golden recording.
 
+use crate::common::{gripsim, scenario, venv, ROOT};
 use gripsim::events::{ContactChange, Event, Observer, ReleaseReason, RodStepView, RunInfo};
 use gripsim::record::mcap::McapSink;
 use gripsim::record::{Detail, RecordOptions, Recording};
 use gripsim::{Scenario, Simulation};
 use serde_json::Value;
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::sync::OnceLock;
-use crate::common::{gripsim, scenario, venv, ROOT};
-
-
-
+use std::path::Path;
+use std::process::{Command, Output};
 
 fn text(out: &Output) -> String {
     format!(
@@ -49,7 +45,6 @@ fn run_to(sc: &Path, mcap: &Path, sets: &[&str]) {
 fn json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
-
 
 fn rerun_rrd(sub: &str, files: &[&Path]) -> Output {
     Command::new(venv().join("bin/rerun"))

@@ -3,13 +3,11 @@
 //! and `sweep`, golden guards that fail when their physics regresses, and the reader's answers
 //! to damaged input. Small scenes and short runs throughout (CI has 2 cores).
 
+use crate::common::{gripsim, scenario, ROOT};
 use gripsim::replay::detect::{Detector, Findings, RodSample, Thresholds};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use crate::common::{gripsim, scenario, ROOT};
-
-
 
 fn text(out: &Output) -> String {
     format!(
@@ -31,7 +29,6 @@ fn expect(cmd: &mut Command, code: i32) -> Output {
     );
     out
 }
-
 
 /// Write a scenario text into `dir` and return its path.
 fn write_scenario(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -687,4 +684,82 @@ fn golden_guards_pass_and_fail_on_their_regressions() {
     std::fs::copy(golden.join("corner.mcap"), &copy).unwrap();
     let (code, rep) = check(&copy, &[]);
     assert_eq!(code, 0, "{rep:#}");
+}
+
+/// Issue 12, the held-fruit guard: a golden recording of a fruit held through the lift. A fresh
+/// run passes `check` and `diff`; with the friction of jaw-grasp-drop (μ_s 0.4) the fruit slips
+/// in the jaws, and both guards fail.
+#[test]
+fn held_fruit_guard_fails_when_the_grip_loses_friction() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let golden = Path::new(ROOT).join("recordings/golden");
+    let sc = golden.join("held-fruit.toml");
+    let gold = golden.join("held-fruit.mcap");
+    let size = std::fs::metadata(&gold).unwrap().len();
+    assert!(size <= 1_000_000, "held-fruit.mcap: {size} bytes");
+    let fresh = d.join("held.mcap");
+    run_to(&sc, &fresh, &[]);
+    let (code, rep) = check(&fresh, &[]);
+    assert_eq!(code, 0, "{rep:#}");
+    expect(gripsim().args(["replay", "diff"]).arg(&gold).arg(&fresh), 0);
+    let slippery = [
+        "friction.pair.0.mu_s=0.4",
+        "friction.pair.0.mu_k=0.3",
+        "friction.pair.1.mu_s=0.4",
+        "friction.pair.1.mu_k=0.3",
+    ];
+    let bad = d.join("slippery.mcap");
+    run_to(&sc, &bad, &slippery);
+    let (code, rep) = check(&bad, &[]);
+    assert_eq!(code, 1, "{rep:#}");
+    assert_eq!(count(&rep, "slip"), 1, "{rep:#}");
+    assert!(
+        rep["grasp"][0]["slip_m"].as_f64().unwrap() > 4e-3,
+        "{rep:#}"
+    );
+    expect(gripsim().args(["replay", "diff"]).arg(&gold).arg(&bad), 1);
+}
+
+/// `[expect] grasp`: jaw-grasp-drop is built to drop its fruit, so its slip and drop are
+/// reported as expected and the run is clean; given the held jaw's friction it holds the fruit
+/// and is flagged `held`. The live detector (`run --check`) decides as `replay check` does.
+#[test]
+fn a_scenario_that_expects_a_drop_is_flagged_when_the_fruit_is_held() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("check.json");
+    let run = |sets: &[&str]| {
+        let mut c = gripsim();
+        c.arg("run")
+            .arg(scenario("jaw-grasp-drop"))
+            .args(["-q", "--no-record", "--check", "--check-json"])
+            .arg(&json);
+        for s in sets {
+            c.args(["--set", s]);
+        }
+        let out = c.output().unwrap();
+        let rep: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (out.status.code().unwrap(), rep)
+    };
+    let (code, rep) = run(&[]);
+    assert_eq!(code, 0, "{rep:#}");
+    let kinds: Vec<&str> = rep["grasp_expected"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["slip", "drop"], "{rep:#}");
+    assert_eq!(count(&rep, "held"), 0);
+    let (code, rep) = run(&["friction.pair.0.mu_s=0.6", "friction.pair.1.mu_s=0.6"]);
+    assert_eq!(code, 1, "{rep:#}");
+    assert_eq!(
+        (
+            count(&rep, "held"),
+            count(&rep, "slip"),
+            count(&rep, "drop")
+        ),
+        (1, 0, 0),
+        "{rep:#}"
+    );
 }

@@ -3,15 +3,11 @@
 //! contact oscillation — phase and pass on every iterate, arrows proportional to the force at
 //! the printed scale, distinct series colours, and bookmarks at the right steps.
 
+use crate::common::{gripsim, scenario, venv, ROOT};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::sync::OnceLock;
-use crate::common::{gripsim, scenario, venv, ROOT};
-
-
-
+use std::path::Path;
+use std::process::{Command, Output};
 
 fn run_ok(cmd: &mut Command) -> Output {
     let out = cmd.output().expect("gripsim starts");
@@ -24,7 +20,6 @@ fn run_ok(cmd: &mut Command) -> Output {
     );
     out
 }
-
 
 /// The report of tests/py/read_rrd.py.
 fn read_rrd(path: &Path) -> Value {
