@@ -15,6 +15,7 @@ pub mod model;
 pub mod obstacle;
 pub mod record;
 pub mod replay;
+pub mod rod3d;
 pub mod scenario;
 pub mod solver;
 pub mod study;

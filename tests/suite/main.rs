@@ -16,6 +16,7 @@ mod recordings;
 mod regressions;
 mod replay;
 mod replay_guard;
+mod rod3d;
 mod rrd_view;
 mod stepping;
 mod sweep;

@@ -1,0 +1,328 @@
+//! Implicit Euler + Newton for one 3D rod, with a banded solve: the unknowns x₀, θ₀, x₁, θ₁, …
+//! of a bending/twisting stencil are 11 consecutive DOFs, so the Jacobian has half-bandwidth
+//! 10 and a factorisation costs O(n). Static equilibria are found by a load ramp.
+//!
+//! Residual of a step (dynamic, c = 1/dt²; static, c = 0 and load factor λ):
+//! r(q) = c M (q − qₙ − dt vₙ) + ∇E(q) − λ F, F = dead loads + M g on positions.
+//! Fixed DOFs are placed on their targets and carry an identity row.
+
+use super::energy::{
+    advance_frame, node_derivatives, node_energy, reference_twist, stretch, EdgeFrame,
+};
+use super::rod::{angle, pos, Rod3};
+use crate::solver::banded::BandLu;
+
+/// Why a 3D solve failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solve3Error {
+    pub residual: f64,
+    pub iterations: u32,
+    pub reason: &'static str,
+}
+
+impl std::fmt::Display for Solve3Error {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "3D rod: {} (residual {:e} N after {} iterations)",
+            self.reason, self.residual, self.iterations
+        )
+    }
+}
+
+/// One 3D rod in time: configuration, velocities, reference frames and loads.
+#[derive(Debug, Clone)]
+pub struct Sim3 {
+    pub rod: Rod3,
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    /// Reference frame of every edge and reference twist of every node at the current state.
+    pub frames: Vec<EdgeFrame>,
+    pub ref_twist: Vec<f64>,
+    pub gravity: [f64; 3],
+    /// Dead generalized forces per DOF (forces on positions, torques about the tangent on angles).
+    pub load: Vec<f64>,
+    pub fixed: Vec<bool>,
+    /// Where the fixed DOFs are held: at the end of the next step (dynamic) or at full load
+    /// (static). Defaults to the initial configuration.
+    pub target: Vec<f64>,
+    /// Residual tolerance relative to the force scale.
+    pub force_tol: f64,
+    pub max_iterations: u32,
+    pub time: f64,
+    pub newton_iterations: u64,
+    band: BandLu,
+    grad: Vec<f64>,
+    rhs: Vec<f64>,
+    qn: Vec<f64>,
+}
+
+impl Sim3 {
+    pub fn new(rod: Rod3) -> Sim3 {
+        let nd = rod.dofs();
+        Sim3 {
+            q: rod.q0.clone(),
+            v: vec![0.0; nd],
+            frames: rod.frames0.clone(),
+            ref_twist: rod.ref_twist0.clone(),
+            gravity: [0.0; 3],
+            load: vec![0.0; nd],
+            fixed: vec![false; nd],
+            target: rod.q0.clone(),
+            force_tol: 1e-10,
+            max_iterations: 40,
+            time: 0.0,
+            newton_iterations: 0,
+            band: BandLu::new(nd, 10, 10),
+            grad: vec![0.0; nd],
+            rhs: vec![0.0; nd],
+            qn: rod.q0.clone(),
+            rod,
+        }
+    }
+
+    /// Clamp edge i: both its nodes and its angle are fixed where they are.
+    pub fn clamp_edge(&mut self, i: usize) {
+        for k in pos(i)..pos(i + 1) + 3 {
+            self.fixed[k] = true;
+            self.target[k] = self.q[k];
+        }
+    }
+
+    /// External generalized force per DOF: dead loads plus gravity on positions.
+    pub fn external(&self, k: usize) -> f64 {
+        let g = if k % 4 == 3 { 0.0 } else { self.gravity[k % 4] };
+        self.load[k] + self.rod.mass[k] * g
+    }
+
+    /// Elastic energy of configuration q relative to the current frames.
+    pub fn elastic_energy(&self, q: &[f64]) -> f64 {
+        let rod = &self.rod;
+        let mut e = 0.0;
+        for i in 0..rod.n - 1 {
+            let (a, b) = (pos(i), pos(i + 1));
+            let x = [q[a], q[a + 1], q[a + 2], q[b], q[b + 1], q[b + 2]];
+            e += stretch(&x, rod.ea, rod.rest_length[i], &mut [0.0; 6], None);
+        }
+        for i in 1..rod.n - 1 {
+            let x: [f64; 11] = q[pos(i - 1)..pos(i - 1) + 11].try_into().unwrap();
+            let old = [&self.frames[i - 1], &self.frames[i]];
+            e += node_energy(&x, old, self.ref_twist[i], &rod.elastic[i]);
+        }
+        e
+    }
+
+    /// Kinetic energy ½ vᵀ M v.
+    pub fn kinetic_energy(&self) -> f64 {
+        let m = &self.rod.mass;
+        0.5 * self.v.iter().zip(m).map(|(v, m)| m * v * v).sum::<f64>()
+    }
+
+    fn force_scale(&self) -> f64 {
+        let l = self.rod.length;
+        let ext = (0..self.q.len()).fold(0.0f64, |a, k| a.max(self.external(k).abs()));
+        ext.max(self.rod.ei1.max(self.rod.ei2) / (l * l))
+    }
+
+    /// Newton on the residual with inertia coefficient c (0: static), load factor λ, starting
+    /// from `self.qn` (fixed DOFs already on their targets). Returns the iterations.
+    fn newton(&mut self, c: f64, dt: f64, lambda: f64) -> Result<u32, Solve3Error> {
+        let tol = self.force_tol * self.force_scale();
+        let floor = 1e-14 * self.rod.length;
+        let nd = self.q.len();
+        let mut it = 0u32;
+        loop {
+            self.band.clear();
+            let (f, b, r) = (&self.frames, &self.ref_twist, &self.rod);
+            assemble(
+                r,
+                f,
+                b,
+                &self.qn,
+                &mut self.grad,
+                Some(&mut self.band),
+                &self.fixed,
+            );
+            let mut res = 0.0f64;
+            for k in 0..nd {
+                if self.fixed[k] {
+                    self.rhs[k] = 0.0;
+                    continue;
+                }
+                let m = self.rod.mass[k];
+                let inertia = c * m * (self.qn[k] - self.q[k] - dt * self.v[k]);
+                let rk = inertia + self.grad[k] - lambda * self.external(k);
+                res = res.max(rk.abs());
+                self.rhs[k] = -rk;
+                self.band.add(k, k, c * m);
+            }
+            if !res.is_finite() {
+                return Err(fail(res, it, "non-finite residual"));
+            }
+            if res <= tol {
+                return Ok(it);
+            }
+            if it >= self.max_iterations {
+                return Err(fail(res, it, "Newton did not converge"));
+            }
+            if self.band.factor().is_err() {
+                return Err(fail(res, it, "singular Jacobian"));
+            }
+            self.band.solve(&mut self.rhs);
+            let mut upd = 0.0f64;
+            for k in 0..nd {
+                self.qn[k] += self.rhs[k];
+                upd = upd.max(self.rhs[k].abs());
+            }
+            it += 1;
+            self.newton_iterations += 1;
+            if upd <= floor {
+                return Ok(it);
+            }
+        }
+    }
+
+    /// One implicit Euler step of size dt; fixed DOFs end the step on `target`.
+    pub fn step(&mut self, dt: f64) -> Result<u32, Solve3Error> {
+        let nd = self.q.len();
+        for k in 0..nd {
+            self.qn[k] = if self.fixed[k] {
+                self.target[k]
+            } else {
+                self.q[k] + dt * self.v[k]
+            };
+        }
+        let it = self.newton(1.0 / (dt * dt), dt, 1.0)?;
+        for k in 0..nd {
+            self.v[k] = (self.qn[k] - self.q[k]) / dt;
+        }
+        self.accept();
+        self.time += dt;
+        Ok(it)
+    }
+
+    /// Static equilibrium under the full loads (and fixed DOFs moved to `target`), reached by
+    /// `steps` equal load increments; a failed increment is halved (at most 30 times).
+    pub fn solve_static(&mut self, steps: usize) -> Result<(), Solve3Error> {
+        let start: Vec<f64> = self.q.clone();
+        let nd = self.q.len();
+        let mut lambda = 0.0;
+        let mut inc = 1.0 / steps.max(1) as f64;
+        let mut halvings = 0;
+        while lambda < 1.0 {
+            let to = (lambda + inc).min(1.0);
+            self.qn.copy_from_slice(&self.q);
+            for k in 0..nd {
+                if self.fixed[k] {
+                    self.qn[k] = start[k] + to * (self.target[k] - start[k]);
+                }
+            }
+            match self.newton(0.0, 0.0, to) {
+                Ok(_) => {
+                    self.accept();
+                    lambda = to;
+                }
+                Err(e) => {
+                    halvings += 1;
+                    inc *= 0.5;
+                    if halvings > 30 {
+                        return Err(e);
+                    }
+                }
+            }
+        }
+        self.v.fill(0.0);
+        Ok(())
+    }
+
+    /// Take `qn` as the new state and advance the reference frames and twists onto it.
+    fn accept(&mut self) {
+        self.q.copy_from_slice(&self.qn);
+        let n = self.rod.n;
+        for i in 0..n - 1 {
+            self.frames[i] = advance_frame(self.rod.edge(&self.q, i), &self.frames[i]);
+        }
+        for i in 1..n - 1 {
+            let near = self.ref_twist[i];
+            self.ref_twist[i] = reference_twist(&self.frames[i - 1], &self.frames[i], near);
+        }
+    }
+}
+
+fn fail(residual: f64, iterations: u32, reason: &'static str) -> Solve3Error {
+    Solve3Error {
+        residual,
+        iterations,
+        reason,
+    }
+}
+
+/// Elastic energy of q (frames and reference twists of the start of the step), its gradient
+/// into `grad` and, with `band`, its Hessian on the free DOFs (identity rows on `fixed` ones;
+/// an empty `fixed` means all free).
+pub fn assemble(
+    rod: &Rod3,
+    frames: &[EdgeFrame],
+    ref_twist: &[f64],
+    q: &[f64],
+    grad: &mut [f64],
+    mut band: Option<&mut BandLu>,
+    fixed: &[bool],
+) -> f64 {
+    grad.fill(0.0);
+    let free = |k: usize| fixed.is_empty() || !fixed[k];
+    let mut energy = 0.0;
+    let (mut g6, mut h6) = ([0.0; 6], [[0.0; 6]; 6]);
+    for i in 0..rod.n - 1 {
+        let (a, b) = (pos(i), pos(i + 1));
+        let x = [q[a], q[a + 1], q[a + 2], q[b], q[b + 1], q[b + 2]];
+        let h = band.as_ref().map(|_| &mut h6);
+        energy += stretch(&x, rod.ea, rod.rest_length[i], &mut g6, h);
+        let idx = [a, a + 1, a + 2, b, b + 1, b + 2];
+        scatter(&idx, &g6, &h6, grad, band.as_deref_mut(), &free);
+    }
+    let (mut g11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
+    for i in 1..rod.n - 1 {
+        let base = pos(i - 1);
+        let x: [f64; 11] = q[base..base + 11].try_into().unwrap();
+        let old = [&frames[i - 1], &frames[i]];
+        let p = &rod.elastic[i];
+        energy += node_derivatives(&x, old, ref_twist[i], p, &mut g11, &mut h11);
+        let idx: [usize; 11] = std::array::from_fn(|k| base + k);
+        scatter(&idx, &g11, &h11, grad, band.as_deref_mut(), &free);
+    }
+    if let Some(b) = band {
+        for (k, f) in fixed.iter().enumerate() {
+            if *f {
+                b.add(k, k, 1.0);
+            }
+        }
+    }
+    debug_assert!(angle(rod.n - 2) + 4 == q.len());
+    energy
+}
+
+fn scatter<const N: usize>(
+    idx: &[usize; N],
+    g: &[f64; N],
+    h: &[[f64; N]; N],
+    grad: &mut [f64],
+    band: Option<&mut BandLu>,
+    free: &impl Fn(usize) -> bool,
+) {
+    for a in 0..N {
+        grad[idx[a]] += g[a];
+    }
+    if let Some(b) = band {
+        for a in 0..N {
+            if !free(idx[a]) {
+                continue;
+            }
+            for c in 0..N {
+                if free(idx[c]) {
+                    b.add(idx[a], idx[c], h[a][c]);
+                }
+            }
+        }
+    }
+}
