@@ -92,6 +92,9 @@ pub struct Actuator {
     start: Pose,
     /// Largest grip measured in the current phase.
     peak: Option<f64>,
+    /// The drive's reaction as the force sensor sees it (low-passed with the program's
+    /// `force_filter`), and when it was last updated.
+    sensed: Option<(f64, Measure)>,
 }
 
 impl Actuator {
@@ -105,7 +108,30 @@ impl Actuator {
             start_t: 0.0,
             start: Pose::IDENTITY,
             peak: None,
+            sensed: None,
         }
+    }
+
+    /// The reaction measured at t through the force sensor: a first-order low-pass with time
+    /// constant `force_filter` (exact for a reaction held constant over the step), started at
+    /// the first measure; the raw measure when the constant is 0.
+    fn sense(&mut self, t: f64, m: &Measure) -> Measure {
+        let tau = self.program.force_filter;
+        let out = match self.sensed {
+            Some((t0, f)) if tau > 0.0 => {
+                let w = -(-(t - t0).max(0.0) / tau).exp_m1();
+                Measure {
+                    drive_force: [
+                        f.drive_force[0] + w * (m.drive_force[0] - f.drive_force[0]),
+                        f.drive_force[1] + w * (m.drive_force[1] - f.drive_force[1]),
+                    ],
+                    drive_torque: f.drive_torque + w * (m.drive_torque - f.drive_torque),
+                }
+            }
+            _ => *m,
+        };
+        self.sensed = Some((t, out));
+        out
     }
 
     pub fn program(&self) -> &Program {
@@ -176,6 +202,7 @@ impl Actuator {
     /// or the error of a force-controlled phase whose safety limit came first (the run should
     /// stop; the actuator is left at that phase).
     pub fn commit(&mut self, t: f64, m: &Measure) -> Result<Vec<PhaseSwitch>, GripUnreached> {
+        let m = &self.sense(t, m);
         let mut out = Vec::new();
         while self.phase < self.program.phases.len() {
             let analytic = self.program.phases[self.phase]

@@ -309,6 +309,11 @@ fn analytic_end(movement: &Movement, end: &Ends) -> Option<(f64, &'static str)> 
 pub struct Program {
     pub phases: Vec<Phase>,
     pub mirror_x: Option<f64>,
+    /// Time constant (s) of the first-order low-pass through which measured ends
+    /// (`grip_force`, `grip_torque`) see the drive's reaction: a force sensor's bandwidth.
+    /// 0: the raw reaction of each step (which, at a rigid impact, is an impulse divided by
+    /// Δt and so depends on Δt).
+    pub force_filter: f64,
 }
 
 impl Program {
@@ -317,6 +322,7 @@ impl Program {
         Program {
             phases: Vec::new(),
             mirror_x: None,
+            force_filter: 0.0,
         }
     }
 
@@ -335,6 +341,7 @@ impl Program {
         Program {
             phases: vec![Phase::new(None, Movement::TranslateVector { law }, end)],
             mirror_x: None,
+            force_filter: 0.0,
         }
     }
 }

@@ -46,7 +46,11 @@ fn translate(law: Law, end: Ends) -> Phase {
 }
 
 fn program(phases: Vec<Phase>, mirror_x: Option<f64>) -> Program {
-    Program { phases, mirror_x }
+    Program {
+        phases,
+        mirror_x,
+        force_filter: 0.0,
+    }
 }
 
 fn norm(a: [f64; 2]) -> f64 {
@@ -732,4 +736,38 @@ fn unreachable_grip_torque_message_in_rotation_units() {
             .ends_with("(no step ended inside the phase)"),
         "{err}"
     );
+}
+
+/// `force_filter`: a grip end sees the reaction through a first-order sensor. An impact's
+/// reaction (an impulse J over one step, J/Δt) moves the sensor by about J/τ whatever Δt is,
+/// so the end does not fire on it at a fine Δt and then on a sustained squeeze it does, after
+/// the sensor's lag: y(t) = F (1 − e^(−t/τ)) to round-off.
+#[test]
+fn a_filtered_grip_end_ignores_an_impact_and_follows_a_squeeze() {
+    let tau = 5e-3;
+    for dt in [1e-4, 1e-5, 1e-6] {
+        let mut p = squeeze_program();
+        p.force_filter = tau;
+        let mut act = Actuator::new(p, [0.0; 2]);
+        let mut t = 0.0;
+        assert!(act.commit(t, &force_along(0.0)).unwrap().is_empty());
+        // An impulse of 5e-3 N s in one step: 50 N at dt 1e-4, 5000 N at 1e-6 (raw: ends).
+        t += dt;
+        let sw = act.commit(t, &force_along(5e-3 / dt)).unwrap();
+        assert!(sw.is_empty(), "dt {dt}: the impact ended the squeeze");
+        // Then a squeeze of 6 N: the sensor reads 5 N a time τ ln 5 later.
+        let mut ended = None;
+        while ended.is_none() && t < 0.1 {
+            t += dt;
+            let sw = act.commit(t, &force_along(6.0)).unwrap();
+            ended = sw.first().map(|s| s.t);
+        }
+        let t_end = ended.expect("the squeeze ends the phase");
+        // y after the impulse ≈ J/τ (1 N), then 6 − (6 − 1) e^(−(t − dt)/τ) = 5 at t − dt = τ ln 5.
+        let expect = dt + tau * 5f64.ln();
+        assert!(
+            (t_end - expect).abs() < 2.0 * dt + 0.01 * tau,
+            "dt {dt}: ended at {t_end}, expected {expect}"
+        );
+    }
 }

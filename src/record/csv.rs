@@ -13,8 +13,46 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// Rows are collected in memory and written in whole lines: at every flush, and whenever this
-/// much is waiting (at a step's end). So a killed run's file ends with a whole row.
+/// much is waiting (at a step's end).
 const WRITE_AT: usize = 1 << 20;
+
+/// A killed process (SIGKILL) can stop inside a `write` to a regular file, but only where the
+/// kernel moves from one page of the file to the next (it checks for a fatal signal before
+/// each page it copies). So the rows are laid out so that every page boundary they cross falls
+/// at the end of a row: the row before a boundary that the next row would straddle gets
+/// leading zeros in its `step` field (the same number to every CSV reader), and each `write`
+/// stays within one page. A killed run's file then ends with a whole row.
+const PAGE: u64 = 4096;
+
+/// `rows` (whole lines) laid out from file offset `offset` so that no row but one longer than
+/// a page straddles a page boundary: appended to `out`. `next`: the length of the row that will
+/// follow them (0 if none is known: the end of the run).
+fn page_aligned(rows: &[u8], offset: u64, next: usize, out: &mut Vec<u8>) {
+    let mut pos = offset;
+    let mut rest = rows;
+    while !rest.is_empty() {
+        let len = rest
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(rest.len(), |i| i + 1);
+        let (row, tail) = rest.split_at(len);
+        let following = match tail.iter().position(|&b| b == b'\n') {
+            Some(i) => i + 1,
+            None if tail.is_empty() => next,
+            None => tail.len(),
+        };
+        let end = (pos + len as u64) % PAGE;
+        let pad = if end != 0 && end + following as u64 > PAGE && row[0].is_ascii_digit() {
+            (PAGE - end) as usize
+        } else {
+            0
+        };
+        out.resize(out.len() + pad, b'0');
+        out.extend_from_slice(row);
+        pos += (pad + len) as u64;
+        rest = tail;
+    }
+}
 
 #[derive(serde::Serialize)]
 struct Row<'a> {
@@ -45,6 +83,10 @@ pub struct CsvSink {
     out: OutputFile,
     /// Whole rows not yet written to `file`.
     buf: Vec<u8>,
+    /// The rows of `buf` as written (page-aligned; reused).
+    scratch: Vec<u8>,
+    /// Bytes written to `file`.
+    offset: u64,
     /// None once writing failed.
     file: Option<std::fs::File>,
     header_written: bool,
@@ -62,6 +104,8 @@ impl CsvSink {
         let file = out.create()?;
         Ok(Self {
             buf: Vec::with_capacity(WRITE_AT),
+            scratch: Vec::new(),
+            offset: 0,
             file: Some(file),
             header_written: false,
             out,
@@ -126,17 +170,36 @@ impl CsvSink {
             Err(e) => return self.fail(e.error()),
         }
         if step.is_multiple_of(self.flush_every) || self.buf.len() >= WRITE_AT {
-            self.write_out();
+            self.write_out(false);
         }
     }
 
-    /// Write the buffered rows (whole lines) to the file.
-    fn write_out(&mut self) {
+    /// Write the buffered rows (whole lines) to the file, page-aligned ([`PAGE`]), one page at
+    /// most per `write`. Unless `all`, the last row stays buffered: whether it needs the row
+    /// before it padded is known only once the row after it is.
+    fn write_out(&mut self, all: bool) {
         let Some(file) = self.file.as_mut() else {
             return;
         };
-        let r = file.write_all(&self.buf);
-        self.buf.clear();
+        let keep = if all {
+            self.buf.len()
+        } else {
+            let body = &self.buf[..self.buf.len().saturating_sub(1)];
+            body.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1)
+        };
+        let next = self.buf.len() - keep;
+        self.scratch.clear();
+        page_aligned(&self.buf[..keep], self.offset, next, &mut self.scratch);
+        let mut r = Ok(());
+        let mut at = 0;
+        while at < self.scratch.len() && r.is_ok() {
+            let room = (PAGE - self.offset % PAGE) as usize;
+            let n = room.min(self.scratch.len() - at);
+            r = file.write_all(&self.scratch[at..at + n]);
+            at += n;
+            self.offset += n as u64;
+        }
+        self.buf.drain(..keep);
         if let Err(e) = r {
             self.fail(e);
         }
@@ -178,7 +241,7 @@ impl Recording for CsvSink {
     }
 
     fn finish(&mut self) -> Result<Finished, RecordError> {
-        self.write_out();
+        self.write_out(true);
         self.file = None;
         if let Some(e) = self.error.take() {
             return Err(e);
@@ -188,5 +251,46 @@ impl Recording for CsvSink {
 
     fn failure(&self) -> Option<Arc<AtomicBool>> {
         Some(self.failed.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{page_aligned, PAGE};
+
+    /// Every page boundary the laid-out rows cross is a row end, and the rows read back as the
+    /// same numbers (padding is leading zeros of the first field).
+    #[test]
+    fn page_boundaries_fall_at_row_ends() {
+        let mut rows = Vec::new();
+        let mut lens = 0usize;
+        for step in 0..3000u64 {
+            // Rows of 40 to 180 bytes.
+            let width = 30 + (step * 7919 % 140) as usize;
+            let row = format!("{step},{:0>width$}\n", step * 3);
+            lens += row.len();
+            rows.extend_from_slice(row.as_bytes());
+        }
+        for offset in [0u64, 1, 4000, 4095, 123_456] {
+            let mut out = Vec::new();
+            page_aligned(&rows, offset, 0, &mut out);
+            assert!(out.len() >= lens);
+            let mut pos = offset;
+            for line in out.split_inclusive(|&b| b == b'\n') {
+                let (start, end) = (pos, pos + line.len() as u64);
+                // No boundary strictly inside a row.
+                assert_eq!(start / PAGE, (end - 1) / PAGE, "a row straddles at {start}");
+                pos = end;
+            }
+            let steps: Vec<u64> = out
+                .split(|&b| b == b'\n')
+                .filter(|l| !l.is_empty())
+                .map(|l| {
+                    let f = std::str::from_utf8(l).unwrap().split(',').next().unwrap();
+                    f.parse().unwrap()
+                })
+                .collect();
+            assert_eq!(steps, (0..3000).collect::<Vec<u64>>());
+        }
     }
 }

@@ -15,7 +15,9 @@ pub struct ActuatorSpec {
     pub program: Program,
 }
 
-const ACTUATOR_KEYS: &[&str] = &["name", "mirror_x", "phase"];
+const ACTUATOR_KEYS: &[&str] = &["name", "mirror_x", "force_filter", "phase"];
+/// The default `force_filter` (s): a 5 ms force sensor (32 Hz bandwidth).
+pub const DEFAULT_FORCE_FILTER: f64 = 5e-3;
 const PHASE_KEYS: &[&str] = &[
     "kind",
     "name",
@@ -141,6 +143,18 @@ fn parse_actuator(a: &TableReader, base: Option<&Path>) -> Result<ActuatorSpec, 
         return Err(a.err("name", a.get("name"), "must not be empty"));
     }
     let mirror_x = a.opt_f64("mirror_x")?;
+    let force_filter = match a.opt_f64("force_filter")? {
+        None => DEFAULT_FORCE_FILTER,
+        Some(v) if v >= 0.0 && v.is_finite() => v,
+        Some(_) => {
+            return Err(a.err_hint(
+                "force_filter",
+                a.get("force_filter"),
+                "must be a time constant ≥ 0 s",
+                "e.g. 0.005 (a 5 ms force sensor), or 0 for the raw per-step reaction",
+            ))
+        }
+    };
     let phases_v = match a.get("phase") {
         Some(Value::Array(p)) if !p.is_empty() => p,
         Some(Value::Array(_)) | None => {
@@ -171,7 +185,11 @@ fn parse_actuator(a: &TableReader, base: Option<&Path>) -> Result<ActuatorSpec, 
     a.finish()?;
     Ok(ActuatorSpec {
         name,
-        program: Program { phases, mirror_x },
+        program: Program {
+            phases,
+            mirror_x,
+            force_filter,
+        },
     })
 }
 

@@ -812,9 +812,17 @@ fn item8_a_killed_run_leaves_whole_csv_rows() {
         );
         let header = text.lines().next().unwrap().split(',').count();
         assert_eq!(header, 19);
-        // Whole steps: every step has one row per node (10 nodes).
-        let rows = text.lines().count() - 1;
-        assert_eq!(rows % 10, 0, "{rows} rows");
+        // Whole rows, each with every column; steps in order with one row per node (10
+        // nodes), the last step possibly incomplete (the kill may come between two rows).
         assert!(text.lines().all(|l| l.split(',').count() == header));
+        let steps: Vec<u64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        assert!(steps.len() > 10);
+        for (k, s) in steps.iter().enumerate() {
+            assert_eq!(*s, (k / 10) as u64, "row {k}");
+        }
     }
 }

@@ -1006,7 +1006,7 @@ fn the_readme_ci_example_passes_against_the_golden_recording() {
         .filter(|l| l.starts_with("gripsim "))
         .map(|l| l.replace("out/ci", &out_dir))
         .collect();
-    assert_eq!(commands.len(), 13, "{block}");
+    assert_eq!(commands.len(), 16, "{block}");
     for c in &commands {
         let args: Vec<&str> = c.split_whitespace().skip(1).collect();
         let out = gripsim().args(&args).output().unwrap();

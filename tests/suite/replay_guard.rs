@@ -763,3 +763,38 @@ fn a_scenario_that_expects_a_drop_is_flagged_when_the_fruit_is_held() {
         "{rep:#}"
     );
 }
+
+/// Issue 12's first demand of a guard: no false flags. Every shipped scenario, run at its own Δt
+/// with the live detector (`run --check`, the same rules as `replay check`), is clean — the
+/// grasps' slips and drops included (jaw-grasp-drop expects its drop). The 10× finer and 10×
+/// coarser columns of docs/replay.md are measured the same way.
+#[test]
+fn every_shipped_scenario_is_clean_at_its_dt() {
+    let dir = Path::new(ROOT).join("scenarios");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert!(names.len() >= 15, "{names:?}");
+    let tmp = tempfile::tempdir().unwrap();
+    let mut flagged = Vec::new();
+    for name in &names {
+        let json = tmp.path().join(format!("{name}.json"));
+        let out = gripsim()
+            .arg("run")
+            .arg(scenario(name))
+            .args(["-q", "--no-record", "--check", "--check-json"])
+            .arg(&json)
+            .output()
+            .unwrap();
+        let code = out.status.code().unwrap();
+        if code != 0 {
+            let rep = std::fs::read_to_string(&json).unwrap_or_default();
+            flagged.push(format!("{name}: exit {code}: {}{rep}", text(&out)));
+        }
+    }
+    assert!(flagged.is_empty(), "{}", flagged.join("\n"));
+}
