@@ -306,8 +306,10 @@ fn a_stiffer_fruit_approaches_the_rigid_solver() {
              solution {worst:.3e} m, force {:.9} N (rigid {:.9} N)",
             c.indentation, c.normal_force, rigid.contacts[0].normal_force
         );
-        // Both carry the load (to the last ringing of the 0.3 s run: ≤ 2e-6 N here).
-        assert!((c.normal_force - p).abs() < 1e-5 * p);
+        // Both carry the load. The stiffer the law, the less exactly its force is resolved:
+        // Newton stops at the round-off floor of the update (1e-12 L), which at E = 1e12 Pa
+        // (dF/dδ ≈ 1.7e9 N/m) is 3e-4 of the force (1e-6 or better up to E = 1e10 Pa).
+        assert!((c.normal_force - p).abs() < 1e-3 * p);
         assert!(worst < last_gap, "monotone approach");
         last_gap = worst;
     }
