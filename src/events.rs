@@ -169,6 +169,15 @@ pub struct ContactView {
     /// |R_t| / (μ_s R_n); 0 when frictionless.
     pub utilisation: f64,
     pub mu_s: f64,
+    /// A compliant fruit's contact (Hertz line contact, docs/model.md): how far the face
+    /// presses into the undeformed fruit (m), the contact half-width a (m), the peak pressure
+    /// p₀ (Pa), the fruit's bruise threshold (Pa) and the half-width of the part of the contact
+    /// above it (m). All 0 at a rigid obstacle (its pressure is not modelled).
+    pub indentation: f64,
+    pub half_width: f64,
+    pub peak_pressure: f64,
+    pub bruise_pressure: f64,
+    pub bruise_half_width: f64,
 }
 
 fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Error> {

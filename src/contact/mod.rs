@@ -8,8 +8,10 @@
 //! - [`friction`]: Coulomb coefficients and the stick/slip decisions — friction is decided
 //!   there and nowhere else.
 //! - [`body`]: a free body's own contacts with fixed obstacles (a fruit on a table).
+//! - [`compliant`]: a fruit of elastic material: the Hertz line-contact law, solved implicitly.
 
 pub mod body;
+pub mod compliant;
 pub mod constraint;
 pub mod detect;
 pub mod friction;

@@ -66,6 +66,10 @@ impl Rod {
         let mass = match spec.mass {
             MassSpec::Density(rho) => voronoi.iter().map(|l| rho * area * l).collect(),
             MassSpec::NodeMass(m) => vec![m; n],
+            MassSpec::Total(m) => {
+                let l: f64 = voronoi.iter().sum();
+                voronoi.iter().map(|v| m * v / l).collect()
+            }
         };
         let mut clamped = vec![false; n];
         for &c in &spec.clamped {

@@ -66,6 +66,35 @@ pub struct Summary {
     /// Grip, slip and drop of the first free body (absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grasp: Option<super::grasp::GraspSummary>,
+    /// Contact pressure on a compliant fruit and the bruise verdict (absent when no contact
+    /// with a compliant fruit happened).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact_pressure: Option<PressureSummary>,
+}
+
+/// What a compliant fruit felt over the run (Hertz line contact, docs/model.md): the solved
+/// contact force of the law (it converges as dt → 0, unlike eq. 2's impact peak), the peak
+/// pressure with where and when, the deepest indentation and the bruise verdict.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct PressureSummary {
+    /// Largest normal force of one contact on a compliant fruit (N).
+    pub peak_contact_force_n: f64,
+    /// Largest Hertz peak pressure p₀ (Pa), where (rod, node, contact point) and when.
+    pub max_pressure_pa: f64,
+    pub max_pressure_node: NodeRef,
+    pub max_pressure_point: [f64; 2],
+    pub max_pressure_time_s: f64,
+    /// The contact half-width a at that moment (m).
+    pub half_width_at_max_m: f64,
+    /// Deepest indentation of the fruit (m).
+    pub max_indentation_m: f64,
+    /// The fruit's bruise threshold (Pa) and whether the pressure went above it.
+    pub bruise_pressure_pa: f64,
+    pub bruised: bool,
+    /// max p₀ / bruise threshold.
+    pub bruise_ratio: f64,
+    /// Widest part of one contact above the threshold (m, the full width 2 a √(1 − (p/p₀)²)).
+    pub max_bruise_width_m: f64,
 }
 
 /// Cumulative contact impulse of one node as a piecewise-linear function of time, trimmed
@@ -138,6 +167,7 @@ pub struct SummaryCollector {
     /// Per rod: (tip node, first clamped node) and their initial positions.
     tips: Vec<(usize, Option<usize>, Option<([f64; 2], [f64; 2])>)>,
     grasp: super::grasp::GraspTracker,
+    pressure: Option<PressureSummary>,
 }
 
 impl SummaryCollector {
@@ -183,6 +213,49 @@ impl SummaryCollector {
             max_bending_stress_node: self.stress_at.map(node),
             rods: self.rods.clone(),
             grasp: self.grasp.summary(),
+            contact_pressure: self.pressure.clone(),
+        }
+    }
+
+    /// Fold one step's compliant contacts into the pressure summary.
+    fn pressures(&mut self, t: f64, contacts: &[crate::events::ContactView]) {
+        for c in contacts.iter().filter(|c| c.peak_pressure > 0.0) {
+            let p = self.pressure.get_or_insert_with(|| PressureSummary {
+                peak_contact_force_n: 0.0,
+                max_pressure_pa: 0.0,
+                max_pressure_node: NodeRef {
+                    rod: String::new(),
+                    node: 0,
+                },
+                max_pressure_point: [0.0; 2],
+                max_pressure_time_s: 0.0,
+                half_width_at_max_m: 0.0,
+                max_indentation_m: 0.0,
+                bruise_pressure_pa: c.bruise_pressure,
+                bruised: false,
+                bruise_ratio: 0.0,
+                max_bruise_width_m: 0.0,
+            });
+            p.peak_contact_force_n = p.peak_contact_force_n.max(c.normal_force);
+            p.max_indentation_m = p.max_indentation_m.max(c.indentation);
+            p.max_bruise_width_m = p.max_bruise_width_m.max(2.0 * c.bruise_half_width);
+            if c.peak_pressure > p.max_pressure_pa {
+                p.max_pressure_pa = c.peak_pressure;
+                p.max_pressure_node = NodeRef {
+                    rod: self.names.get(c.rod).cloned().unwrap_or_default(),
+                    node: c.node,
+                };
+                p.max_pressure_point = c.point;
+                p.max_pressure_time_s = t;
+                p.half_width_at_max_m = c.half_width;
+                p.bruise_pressure_pa = c.bruise_pressure;
+                p.bruise_ratio = if c.bruise_pressure > 0.0 {
+                    c.peak_pressure / c.bruise_pressure
+                } else {
+                    0.0
+                };
+                p.bruised = c.bruise_pressure > 0.0 && c.peak_pressure > c.bruise_pressure;
+            }
         }
     }
 }
@@ -231,10 +304,16 @@ impl Observer for SummaryCollector {
                     .collect();
             }
             Event::StepEnd {
-                step, t, dt, rods, ..
+                step,
+                t,
+                dt,
+                rods,
+                contacts,
+                ..
             } => {
                 self.steps = *step;
                 self.t = *t;
+                self.pressures(*t, contacts);
                 for (ri, v) in rods.iter().enumerate() {
                     let s = &mut self.rods[ri];
                     let mut drive = [0.0; 2];

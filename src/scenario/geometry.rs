@@ -94,9 +94,11 @@ pub fn validate(sc: &Scenario) -> Result<(), ScenarioError> {
                 ));
             }
         }
+        // With face contact the surface is `off` outside the centreline.
+        let off = sc.contact.offset(spec);
         for (oi, o) in sc.obstacles.iter().enumerate() {
             for (i, p) in pts.iter().enumerate() {
-                let d = o.query(*p).distance;
+                let d = o.query(*p).distance - off;
                 if !d.is_finite() {
                     return Err(err(
                         format!("obstacle.{oi}"),
@@ -120,9 +122,10 @@ pub fn validate(sc: &Scenario) -> Result<(), ScenarioError> {
                         },
                         format!("node {i} at [{}, {}]", p[0], p[1]),
                         format!(
-                            "{} {:?} node {i} starts {:.3e} m inside obstacle.{oi} ({})",
+                            "{} {:?} node {i}{} starts {:.3e} m inside obstacle.{oi} ({})",
                             if spec.particle { "particle" } else { "rod" },
                             spec.name,
+                            if off > 0.0 { "'s face" } else { "" },
                             -d,
                             o.kind()
                         ),

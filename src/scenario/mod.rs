@@ -3,9 +3,11 @@
 //! See `docs/scenario-format.md` for every key.
 
 pub mod actuation;
+pub mod contact;
 pub mod expect;
 pub mod friction;
 pub mod geometry;
+pub mod material;
 pub mod obstacle;
 pub mod overrides;
 pub mod reader;
@@ -124,6 +126,9 @@ impl Section {
 pub enum MassSpec {
     Density(f64),
     NodeMass(f64),
+    /// The whole rod's mass (kg), lumped by Voronoi length like a density: refining the nodes
+    /// keeps the prong's mass (`node_mass` multiplies it).
+    Total(f64),
 }
 
 /// Prescribed motion of the clamped nodes.
@@ -220,6 +225,8 @@ pub struct RodSpec {
     pub actuator: Option<usize>,
     /// Follows the actuator's motion mirrored in its line x = `mirror_x`.
     pub mirror: bool,
+    /// Poisson's ratio of the prong's material (its share of a compliant contact's E*).
+    pub nu: f64,
 }
 
 /// A whole scenario.
@@ -240,6 +247,10 @@ pub struct Scenario {
     pub actuators: Vec<ActuatorSpec>,
     /// `[expect]`: the outcome the scenario is built to show (judged by `replay check`).
     pub expect: expect::Expect,
+    /// `[contact]`: which surface of a prong touches (centreline unless it says `face`).
+    pub contact: contact::ContactSpec,
+    /// Per obstacle: its material when it is a compliant fruit (None: rigid).
+    pub materials: Vec<Option<crate::contact::compliant::Material>>,
     /// Flush recordings every this many steps.
     pub flush_every: u64,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
@@ -261,6 +272,7 @@ const TOP_KEYS: &[&str] = &[
     "output",
     "actuator",
     "expect",
+    "contact",
 ];
 const SOLVE_KEYS: &[&str] = &[
     "mode",
@@ -290,6 +302,8 @@ const ROD_KEYS: &[&str] = &[
     "section",
     "density",
     "node_mass",
+    "mass",
+    "nu",
     "clamped",
     "drive",
     "loads",
@@ -549,12 +563,13 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
     }
 
     let (mut obstacles, mut obstacle_names, mut bodies) = (Vec::new(), Vec::new(), Vec::new());
+    let mut materials = Vec::new();
     match top.get("obstacle") {
         None => {}
         Some(Value::Array(a)) => {
             for (i, v) in a.iter().enumerate() {
                 let r = top.table_value(&format!("obstacle.{i}"), v, &[])?;
-                let (o, name, body) = obstacle::parse(&r, i, solve.mode, solve.gravity)?;
+                let (o, name, body, material) = obstacle::parse(&r, i, solve.mode, solve.gravity)?;
                 if obstacle_names.contains(&name) || rods.iter().any(|x| x.name == name) {
                     return Err(r.err_hint(
                         "name",
@@ -565,6 +580,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
                 }
                 obstacles.push(o);
                 obstacle_names.push(name);
+                materials.push(material);
                 bodies.extend(body);
             }
         }
@@ -603,6 +619,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         ));
     }
     let expect = expect::parse(&top)?;
+    let contact = contact::parse(&top)?;
     let mut flush_every = 100;
     if let Some(o) = top.opt_table("output", OUTPUT_KEYS)? {
         if let Some(n) = o.opt_usize("flush_every")? {
@@ -625,6 +642,8 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         friction,
         actuators,
         expect,
+        contact,
+        materials,
         flush_every,
         text: String::new(),
         file: file.into(),
@@ -970,7 +989,19 @@ fn parse_rod(
     };
     se.finish()?;
 
-    let mass =
+    if r.has("mass") {
+        if let Some(other) = ["density", "node_mass"].into_iter().find(|k| r.has(k)) {
+            return Err(r.err_hint(
+                "mass",
+                r.get("mass"),
+                format!("both {other} and mass are given"),
+                "keep one: mass (kg, the whole rod, lumped by Voronoi length), density (kg/m³) or node_mass (kg per node)",
+            ));
+        }
+    }
+    let mass = if r.has("mass") {
+        MassSpec::Total(r.positive("mass")?)
+    } else {
         match (r.has("density"), r.has("node_mass")) {
             (true, true) => return Err(r.err_hint(
                 "node_mass",
@@ -992,10 +1023,11 @@ fn parse_rod(
                     "density",
                     None,
                     "missing required key",
-                    "give density = ... (kg/m³) or node_mass = ... (kg)",
+                    "give density = ... (kg/m³), node_mass = ... (kg) or mass = ... (kg, total)",
                 ));
             }
-        };
+        }
+    };
 
     let mut clamped = Vec::new();
     if let Some(arr) = r.array("clamped")? {
@@ -1116,6 +1148,18 @@ fn parse_rod(
         }
     }
     let velocity = r.opt_vec2("velocity")?.unwrap_or([0.0; 2]);
+    let nu = match r.opt_f64("nu")? {
+        None => 0.5,
+        Some(nu) if (0.0..=0.5).contains(&nu) => nu,
+        Some(_) => {
+            return Err(r.err_hint(
+                "nu",
+                r.get("nu"),
+                "Poisson's ratio must be in [0, 0.5]",
+                "an elastomer prong is about 0.5 (the default)",
+            ))
+        }
+    };
     r.finish()?;
     Ok(RodSpec {
         name,
@@ -1131,6 +1175,7 @@ fn parse_rod(
         particle: false,
         actuator,
         mirror,
+        nu,
     })
 }
 
@@ -1174,5 +1219,6 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
         particle: true,
         actuator: None,
         mirror: false,
+        nu: 0.5,
     })
 }

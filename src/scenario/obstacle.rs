@@ -29,6 +29,7 @@ const KEYS: &[&str] = &[
     "velocity",
     "angular_velocity",
     "hold_tolerance",
+    "material",
 ];
 
 /// Keys every obstacle takes: a name, and what makes it a free rigid body.
@@ -51,7 +52,7 @@ pub fn parse(
     index: usize,
     mode: Mode,
     gravity: [f64; 2],
-) -> Result<(Obstacle, String, Option<BodySpec>), ScenarioError> {
+) -> Result<Parsed, ScenarioError> {
     let r = TableReader::new(r.file, r.path.clone(), r.table, KEYS);
     let shape = parse_shape(&r)?;
     let name = match r.opt_str("name")? {
@@ -76,9 +77,18 @@ pub fn parse(
         }
         None
     };
+    let material = super::material::parse(&r, &shape, body.is_some())?;
     r.finish()?;
-    Ok((shape, name, body))
+    Ok((shape, name, body, material))
 }
+
+/// An obstacle's shape, name, rigid body (when free) and material (when compliant).
+pub type Parsed = (
+    Obstacle,
+    String,
+    Option<BodySpec>,
+    Option<crate::contact::compliant::Material>,
+);
 
 /// The rigid body of a `free = true` obstacle: mass from `mass` or `density` × area × `depth`,
 /// inertia about the centroid from the shape (or `inertia`), initial velocities.
@@ -184,7 +194,8 @@ fn parse_shape(r: &TableReader) -> Result<Obstacle, ScenarioError> {
         let mut keys: Vec<&String> = r.table.keys().collect();
         keys.sort();
         for k in keys {
-            if !allowed.contains(&k.as_str()) && !BODY_KEYS.contains(&k.as_str()) {
+            if !allowed.contains(&k.as_str()) && !BODY_KEYS.contains(&k.as_str()) && k != "material"
+            {
                 let mut e = r.err(
                     k,
                     r.table.get(k),

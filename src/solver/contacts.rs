@@ -16,6 +16,27 @@ impl Simulation {
         Surfaces {
             obstacles: &self.obstacles,
             placement: &self.placement,
+            offset: 0.0,
+            compliant: &[],
+        }
+    }
+
+    /// The surfaces as rod `r`'s nodes see them: grown by the rod's contact offset, without
+    /// the compliant fruits it presses into by its force law.
+    pub(super) fn rod_surfaces(&self, r: usize) -> Surfaces<'_> {
+        Surfaces {
+            compliant: self.compliant_mask(r),
+            ..self.surfaces().with_offset(self.rod_offset[r])
+        }
+    }
+
+    /// Which obstacles rod `r` meets through the compliant law (none for a particle, which
+    /// has no face: it meets every obstacle as rigid).
+    pub(super) fn compliant_mask(&self, r: usize) -> &[bool] {
+        if self.work[r].compliant.is_empty() {
+            &[]
+        } else {
+            &self.compliant
         }
     }
 
@@ -55,7 +76,12 @@ impl Simulation {
         if bi != usize::MAX {
             let b = &self.bodies[bi];
             let pose = self.placement[k].map(|p| p.1).unwrap_or(b.pose);
-            let lever = [prox.closest[0] - pose.c[0], prox.closest[1] - pose.c[1]];
+            // The lever to the point of the body's surface (the face's, not the centreline's).
+            let off = self.rod_offset[r];
+            let lever = [
+                prox.closest[0] - off * prox.normal[0] - pose.c[0],
+                prox.closest[1] - off * prox.normal[1] - pose.c[1],
+            ];
             c.body = Some(BodyLink { body: bi, lever });
             let dx = if pose == b.pose { [0.0; 3] } else { b.dx };
             let n = c.normal;
@@ -75,7 +101,7 @@ impl Simulation {
         p: [f64; 2],
         start: bool,
     ) -> Constraint {
-        let s = self.surfaces();
+        let s = self.rod_surfaces(r);
         let mut nc = self.constraint_on(r, c.obstacle, &s.query(c.obstacle, p));
         nc.second = c
             .second
@@ -158,7 +184,7 @@ impl Simulation {
             node: i,
             obstacle: k,
             normal,
-            gap: self.surfaces().query(k, p).distance,
+            gap: self.rod_surfaces(r).query(k, p).distance,
             reaction: [w.r[2 * i], w.r[2 * i + 1]],
             z: 0.0,
         }
@@ -284,7 +310,7 @@ impl Simulation {
         let w = &self.work[r];
         let relin_tol = 1e-10 * rod.length;
         let p = [w.qn[2 * i], w.qn[2 * i + 1]];
-        let s = self.surfaces();
+        let s = self.rod_surfaces(r);
         let mut nc = c;
         let stuck = matches!(c.grip, Grip::Stick { .. });
         if !stuck && s.query(c.obstacle, p).distance < -relin_tol {
@@ -340,7 +366,7 @@ impl Simulation {
     ) -> bool {
         let w = &self.work[r];
         let p = [w.qn[2 * i], w.qn[2 * i + 1]];
-        let Some((k, prox)) = contact::deepest(&self.surfaces(), p, 0.0) else {
+        let Some((k, prox)) = contact::deepest(&self.rod_surfaces(r), p, 0.0) else {
             return false;
         };
         let mut c = self.constraint_on(r, k, &prox);

@@ -168,6 +168,12 @@ pub struct Simulation {
     body_of: Vec<usize>,
     /// Per obstacle: where detection sees it (None: fixed; a body at its start or trial pose).
     placement: Vec<Option<([f64; 2], Pose)>>,
+    /// Per obstacle: whether it is a compliant fruit (met through the force law, not as a
+    /// constraint).
+    compliant: Vec<bool>,
+    /// Per rod: how far its contact surface lies off its centreline (0 for centreline
+    /// contact; h/2 or the section radius for `[contact] surface = "face"`).
+    rod_offset: Vec<f64>,
     /// Coulomb coefficients per rod and obstacle, and per body and obstacle.
     rod_coulomb: Vec<Vec<Coulomb>>,
     body_coulomb: Vec<Vec<Coulomb>>,
@@ -194,7 +200,15 @@ impl Simulation {
     pub fn new(scenario: &Scenario) -> Self {
         let rods: Vec<Rod> = scenario.rods.iter().map(Rod::new).collect();
         let g = scenario.solve.gravity;
-        let work = rods.iter().map(|r| RodWork::new(r, g)).collect();
+        let mut work: Vec<RodWork> = rods.iter().map(|r| RodWork::new(r, g)).collect();
+        for (w, spec) in work.iter_mut().zip(&scenario.rods) {
+            w.compliant = contact::compliant::circles_for(
+                spec,
+                scenario.contact.offset(spec),
+                &scenario.obstacles,
+                &scenario.materials,
+            );
+        }
         let out = rods.iter().map(|r| RodOut::new(r.n)).collect();
         let infos = rods.iter().map(|r| r.info()).collect();
         let bodies: Vec<Body> = scenario.bodies.iter().map(|b| Body::new(b, g)).collect();
@@ -245,6 +259,14 @@ impl Simulation {
             bodies,
             body_of,
             placement: vec![None; scenario.obstacles.len()],
+            compliant: (0..scenario.obstacles.len())
+                .map(|k| matches!(scenario.materials.get(k), Some(Some(_))))
+                .collect(),
+            rod_offset: scenario
+                .rods
+                .iter()
+                .map(|r| scenario.contact.offset(r))
+                .collect(),
             rod_coulomb,
             body_coulomb,
             coupling: vec![RodCoupling::default(); n_rods],
@@ -315,7 +337,6 @@ impl Simulation {
     /// Whether any non-driven node is within `d` of an obstacle (or a free body within `d` of
     /// a fixed obstacle).
     pub fn any_node_within(&self, d: f64) -> bool {
-        let s = self.surfaces();
         for b in &self.bodies {
             let placed = crate::world::body::Placed {
                 shape: &self.obstacles[b.spec.obstacle],
@@ -334,6 +355,7 @@ impl Simulation {
         }
         for (r, rod) in self.rods.iter().enumerate() {
             let q = &self.work[r].q;
+            let s = self.rod_surfaces(r);
             for i in 0..rod.n {
                 if rod.clamped[i] {
                     continue;
@@ -617,14 +639,14 @@ impl Simulation {
                 continue;
             }
             let p1 = [w.qn[2 * i], w.qn[2 * i + 1]];
-            let Some((k, _)) = contact::deepest(&self.surfaces(), p1, 0.0) else {
+            let Some((k, _)) = contact::deepest(&self.rod_surfaces(r), p1, 0.0) else {
                 continue;
             };
             if self.body_of[k] != usize::MAX {
                 // A body moves inside the step: its contact starts where the step ends.
                 continue;
             }
-            let o = &self.obstacles[k];
+            let (o, off) = (&self.obstacles[k], self.rod_offset[r]);
             // Backward Euler over a sub-step θ dt with the predictor's acceleration:
             // p(θ) = p₀ + θ (dt u) + θ² (Δq − dt u), which is p₁ at θ = 1.
             let p0 = [w.q[2 * i], w.q[2 * i + 1]];
@@ -636,6 +658,7 @@ impl Simulation {
                     p0[1] + th * v[1] + th * th * acc[1],
                 ])
                 .distance
+                    - off
             };
             let (mut a, mut b) = (0.0, 1.0);
             let (mut fa, mut fb) = (at(0.0), at(1.0));
@@ -707,7 +730,7 @@ impl Simulation {
                     continue;
                 }
                 let p = [self.work[r].q[2 * i], self.work[r].q[2 * i + 1]];
-                if let Some((k, prox)) = contact::deepest(&self.surfaces(), p, 0.0) {
+                if let Some((k, prox)) = contact::deepest(&self.rod_surfaces(r), p, 0.0) {
                     let msg = format!(
                         "driven node {i} of rod {:?} entered obstacle.{k} ({}) by {:.3e} m at t = {:.6} s: driven nodes follow \
                          their drive and are not contact-constrained; give the drive a stop_travel or stop_time",

@@ -17,6 +17,7 @@
 //! tangent lines, S = 0, and its whole residual is the reaction.
 
 use super::banded::BandLu;
+use crate::contact::compliant::{CompliantCircle, Pressed};
 pub use crate::contact::{Constraint, Corner};
 use crate::energy::{bend::bend, stretch::stretch};
 use crate::model::Rod;
@@ -57,6 +58,12 @@ pub struct RodWork {
     pub length_scale: f64,
     /// Mass-matrix diagonal scale used for the filtered rows.
     pub filter_scale: f64,
+    /// The compliant fruits this rod's nodes can press into (their force is implicit: it and
+    /// its stiffness enter every Newton iteration).
+    pub compliant: Vec<CompliantCircle>,
+    /// Per node: its deepest compliant contact at the last residual evaluation (the force
+    /// summed over all of them is in the balance).
+    pub pressed: Vec<Option<Pressed>>,
 }
 
 /// Why Newton gave up.
@@ -150,6 +157,8 @@ impl RodWork {
             force_scale,
             length_scale: rod.length,
             filter_scale: mean_mass,
+            compliant: Vec::new(),
+            pressed: vec![None; n],
         }
     }
 }
@@ -330,6 +339,7 @@ pub fn residual(
     let mut res = 0.0f64;
     let mut worst = 0usize;
     eq2_residual(rod, w, opt);
+    press_compliant(rod, w, hessian);
     for i in 0..n {
         if w.free_index[i] == usize::MAX {
             continue;
@@ -541,6 +551,40 @@ pub fn finish_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
     }
     assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
     eq2_residual(rod, w, opt);
+    press_compliant(rod, w, false);
+}
+
+/// A compliant fruit's force on every free node pressing into it: F(δ) n joins the balance
+/// (r −= F n, so r stays the reaction of the rigid constraints alone) and, with `hessian`, its
+/// stiffness −∂(F n)/∂x joins the Jacobian: the contact law is solved implicitly, with the
+/// rest of the step. `w.pressed` keeps each node's deepest contact for the outputs.
+pub fn press_compliant(rod: &Rod, w: &mut RodWork, hessian: bool) {
+    if w.compliant.is_empty() {
+        return;
+    }
+    for i in 0..rod.n {
+        w.pressed[i] = None;
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let p = [w.qn[2 * i], w.qn[2 * i + 1]];
+        for c in &w.compliant {
+            let Some(pr) = c.press(p) else { continue };
+            w.r[2 * i] -= pr.force * pr.normal[0];
+            w.r[2 * i + 1] -= pr.force * pr.normal[1];
+            if hessian {
+                for a in 0..2 {
+                    for b in 0..2 {
+                        w.band.add(2 * fi + a, 2 * fi + b, pr.stiffness[a][b]);
+                    }
+                }
+            }
+            if w.pressed[i].is_none_or(|q| pr.indentation > q.indentation) {
+                w.pressed[i] = Some(pr);
+            }
+        }
+    }
 }
 
 /// r = c M (Δq − dt u) + ∇E − λ F on every DOF: eq. 2's reaction (the drive force on driven

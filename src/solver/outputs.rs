@@ -12,10 +12,21 @@ impl Simulation {
         let surfaces = contact::Surfaces {
             obstacles: &self.obstacles,
             placement: &self.placement,
+            offset: self.rod_offset[r],
+            compliant: if w.compliant.is_empty() {
+                &[]
+            } else {
+                &self.compliant
+            },
         };
         let o = &mut self.out[r];
         for i in 0..rod.n {
             let c = if initial { None } else { w.contact[i] };
+            let pressed = if initial || rod.clamped[i] {
+                None
+            } else {
+                w.pressed[i]
+            };
             let (rx, ry) = if initial {
                 (0.0, 0.0)
             } else {
@@ -29,7 +40,12 @@ impl Simulation {
             } else {
                 o.drive_force[2 * i] = 0.0;
                 o.drive_force[2 * i + 1] = 0.0;
-                let (gx, gy) = if c.is_some() { (rx, ry) } else { (0.0, 0.0) };
+                let (mut gx, mut gy) = if c.is_some() { (rx, ry) } else { (0.0, 0.0) };
+                // A compliant fruit's force is part of the node's contact force too.
+                if let Some(p) = pressed {
+                    gx += p.force * p.normal[0];
+                    gy += p.force * p.normal[1];
+                }
                 o.reaction[2 * i] = gx;
                 o.reaction[2 * i + 1] = gy;
             }
@@ -42,12 +58,20 @@ impl Simulation {
                     o.obstacle[i] = c.obstacle;
                     o.in_contact[i] = true;
                 }
-                _ => {
-                    o.normal[2 * i] = 0.0;
-                    o.normal[2 * i + 1] = 0.0;
-                    o.obstacle[i] = usize::MAX;
-                    o.in_contact[i] = false;
-                }
+                _ => match pressed {
+                    Some(p) => {
+                        o.normal[2 * i] = p.normal[0];
+                        o.normal[2 * i + 1] = p.normal[1];
+                        o.obstacle[i] = p.obstacle;
+                        o.in_contact[i] = true;
+                    }
+                    None => {
+                        o.normal[2 * i] = 0.0;
+                        o.normal[2 * i + 1] = 0.0;
+                        o.obstacle[i] = usize::MAX;
+                        o.in_contact[i] = false;
+                    }
+                },
             }
             // The second surface of a corner.
             let second = c.filter(|_| !rod.clamped[i]).and_then(|c| c.second);
@@ -55,6 +79,10 @@ impl Simulation {
             o.normal2[2 * i + 1] = second.map_or(0.0, |s| s.normal[1]);
             o.obstacle2[i] = second.map_or(usize::MAX, |s| s.obstacle);
             o.gap[i] = contact::gap(&surfaces, [w.q[2 * i], w.q[2 * i + 1]], rod.length);
+            if let Some(p) = pressed {
+                // Into a compliant fruit the gap is minus the indentation.
+                o.gap[i] = o.gap[i].min(-p.indentation);
+            }
         }
         if initial {
             o.q_pred.copy_from_slice(&w.q);
@@ -131,6 +159,9 @@ impl Simulation {
                 if self.rods[r].clamped[i] {
                     continue;
                 }
+                if let Some(v) = self.compliant_contact_view(r, i) {
+                    self.contact_out.push(v);
+                }
                 if let Some(c) = self.work[r].contact[i] {
                     let v = self.node_contact_view(r, i, &c, dt);
                     if let Some(l) = c.body {
@@ -174,12 +205,17 @@ impl Simulation {
             }
         }
         let t = c.tangent();
+        // The contact point is on the prong's face (its centreline at centreline contact).
+        let off = self.rod_offset[r];
         ContactView {
             rod: r,
             node: i,
             obstacle: c.obstacle,
             body: c.body.map_or(usize::MAX, |l| l.body),
-            point: [w.q[2 * i], w.q[2 * i + 1]],
+            point: [
+                w.q[2 * i] - off * c.normal[0],
+                w.q[2 * i + 1] - off * c.normal[1],
+            ],
             normal: c.normal,
             normal_force: rn,
             friction_force: rt,
@@ -191,7 +227,39 @@ impl Simulation {
             stuck: matches!(c.grip, Grip::Stick { .. }) || c.second.is_some(),
             utilisation: friction::utilisation(c, reaction),
             mu_s: c.coulomb.mu_s,
+            ..RIGID
         }
+    }
+
+    /// Node (r, i)'s contact with a compliant fruit, if it presses into one: its force, the
+    /// indentation, and the Hertz half-width and peak pressure of that force.
+    fn compliant_contact_view(&self, r: usize, i: usize) -> Option<ContactView> {
+        let w = &self.work[r];
+        let p = w.pressed[i]?;
+        let law = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?.law;
+        let bruise = self.scenario.materials[p.obstacle]
+            .as_ref()
+            .map_or(0.0, |m| m.bruise_pressure);
+        let off = self.rod_offset[r];
+        Some(ContactView {
+            rod: r,
+            node: i,
+            obstacle: p.obstacle,
+            body: usize::MAX,
+            // The face's point, pressed δ into the fruit's undeformed surface.
+            point: [
+                w.q[2 * i] - off * p.normal[0],
+                w.q[2 * i + 1] - off * p.normal[1],
+            ],
+            normal: p.normal,
+            normal_force: p.force,
+            indentation: p.indentation,
+            half_width: law.half_width(p.force),
+            peak_pressure: law.peak_pressure(p.force),
+            bruise_pressure: bruise,
+            bruise_half_width: law.width_above(p.force, bruise),
+            ..RIGID
+        })
     }
 
     fn body_contact_views(&mut self, bi: usize, dt: f64) {
@@ -233,7 +301,29 @@ impl Simulation {
                     0.0
                 },
                 mu_s: c.coulomb.mu_s,
+                ..RIGID
             });
         }
     }
 }
+
+/// The fields of a rigid contact that a compliant one adds (and the defaults of the rest).
+const RIGID: ContactView = ContactView {
+    rod: usize::MAX,
+    node: 0,
+    obstacle: usize::MAX,
+    body: usize::MAX,
+    point: [0.0; 2],
+    normal: [0.0; 2],
+    normal_force: 0.0,
+    friction_force: 0.0,
+    slip_velocity: 0.0,
+    stuck: false,
+    utilisation: 0.0,
+    mu_s: 0.0,
+    indentation: 0.0,
+    half_width: 0.0,
+    peak_pressure: 0.0,
+    bruise_pressure: 0.0,
+    bruise_half_width: 0.0,
+};

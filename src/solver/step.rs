@@ -426,7 +426,7 @@ impl Simulation {
     fn penetration(&self, r: usize) -> f64 {
         let rod = &self.rods[r];
         let w = &self.work[r];
-        let s = self.surfaces();
+        let s = self.rod_surfaces(r);
         let mut pen = 0.0f64;
         for i in 0..rod.n {
             if rod.clamped[i] {

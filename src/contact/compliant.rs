@@ -1,0 +1,330 @@
+//! A compliant fruit: Hertz line contact between a prong's face and a fruit of elastic
+//! material, as a force law F(δ) of the indentation δ that the Newton system solves implicitly.
+//!
+//! Hertz line contact of two cylinders with parallel axes, length b, load F, 1/R = 1/R₁ + 1/R₂,
+//! 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (Johnson, *Contact Mechanics*, 1985, §4.2):
+//!
+//! - half-width a = √(4 F R / (π b E*)),
+//! - peak pressure p₀ = 2 F / (π a b) = √(F E* / (π R b)), p(x) = p₀ √(1 − x²/a²).
+//!
+//! In two dimensions the approach of two bodies is defined only relative to a datum inside them
+//! (the displacements of a half-plane grow like ln r). The law used here takes the fruit's
+//! centre as the datum: the approach of a cylinder of radius R's axis to a line contact of
+//! half-width a under load F (Johnson 1985, §5.6, the compression of a cylinder),
+//!
+//!   δ(F) = (2 F / (π b E*)) (ln(4 R / a) − ½),
+//!
+//! with E* lumping both bodies' compliance. dδ/dF = (2 / (π b E*)) (ln(4R/a) − 1) is positive
+//! while a < 4R/e; beyond a = 4R e^(−3/2) ≈ 0.89 R (a contact as wide as the fruit, far outside
+//! the law's small-strain range) the law is continued linearly with that slope so that it stays
+//! monotone. F(δ) is its inverse (solved to round-off); F′(0) = 0, so contact starts smoothly.
+
+/// The elastic material of a fruit, and where it is damaged.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Material {
+    /// Young's modulus (Pa).
+    #[serde(rename = "E")]
+    pub youngs_modulus: f64,
+    /// Poisson's ratio.
+    pub nu: f64,
+    /// Contact pressure above which the flesh bruises (Pa).
+    pub bruise_pressure: f64,
+    /// Contact pressure at which the flesh fails (Pa).
+    pub failure_pressure: f64,
+    /// The preset it started from, if any.
+    pub preset: Option<String>,
+}
+
+impl Material {
+    /// The named presets (docs/model.md gives their sources).
+    pub const PRESETS: &'static [&'static str] = &["apple"];
+
+    /// A named preset.
+    pub fn preset(name: &str) -> Option<Material> {
+        match name {
+            // Apple flesh: E 0.8–2.3 MPa (mid-range 1.5 MPa), ν ≈ 0.3, bruising where the
+            // contact pressure exceeds ≈ 0.1 MPa, failure at ≈ 0.3 MPa (docs/model.md).
+            "apple" => Some(Material {
+                youngs_modulus: 1.5e6,
+                nu: 0.3,
+                bruise_pressure: 1.0e5,
+                failure_pressure: 3.0e5,
+                preset: Some("apple".into()),
+            }),
+            _ => None,
+        }
+    }
+
+    /// 1/E* contribution (1 − ν²)/E of this material.
+    #[inline]
+    pub fn compliance(&self) -> f64 {
+        (1.0 - self.nu * self.nu) / self.youngs_modulus
+    }
+}
+
+/// The line-contact law of one prong (face width `b`, radius `r_prong` or ∞ for a flat face)
+/// on one fruit (radius `r_fruit`), with the contact modulus `e_star`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LineContact {
+    /// Effective radius R (m).
+    pub r: f64,
+    /// Length of the line contact: the prong's width out of the plane (m).
+    pub b: f64,
+    /// Contact modulus E* (Pa).
+    pub e_star: f64,
+    /// The fruit's radius, the datum of the approach (m).
+    pub r_fruit: f64,
+}
+
+/// ln(4R/a) at which the law is continued linearly (a = 4R e^(−3/2)).
+const LOG_LIMIT: f64 = 1.5;
+
+impl LineContact {
+    /// The law of a prong on a fruit: 1/R = 1/r_fruit + 1/r_prong (r_prong = ∞: a flat face),
+    /// 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂.
+    pub fn new(
+        r_fruit: f64,
+        r_prong: f64,
+        b: f64,
+        prong_compliance: f64,
+        fruit: &Material,
+    ) -> Self {
+        let inv_r = 1.0 / r_fruit
+            + if r_prong.is_finite() {
+                1.0 / r_prong
+            } else {
+                0.0
+            };
+        LineContact {
+            r: 1.0 / inv_r,
+            b,
+            e_star: 1.0 / (prong_compliance + fruit.compliance()),
+            r_fruit,
+        }
+    }
+
+    /// Hertz half-width a (m) at load F (N).
+    #[inline]
+    pub fn half_width(&self, f: f64) -> f64 {
+        if f > 0.0 {
+            (4.0 * f * self.r / (std::f64::consts::PI * self.b * self.e_star)).sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    /// Hertz peak pressure p₀ (Pa) at load F (N).
+    #[inline]
+    pub fn peak_pressure(&self, f: f64) -> f64 {
+        if f > 0.0 {
+            2.0 * f / (std::f64::consts::PI * self.half_width(f) * self.b)
+        } else {
+            0.0
+        }
+    }
+
+    /// Half-width of the part of the contact where the pressure exceeds `p` (m): the Hertz
+    /// profile p₀ √(1 − x²/a²) is above p for |x| < a √(1 − (p/p₀)²).
+    #[inline]
+    pub fn width_above(&self, f: f64, p: f64) -> f64 {
+        let p0 = self.peak_pressure(f);
+        if p0 > p {
+            self.half_width(f) * (1.0 - (p / p0).powi(2)).sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    fn c(&self) -> f64 {
+        2.0 / (std::f64::consts::PI * self.b * self.e_star)
+    }
+
+    /// ln(4 R_fruit / a) at load F.
+    #[inline]
+    fn log(&self, f: f64) -> f64 {
+        (4.0 * self.r_fruit / self.half_width(f)).ln()
+    }
+
+    /// The load where the law is continued linearly.
+    fn f_limit(&self) -> f64 {
+        // 4 R_f / a = e^L  ⇔  a = 4 R_f e^(−L)  ⇔  F = π b E* a² / (4 R).
+        let a = 4.0 * self.r_fruit * (-LOG_LIMIT).exp();
+        std::f64::consts::PI * self.b * self.e_star * a * a / (4.0 * self.r)
+    }
+
+    /// The approach δ(F) (m) and its derivative dδ/dF (m/N).
+    pub fn approach(&self, f: f64) -> (f64, f64) {
+        if f <= 0.0 {
+            return (0.0, f64::INFINITY);
+        }
+        let fl = self.f_limit();
+        if f > fl {
+            let (d, s) = self.approach(fl);
+            return (d + s * (f - fl), s);
+        }
+        let l = self.log(f);
+        (self.c() * f * (l - 0.5), self.c() * (l - 1.0))
+    }
+
+    /// The load F(δ) (N) at approach δ (m), and its stiffness dF/dδ (N/m); (0, 0) for δ ≤ 0.
+    pub fn force(&self, delta: f64) -> (f64, f64) {
+        if delta <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let fl = self.f_limit();
+        let (dl, sl) = self.approach(fl);
+        if delta >= dl {
+            return (fl + (delta - dl) / sl, 1.0 / sl);
+        }
+        // Fixed point F ← δ / (c (ln(4R/a(F)) − ½)): a contraction by 1/(2 (ln(4R/a) − ½))
+        // ≤ ½ on this branch, then Newton steps to round-off.
+        let c = self.c();
+        let mut f = delta / c;
+        for _ in 0..8 {
+            f = delta / (c * (self.log(f) - 0.5).max(LOG_LIMIT - 0.5));
+        }
+        for _ in 0..20 {
+            let (d, s) = self.approach(f);
+            let step = (d - delta) / s;
+            let next = (f - step).clamp(0.5 * f, 2.0 * f).min(fl);
+            let done = (next - f).abs() <= 1e-15 * f;
+            f = next;
+            if done {
+                break;
+            }
+        }
+        (f, 1.0 / self.approach(f).1)
+    }
+}
+
+/// A fixed circular fruit of elastic material, as rod r's nodes see it: the centre, the radius
+/// grown by the rod's contact offset, and the law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CompliantCircle {
+    pub obstacle: usize,
+    pub center: [f64; 2],
+    /// The fruit's radius plus the prong's contact offset (h/2 for a face, 0 at the centreline).
+    pub reach: f64,
+    pub law: LineContact,
+}
+
+/// The contact of one node with a compliant circle: the force along the outward normal, the
+/// indentation δ, and the stiffness of the force w.r.t. the node's position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pressed {
+    pub obstacle: usize,
+    pub normal: [f64; 2],
+    pub indentation: f64,
+    pub force: f64,
+    /// ∂(−F n)/∂x, row-major 2 × 2 (added to the Newton Jacobian).
+    pub stiffness: [[f64; 2]; 2],
+}
+
+impl CompliantCircle {
+    /// Whether (and how hard) point p presses into the fruit.
+    #[inline]
+    pub fn press(&self, p: [f64; 2]) -> Option<Pressed> {
+        let d = [p[0] - self.center[0], p[1] - self.center[1]];
+        let rho = d[0].hypot(d[1]);
+        let delta = self.reach - rho;
+        if delta <= 0.0 || rho == 0.0 {
+            return None;
+        }
+        let n = [d[0] / rho, d[1] / rho];
+        let (f, k) = self.law.force(delta);
+        // −∂(F n)/∂x = F′ n nᵀ − (F/ρ)(I − n nᵀ).
+        let g = f / rho;
+        let mut s = [[0.0; 2]; 2];
+        for a in 0..2 {
+            for b in 0..2 {
+                let nn = n[a] * n[b];
+                let id = if a == b { 1.0 } else { 0.0 };
+                s[a][b] = k * nn - g * (id - nn);
+            }
+        }
+        Some(Pressed {
+            obstacle: self.obstacle,
+            normal: n,
+            indentation: delta,
+            force: f,
+            stiffness: s,
+        })
+    }
+}
+
+/// The compliant fruits rod `spec` presses into, with its contact offset `offset` (none for
+/// a particle: a point has no face, it meets every obstacle as rigid).
+pub fn circles_for(
+    spec: &crate::scenario::RodSpec,
+    offset: f64,
+    obstacles: &[crate::obstacle::Obstacle],
+    materials: &[Option<Material>],
+) -> Vec<CompliantCircle> {
+    use crate::obstacle::Obstacle;
+    use crate::scenario::Section;
+    if spec.particle {
+        return Vec::new();
+    }
+    // The face's width out of the plane and its radius in the plane (a rectangle is flat).
+    let (b, r_prong) = match spec.section {
+        Section::Rect { b, .. } => (b, f64::INFINITY),
+        Section::Circle { radius } => (2.0 * radius, radius),
+    };
+    let prong = (1.0 - spec.nu * spec.nu) / spec.youngs_modulus;
+    let mut out = Vec::new();
+    for (k, m) in materials.iter().enumerate() {
+        let (Some(m), Some(Obstacle::Circle(c))) = (m, obstacles.get(k)) else {
+            continue;
+        };
+        out.push(CompliantCircle {
+            obstacle: k,
+            center: c.center,
+            reach: c.radius + offset,
+            law: LineContact::new(c.radius, r_prong, b, prong, m),
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn law() -> LineContact {
+        let apple = Material::preset("apple").unwrap();
+        // A flat 2 cm wide prong of E = 1 MPa, ν = 0.5 on a 5 cm apple.
+        LineContact::new(0.05, f64::INFINITY, 0.02, 0.75 / 1e6, &apple)
+    }
+
+    #[test]
+    fn force_inverts_the_approach_and_its_slope() {
+        let l = law();
+        for f in [1e-6, 1e-3, 0.1, 1.0, 10.0, 100.0] {
+            let (d, s) = l.approach(f);
+            let (back, k) = l.force(d);
+            assert!((back - f).abs() <= 1e-12 * f, "{f}: {back}");
+            assert!((k * s - 1.0).abs() < 1e-12, "{f}: {k} {s}");
+            // Finite-difference slope.
+            let h = 1e-6 * d;
+            let fd = (l.force(d + h).0 - l.force(d - h).0) / (2.0 * h);
+            assert!((fd - k).abs() < 1e-5 * k, "{f}: {fd} vs {k}");
+        }
+        assert_eq!(l.force(0.0), (0.0, 0.0));
+        assert_eq!(l.force(-1e-3), (0.0, 0.0));
+    }
+
+    #[test]
+    fn hertz_half_width_and_peak_pressure() {
+        let l = law();
+        let f = 2.0;
+        let a = l.half_width(f);
+        let p0 = l.peak_pressure(f);
+        // p₀ = √(F E*/(π R b)) and the semi-ellipse integrates to F: π a b p₀ / 2.
+        let alt = (f * l.e_star / (std::f64::consts::PI * l.r * l.b)).sqrt();
+        assert!((p0 - alt).abs() < 1e-12 * p0);
+        assert!((std::f64::consts::PI * a * l.b * p0 / 2.0 - f).abs() < 1e-12 * f);
+        assert!((l.width_above(f, 0.0) - a).abs() < 1e-15);
+        assert_eq!(l.width_above(f, 2.0 * p0), 0.0);
+    }
+}

@@ -1,0 +1,414 @@
+//! Issue 11: where a thick prong touches. `[contact] surface = "face"` holds the prong's face
+//! (h/2, or the section radius, off its centreline) on the obstacle; the seed's centreline
+//! contact stays the default.
+
+use gripsim::events::{Event, Observer};
+use gripsim::{Scenario, Simulation};
+
+fn scenario(text: &str, sets: &[&str]) -> Result<Scenario, String> {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    Scenario::from_str(text, "test.toml", &sets).map_err(|e| e.to_string())
+}
+
+const R: f64 = 0.02;
+const H: f64 = 0.01;
+
+/// A straight free prong (11 nodes, 10 cm, 2 cm × 1 cm section) whose face starts `gap` above
+/// a rigid circle of radius R at the origin, dropped onto it under gravity.
+fn drop_on_circle(surface: &str, section: &str, gap: f64, above: f64) -> String {
+    format!(
+        r#"
+name = "drop-on-circle"
+[solve]
+t_end = 0.04
+dt = 1e-4
+gravity = [0.0, -9.81]
+[contact]
+surface = "{surface}"
+[[rod]]
+name = "prong"
+nodes = 11
+shape = {{ kind = "straight", start = [-0.05, {y}], end = [0.05, {y}] }}
+E = 1e9
+section = {section}
+density = 1000.0
+[[obstacle]]
+kind = "circle"
+center = [0.0, 0.0]
+radius = {R}
+"#,
+        y = R + above + gap
+    )
+}
+
+/// Per step: the distance of every node from the circle's centre, which nodes are held, and
+/// the contacts' points, normal forces and the held nodes' gaps.
+#[derive(Default)]
+struct Trace {
+    /// The smallest distance of any node from the centre over the run.
+    closest: f64,
+    /// (step, distance of node 5 from the centre, its gap) in every step it is held.
+    held: Vec<(u64, f64, f64)>,
+    /// Distances of the reported contact points from the centre.
+    points: Vec<f64>,
+}
+
+impl Observer for Trace {
+    fn on_event(&mut self, e: &Event<'_>) {
+        if let Event::StepEnd {
+            step,
+            rods,
+            contacts,
+            ..
+        } = e
+        {
+            let r = &rods[0];
+            for p in r.q.chunks_exact(2) {
+                self.closest = self.closest.min(p[0].hypot(p[1]));
+            }
+            if r.in_contact[5] {
+                self.held.push((*step, r.q[10].hypot(r.q[11]), r.gap[5]));
+            }
+            for c in contacts.iter() {
+                self.points.push(c.point[0].hypot(c.point[1]));
+            }
+        }
+    }
+}
+
+fn run(text: &str) -> Trace {
+    let sc = scenario(text, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut tr = Trace {
+        closest: f64::INFINITY,
+        ..Trace::default()
+    };
+    sim.run(&mut tr).unwrap_or_else(|e| panic!("{e}"));
+    tr
+}
+
+#[test]
+fn a_thick_prongs_face_stops_on_the_circle_at_half_its_height_plus_the_radius() {
+    let rect = "{ kind = \"rect\", b = 0.02, h = 0.01 }";
+    // The seed's centreline contact (the default, and what surface = "centreline" says): the
+    // centreline stops on the circle, the face h/2 inside it.
+    let seed = run(&drop_on_circle("centreline", rect, 1e-3, 0.0));
+    // The face: the centreline stops h/2 + R from the centre.
+    let face = run(&drop_on_circle("face", rect, 1e-3, H / 2.0));
+    // A circular section of radius 4 mm touches with its radius.
+    let round = run(&drop_on_circle(
+        "face",
+        "{ kind = \"circle\", radius = 0.004 }",
+        1e-3,
+        0.004,
+    ));
+    for (name, tr, stop) in [
+        ("centreline", &seed, R),
+        ("face (rect h = 1 cm)", &face, R + H / 2.0),
+        ("face (round r = 4 mm)", &round, R + 0.004),
+    ] {
+        let (first, d, gap) = tr.held[0];
+        println!(
+            "{name}: node 5 held from step {first} in {} steps; at the last: {:.12} m from the \
+             centre (want {stop}), gap {:.3e} m; closest node over the run {:.12} m",
+            tr.held.len(),
+            tr.held.last().unwrap().1,
+            tr.held.last().unwrap().2,
+            tr.closest
+        );
+        assert!(tr.held.len() > 50, "{name}: the prong must land and stay");
+        for &(step, d, gap) in &tr.held {
+            assert!(
+                (d - stop).abs() < 1e-9,
+                "{name}: step {step}: {d} vs {stop}"
+            );
+            assert!(gap.abs() < 1e-9, "{name}: step {step}: gap {gap}");
+        }
+        let _ = (d, gap);
+        // No node (its face) ever went into the circle.
+        assert!(tr.closest > stop - 1e-9, "{name}: {}", tr.closest);
+        // Contacts are reported at the surface point, which is on the circle.
+        assert!(!tr.points.is_empty());
+        for p in &tr.points {
+            assert!(
+                (p - R).abs() < 1e-9,
+                "{name}: contact point at {p} from the centre"
+            );
+        }
+    }
+}
+
+#[test]
+fn centreline_is_the_default_and_bit_for_bit_the_same_as_saying_so() {
+    let rect = "{ kind = \"rect\", b = 0.02, h = 0.01 }";
+    let said = drop_on_circle("centreline", rect, 1e-3, 0.0);
+    let unsaid = said.replace("[contact]\nsurface = \"centreline\"\n", "");
+    assert_ne!(said, unsaid);
+    let (a, b) = (run(&said), run(&unsaid));
+    assert_eq!(a.held, b.held);
+    assert_eq!(a.closest.to_bits(), b.closest.to_bits());
+}
+
+#[test]
+fn contact_surface_errors_name_the_key_and_value() {
+    let rect = "{ kind = \"rect\", b = 0.02, h = 0.01 }";
+    let e = scenario(&drop_on_circle("fase", rect, 1e-3, 0.0), &[]).unwrap_err();
+    println!("{e}");
+    assert!(e.contains("contact.surface") && e.contains("fase") && e.contains("\"face\""));
+    // Face contact: a face that starts inside the fruit is refused (the centreline is 1 mm
+    // above the circle; node 4, at x = −1 cm, is √(0.01² + 0.021²) − R = 3.26 mm from it, so its
+    // face is 1.74 mm inside).
+    let e = scenario(&drop_on_circle("face", rect, 1e-3, 0.0), &[]).unwrap_err();
+    println!("{e}");
+    assert!(
+        e.contains("rod \"prong\" node 4's face starts 1.741e-3 m inside obstacle.0"),
+        "{e}"
+    );
+    // A --set switches it.
+    let sc = scenario(
+        &drop_on_circle("centreline", rect, 1e-3, H / 2.0),
+        &["contact.surface=face"],
+    )
+    .unwrap();
+    assert_eq!(
+        sc.contact.surface,
+        gripsim::scenario::contact::ContactSurface::Face
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Compliant fruit: Hertz line contact, solved implicitly.
+
+use std::f64::consts::PI;
+
+/// A stiff straight prong (11 nodes, 10 cm, 2 cm wide, 1 cm thick, E_prong) resting with its
+/// face on a 5 cm fruit and pressed into it by a load P on its middle node, no gravity, run to
+/// rest. `material` is the fruit's (empty: rigid).
+fn punch(material: &str, e_prong: f64, load: f64) -> String {
+    format!(
+        r#"
+name = "punch"
+[solve]
+t_end = 0.3
+dt = 1e-3
+gravity = [0.0, 0.0]
+[contact]
+surface = "face"
+[[rod]]
+name = "punch"
+nodes = 11
+shape = {{ kind = "straight", start = [-0.05, 0.0551], end = [0.05, 0.0551] }}
+E = {e_prong:e}
+nu = 0.5
+section = {{ kind = "rect", b = 0.02, h = 0.01 }}
+density = 1000.0
+loads = [{{ node = 5, force = [0.0, {f}] }}]
+[[obstacle]]
+kind = "circle"
+center = [0.0, 0.0]
+radius = 0.05
+{material}
+"#,
+        f = -load
+    )
+}
+
+/// The last step's contacts and the middle node's position.
+#[derive(Default)]
+struct Last {
+    contacts: Vec<gripsim::events::ContactView>,
+    mid: [f64; 2],
+    q: Vec<f64>,
+}
+
+impl Observer for Last {
+    fn on_event(&mut self, e: &Event<'_>) {
+        if let Event::StepEnd { rods, contacts, .. } = e {
+            self.contacts = contacts.to_vec();
+            self.mid = [rods[0].q[10], rods[0].q[11]];
+            self.q = rods[0].q.to_vec();
+        }
+    }
+}
+
+fn settle(text: &str) -> Last {
+    let sc = scenario(text, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut last = Last::default();
+    sim.run(&mut last).unwrap_or_else(|e| panic!("{e}"));
+    last
+}
+
+/// Hertz line contact, written out here from Johnson §4.2 (independently of the solver's).
+fn hertz(f: f64, e_star: f64, r: f64, b: f64) -> (f64, f64) {
+    let a = (4.0 * f * r / (PI * b * e_star)).sqrt();
+    (a, 2.0 * f / (PI * a * b))
+}
+
+fn e_star(e1: f64, nu1: f64, e2: f64, nu2: f64) -> f64 {
+    1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2)
+}
+
+#[test]
+fn a_punch_on_a_compliant_fruit_gives_hertz_pressure_and_half_width() {
+    let (r, b, p) = (0.05, 0.02, 0.5);
+    let apple = "material = { E = 1.5e6, nu = 0.3, bruise_pressure = 1e5 }";
+    let last = settle(&punch(apple, 1e9, p));
+    assert_eq!(last.contacts.len(), 1, "one contact: {:?}", last.contacts);
+    let c = &last.contacts[0];
+    let es = e_star(1e9, 0.5, 1.5e6, 0.3);
+    let (a, p0) = hertz(p, es, r, b);
+    // Johnson §5.6: the approach of the fruit's centre, δ = (2F/(π b E*)) (ln(4R/a) − ½).
+    let delta = 2.0 * p / (PI * b * es) * ((4.0 * r / a).ln() - 0.5);
+    let depth = r + 0.005 - last.mid[0].hypot(last.mid[1]);
+    println!(
+        "P = {p} N: F = {:.9} N; a = {:.6e} m (Hertz {a:.6e}); p0 = {:.6e} Pa (Hertz {p0:.6e}); \
+         indentation {:.6e} m (law {delta:.6e}, from the node position {depth:.6e})",
+        c.normal_force, c.half_width, c.peak_pressure, c.indentation
+    );
+    assert!((c.normal_force - p).abs() < 1e-6 * p);
+    assert!((c.half_width - a).abs() < 0.02 * a);
+    assert!((c.peak_pressure - p0).abs() < 0.02 * p0);
+    assert!((c.indentation - delta).abs() < 0.02 * delta);
+    assert!((depth - c.indentation).abs() < 1e-12);
+    // The contact point is on the face, δ inside the undeformed fruit.
+    assert!((c.point[0].hypot(c.point[1]) - (r - delta)).abs() < 1e-6 * delta);
+    // 16 kPa: below the 0.1 MPa bruise threshold; no part of the contact above it.
+    assert_eq!(c.bruise_pressure, 1e5);
+    assert_eq!(c.bruise_half_width, 0.0);
+    // Four times the load: p0 doubles (p0 ∝ √F).
+    let c4 = settle(&punch(apple, 1e9, 4.0 * p)).contacts[0];
+    assert!((c4.peak_pressure / c.peak_pressure - 2.0).abs() < 1e-6);
+}
+
+#[test]
+fn a_stiffer_fruit_approaches_the_rigid_solver() {
+    let p = 0.5;
+    let rigid = settle(&punch("", 1e12, p));
+    assert_eq!(rigid.contacts.len(), 1);
+    assert!((rigid.contacts[0].normal_force - p).abs() < 1e-6 * p);
+    let mut last_gap = f64::INFINITY;
+    for e in [1e6, 1e8, 1e10, 1e12] {
+        let soft = settle(&punch(
+            &format!("material = {{ E = {e:e}, nu = 0.3, bruise_pressure = 1e5 }}"),
+            1e12,
+            p,
+        ));
+        let worst = soft
+            .q
+            .iter()
+            .zip(&rigid.q)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let c = &soft.contacts[0];
+        println!(
+            "E_fruit = {e:e} Pa: indentation {:.3e} m, largest node offset from the rigid \
+             solution {worst:.3e} m, force {:.9} N (rigid {:.9} N)",
+            c.indentation, c.normal_force, rigid.contacts[0].normal_force
+        );
+        // Both carry the load. The stiffer the law, the less exactly its force is resolved:
+        // Newton stops at the round-off floor of the update (1e-12 L), which at E = 1e12 Pa
+        // (dF/dδ ≈ 1.7e9 N/m) is 3e-4 of the force (1e-6 or better up to E = 1e10 Pa).
+        assert!((c.normal_force - p).abs() < 1e-3 * p);
+        assert!(worst < last_gap, "monotone approach");
+        last_gap = worst;
+    }
+    assert!(last_gap < 1e-9, "{last_gap}");
+}
+
+fn shipped(name: &str, sets: &[&str]) -> Scenario {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    Scenario::load(&crate::common::scenario(name), &sets).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The seed grasp (r = 5 cm, E = 1 MPa) with thick prongs on a compliant apple: the fruit 5 mm
+/// further away so that the face starts where the seed's centreline started.
+const THICK_ON_APPLE: &[&str] = &[
+    "contact.surface=face",
+    "obstacle.0.center=[-0.055,-0.05]",
+    "obstacle.0.material=apple",
+];
+
+fn pressure_summary(sets: &[&str]) -> gripsim::record::summary::PressureSummary {
+    let sc = shipped("seed-grasp-r5", sets);
+    let mut sim = Simulation::new(&sc);
+    let mut col = gripsim::record::summary::SummaryCollector::new();
+    sim.run(&mut col).unwrap_or_else(|e| panic!("{e}"));
+    let s = col.finish(&sim.stats, 0.0);
+    println!(
+        "{sets:?}: eq. 2 (seed) peak {:.4} N; {}",
+        s.peak_reaction_force_n,
+        serde_json::to_string(&s.contact_pressure).unwrap()
+    );
+    s.contact_pressure.expect("the prong touched the apple")
+}
+
+/// The compliant grasp's peak contact force converges at first order in Δt (backward Euler
+/// damps the contact oscillation by ≈ (π/4) ω Δt at the first peak), instead of growing like
+/// 1/Δt as eq. 2's rigid impact peak does (194 → 2783 N from 1e-5 to 1e-6 s).
+#[test]
+fn the_compliant_grasps_peak_contact_force_converges_in_dt() {
+    let at = |dt: &str| {
+        let mut sets = THICK_ON_APPLE.to_vec();
+        let dt = format!("solve.dt={dt}");
+        sets.push(&dt);
+        pressure_summary(&sets)
+    };
+    let (c1, c2, f) = (at("1e-5"), at("2e-6"), at("1e-6"));
+    let change = |c: &gripsim::record::summary::PressureSummary| {
+        (c.peak_contact_force_n - f.peak_contact_force_n).abs() / f.peak_contact_force_n
+    };
+    println!(
+        "peak contact force {:.6} N (dt 1e-5), {:.6} N (2e-6), {:.6} N (1e-6): changes {:.3} % \
+         and {:.3} % against 1e-6; peak pressure {:.4e} / {:.4e} / {:.4e} Pa",
+        c1.peak_contact_force_n,
+        c2.peak_contact_force_n,
+        f.peak_contact_force_n,
+        100.0 * change(&c1),
+        100.0 * change(&c2),
+        c1.max_pressure_pa,
+        c2.max_pressure_pa,
+        f.max_pressure_pa
+    );
+    // First order: the 2e-6 run is (2 − 1)/(10 − 1) ≈ 0.11 as far from the 1e-6 run as the
+    // 1e-5 run is; allow 0.2. The 1e-5 → 1e-6 change itself is measured at 1.07 % (the issue
+    // asks for < 1 %: not met at Δt = 1e-5, met from 2e-6 on).
+    assert!(
+        change(&c2) < 0.2 * change(&c1),
+        "{} {}",
+        change(&c2),
+        change(&c1)
+    );
+    assert!(change(&c2) < 0.01);
+    assert_eq!(c1.bruised, f.bruised);
+}
+
+#[test]
+fn mass_is_the_whole_rods_and_stays_when_nodes_are_added() {
+    for nodes in [10, 50] {
+        let sc = shipped("seed-grasp-r5", &[format!("rod.0.nodes={nodes}").as_str()]);
+        let per_node: f64 = gripsim::model::Rod::new(&sc.rods[0]).mass.iter().sum();
+        assert!((per_node - 0.01 * nodes as f64).abs() < 1e-12, "{per_node}");
+        let text = std::fs::read_to_string(crate::common::scenario("seed-grasp-r5"))
+            .unwrap()
+            .replace("node_mass = 0.01", "mass = 0.1");
+        let sc = scenario(&text, &[format!("rod.0.nodes={nodes}").as_str()]).unwrap();
+        let rod = gripsim::model::Rod::new(&sc.rods[0]);
+        let total: f64 = rod.mass.iter().sum();
+        println!("{nodes} nodes: node_mass 0.01 kg → {per_node} kg; mass = 0.1 → {total} kg");
+        assert!((total - 0.1).abs() < 1e-15);
+        // Lumped by Voronoi length.
+        let l: f64 = rod.voronoi.iter().sum();
+        for (m, v) in rod.mass.iter().zip(&rod.voronoi) {
+            assert!((m - 0.1 * v / l).abs() < 1e-15);
+        }
+    }
+    let e = scenario(
+        &std::fs::read_to_string(crate::common::scenario("seed-grasp-r5"))
+            .unwrap()
+            .replace("node_mass = 0.01", "node_mass = 0.01\nmass = 0.1"),
+        &[],
+    )
+    .unwrap_err();
+    assert!(e.contains("both node_mass and mass are given"), "{e}");
+}
