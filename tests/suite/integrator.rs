@@ -40,11 +40,13 @@ fn max_diff(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
 }
 
-/// Halving dt divides BDF2's error by ≈ 4 (second order) and backward Euler's by ≈ 2.
+/// Halving dt divides BDF2's error by ≈ 4 (second order) and backward Euler's by ≈ 2 (at
+/// dt ≥ 2e-4 the error of the unresolved stretch modes BDF2 damps is not yet asymptotic:
+/// measured ÷2.1, ÷2.6 from 4e-4; ÷3.7 from 1e-4).
 #[test]
 fn bdf2_converges_at_second_order_on_a_free_swing() {
     let reference = final_positions("bdf2", 2.5e-6);
-    let dts = [4e-4, 2e-4, 1e-4, 5e-5];
+    let dts = [1e-4, 5e-5, 2.5e-5];
     let errs = |name: &str| -> Vec<f64> {
         dts.iter()
             .map(|&dt| max_diff(&final_positions(name, dt), &reference))
@@ -74,10 +76,10 @@ fn bdf2_converges_at_second_order_on_a_free_swing() {
     }
     // At the same dt BDF2 is far more accurate: the tip is where the swing is.
     assert!(
-        e2[3] * 20.0 < e1[3],
+        e2[2] * 20.0 < e1[2],
         "bdf2 {:e} vs backward Euler {:e}",
-        e2[3],
-        e1[3]
+        e2[2],
+        e1[2]
     );
 }
 
