@@ -87,6 +87,10 @@ enum Command {
         /// Print nothing but errors.
         #[arg(long, short)]
         quiet: bool,
+        /// Static mode: start from a small imperfection (solve.imperfection = 1e-3 of the rod
+        /// length) so the load ramp follows the stable branch past a bifurcation.
+        #[arg(long)]
+        perturb: bool,
         /// Check the run for velocity spikes and sticking nodes while it runs (the detector of
         /// `gripsim replay check`, no recording needed); exit 1 if anything is flagged.
         #[arg(long)]
@@ -245,12 +249,16 @@ fn main() -> ExitCode {
             arrows,
             no_record,
             summary,
-            sets,
+            mut sets,
             quiet,
+            perturb,
             check,
             check_json,
             thresholds,
         } => {
+            if perturb {
+                sets.push("solve.imperfection=1e-3".into());
+            }
             let out = Outputs {
                 rrd,
                 mcap,
@@ -531,6 +539,14 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
             ExitCode::from(2)
         }
         Ok(_) if failed => ExitCode::from(2),
+        Ok(s) if s.unstable_equilibrium => {
+            eprintln!(
+                "unstable equilibrium: the smallest eigenvalue of the free-DOF Hessian is {:.3e} N/m \
+                 (a saddle of the energy; rerun with --perturb to follow the stable branch)",
+                s.min_eigenvalue.unwrap_or(f64::NAN)
+            );
+            ExitCode::from(3)
+        }
         Ok(_) => ExitCode::from(check_code),
     }
 }

@@ -32,7 +32,21 @@ pub enum Strategy {
     Proximity,
     Adaptive,
     AdaptiveToi,
+    /// The second-order integrator (BDF2), fixed dt.
+    Bdf2Fixed,
+    /// BDF2 under error control with time of impact.
+    Bdf2AdaptiveToi,
 }
+
+/// Every strategy, in table order.
+pub const STRATEGIES: [Strategy; 6] = [
+    Strategy::Fixed,
+    Strategy::Proximity,
+    Strategy::Adaptive,
+    Strategy::AdaptiveToi,
+    Strategy::Bdf2Fixed,
+    Strategy::Bdf2AdaptiveToi,
+];
 
 impl Strategy {
     pub fn name(self) -> &'static str {
@@ -41,11 +55,23 @@ impl Strategy {
             Strategy::Proximity => "proximity",
             Strategy::Adaptive => "adaptive",
             Strategy::AdaptiveToi => "adaptive+toi",
+            Strategy::Bdf2Fixed => "bdf2",
+            Strategy::Bdf2AdaptiveToi => "bdf2+adaptive+toi",
         }
     }
 
     fn sets(self, p: f64) -> Vec<String> {
         match self {
+            Strategy::Bdf2Fixed | Strategy::Bdf2AdaptiveToi => {
+                let base = if self == Strategy::Bdf2Fixed {
+                    Strategy::Fixed
+                } else {
+                    Strategy::AdaptiveToi
+                };
+                let mut v = base.sets(p);
+                v.push("solve.integrator=\"bdf2\"".into());
+                v
+            }
             Strategy::Fixed => vec!["solve.stepping=\"fixed\"".into(), format!("solve.dt={p:e}")],
             Strategy::Proximity => vec![
                 "solve.stepping=\"proximity\"".into(),
@@ -72,7 +98,7 @@ impl Strategy {
 
     fn param_name(self) -> &'static str {
         match self {
-            Strategy::Fixed | Strategy::Proximity => "dt",
+            Strategy::Fixed | Strategy::Proximity | Strategy::Bdf2Fixed => "dt",
             _ => "rtol",
         }
     }
@@ -374,14 +400,9 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             }
             None => drop_reference(samples, 1e-3),
         };
-        for strategy in [
-            Strategy::Fixed,
-            Strategy::Proximity,
-            Strategy::Adaptive,
-            Strategy::AdaptiveToi,
-        ] {
+        for strategy in STRATEGIES {
             let ladder = match strategy {
-                Strategy::Fixed | Strategy::Proximity => &case.dts,
+                Strategy::Fixed | Strategy::Proximity | Strategy::Bdf2Fixed => &case.dts,
                 _ => &case.rtols,
             };
             for &p in ladder {
@@ -453,7 +474,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
     ] {
         for c in &case_names {
             let mut series = Vec::new();
-            for s in ["fixed", "proximity", "adaptive", "adaptive+toi"] {
+            for s in STRATEGIES.map(Strategy::name) {
                 let pts: Vec<(f64, f64)> = rows
                     .iter()
                     .filter(|r| &r.case == c && r.strategy == s)

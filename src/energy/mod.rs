@@ -2,7 +2,9 @@
 //! and Hessian in closed form; the tests beside each check them against finite differences
 //! and against the golden values in `references.md`.
 
+pub mod balance;
 pub mod bend;
+pub mod damping;
 pub mod stretch;
 
 #[cfg(test)]

@@ -31,6 +31,9 @@ pub struct Rod {
     pub length: f64,
     /// Initial velocity of every node (m/s).
     pub velocity: [f64; 2],
+    /// Kelvin–Voigt retardation time τ (s): the viscous force of an element is τ times its
+    /// stiffness along its strain times the strain rate (0: undamped).
+    pub damping_time: f64,
 }
 
 impl Rod {
@@ -100,6 +103,7 @@ impl Rod {
             half_height: spec.section.half_height(),
             drive: spec.drive,
             load,
+            damping_time: spec.damping_time,
         }
     }
 

@@ -66,6 +66,15 @@ pub struct Summary {
     /// Grip, slip and drop of the first free body (absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grasp: Option<super::grasp::GraspSummary>,
+    /// Dynamic mode: the rods' energy balance (J) — kinetic, elastic, gravity, dissipated by
+    /// damping and by the integrator, work of the drives and the contacts.
+    pub energy: crate::energy::balance::Balance,
+    /// What the balance misses, relative to its largest term.
+    pub energy_closure_rel: f64,
+    /// Static mode: the smallest free-DOF Hessian eigenvalue at the end (N/m), and whether
+    /// the equilibrium is unstable (negative).
+    pub min_eigenvalue: Option<f64>,
+    pub unstable_equilibrium: bool,
     /// Contact pressure on a compliant fruit and the bruise verdict (absent when no contact
     /// with a compliant fruit happened).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -213,6 +222,10 @@ impl SummaryCollector {
             max_bending_stress_node: self.stress_at.map(node),
             rods: self.rods.clone(),
             grasp: self.grasp.summary(),
+            energy: stats.energy.clone(),
+            energy_closure_rel: stats.energy.closure_rel(),
+            min_eigenvalue: stats.min_eigenvalue,
+            unstable_equilibrium: stats.unstable_equilibrium,
             contact_pressure: self.pressure.clone(),
         }
     }

@@ -37,6 +37,17 @@ pub enum Stepping {
     Adaptive,
 }
 
+/// The time integrator of dynamic mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrator {
+    /// First order, L-stable, dissipative (the seed's).
+    BackwardEuler,
+    /// Variable-step two-step BDF: second order, L-stable. Nodes touching an obstacle in a
+    /// step (and in the step before) drop to backward Euler locally.
+    Bdf2,
+}
+
 /// `[solve]`.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Solve {
@@ -54,6 +65,8 @@ pub struct Solve {
     /// Split a step at the time a free node would cross an obstacle, so contact starts on
     /// the surface.
     pub time_of_impact: bool,
+    /// Dynamic mode's time integrator.
+    pub integrator: Integrator,
     pub gravity: [f64; 2],
     /// Newton force tolerance relative to the problem's force scale.
     pub force_tol: f64,
@@ -65,6 +78,9 @@ pub struct Solve {
     pub max_backoff: u32,
     /// Static mode: the first load increment (fraction of the full load).
     pub load_step: f64,
+    /// Static mode: an initial imperfection (fraction of the rod length, 0 = none) that lets
+    /// the load ramp follow the stable branch past a bifurcation.
+    pub imperfection: f64,
 }
 
 #[derive(Debug, Clone, serde::Serialize)]
@@ -227,6 +243,9 @@ pub struct RodSpec {
     pub mirror: bool,
     /// Poisson's ratio of the prong's material (its share of a compliant contact's E*).
     pub nu: f64,
+    /// Kelvin–Voigt retardation time τ (s): viscous stress τ E ε̇ beside the elastic E ε;
+    /// `loss_factor` / (2π `loss_frequency`), 0 = no material damping.
+    pub damping_time: f64,
 }
 
 /// A whole scenario.
@@ -286,6 +305,7 @@ const SOLVE_KEYS: &[&str] = &[
     "dt_min",
     "dt_max",
     "time_of_impact",
+    "integrator",
     "gravity",
     "force_tol",
     "step_tol",
@@ -293,6 +313,7 @@ const SOLVE_KEYS: &[&str] = &[
     "max_contact_passes",
     "max_backoff",
     "load_step",
+    "imperfection",
 ];
 const ROD_KEYS: &[&str] = &[
     "name",
@@ -310,6 +331,8 @@ const ROD_KEYS: &[&str] = &[
     "velocity",
     "actuator",
     "mirror",
+    "loss_factor",
+    "loss_frequency",
 ];
 const PARTICLE_KEYS: &[&str] = &["name", "position", "velocity", "mass", "force"];
 const OUTPUT_KEYS: &[&str] = &["flush_every"];
@@ -795,6 +818,23 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         ));
     }
     let time_of_impact = s.opt_bool("time_of_impact")?.unwrap_or(false);
+    let integrator = match s.opt_str("integrator")?.unwrap_or("backward_euler") {
+        "backward_euler" => Integrator::BackwardEuler,
+        "bdf2" => Integrator::Bdf2,
+        other => {
+            let names = ["backward_euler", "bdf2"];
+            let hint = match reader::did_you_mean(other, &names) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"backward_euler\" or \"bdf2\"".into(),
+            };
+            return Err(s.err_hint(
+                "integrator",
+                s.get("integrator"),
+                format!("unknown integrator {other:?}"),
+                hint,
+            ));
+        }
+    };
     let gravity = s.opt_vec2("gravity")?.unwrap_or([0.0, -9.81]);
     check_magnitude(s, "gravity", gravity, MAX_ACCELERATION, "m/s²")?;
     let force_tol = s.opt_positive("force_tol")?.unwrap_or(1e-9);
@@ -817,6 +857,15 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
     if load_step > 1.0 {
         return Err(s.err("load_step", s.get("load_step"), "must be in (0, 1]"));
     }
+    let imperfection = s.opt_f64("imperfection")?.unwrap_or(0.0);
+    if !(0.0..=0.1).contains(&imperfection) {
+        return Err(s.err_hint(
+            "imperfection",
+            s.get("imperfection"),
+            "must be in [0, 0.1]",
+            "a small fraction of the rod length, e.g. 1e-3",
+        ));
+    }
     s.finish()?;
     Ok(Solve {
         mode,
@@ -830,6 +879,7 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         dt_min,
         dt_max,
         time_of_impact,
+        integrator,
         gravity,
         force_tol,
         step_tol,
@@ -837,6 +887,7 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         max_contact_passes,
         max_backoff,
         load_step,
+        imperfection,
     })
 }
 
@@ -1160,6 +1211,17 @@ fn parse_rod(
             ))
         }
     };
+    let loss_factor = r.opt_f64("loss_factor")?.unwrap_or(0.0);
+    if !(0.0..=10.0).contains(&loss_factor) {
+        return Err(r.err_hint(
+            "loss_factor",
+            r.get("loss_factor"),
+            "must be in [0, 10]",
+            "the loss factor tan δ of the material at loss_frequency (silicone rubbers ≈ 0.05–0.5)",
+        ));
+    }
+    let loss_frequency = r.opt_positive("loss_frequency")?.unwrap_or(10.0);
+    let damping_time = loss_factor / (2.0 * std::f64::consts::PI * loss_frequency);
     r.finish()?;
     Ok(RodSpec {
         name,
@@ -1176,6 +1238,7 @@ fn parse_rod(
         actuator,
         mirror,
         nu,
+        damping_time,
     })
 }
 
@@ -1220,5 +1283,6 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
         actuator: None,
         mirror: false,
         nu: 0.5,
+        damping_time: 0.0,
     })
 }

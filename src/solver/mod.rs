@@ -7,6 +7,7 @@ mod contacts;
 pub mod coupled;
 pub mod newton;
 mod outputs;
+mod stability;
 mod step;
 
 use crate::actuation::{clamp_centroid, Actuator, Measure};
@@ -57,10 +58,19 @@ pub struct RunStats {
     pub backoffs: u64,
     /// Adaptive stepping: attempts rejected by the error estimate.
     pub rejected_steps: u64,
+    /// BDF2: free node-steps estimated at first order (contact, or no smooth history), over
+    /// every attempt the error estimate looked at (0 under backward Euler).
+    pub first_order_node_steps: u64,
     /// Deepest penetration of any node after the corrector (m, ≥ 0).
     pub max_penetration: f64,
     /// Simulated time reached (s); the load factor in static mode.
     pub t: f64,
+    /// Dynamic mode: the energy balance of the rods.
+    pub energy: crate::energy::balance::Balance,
+    /// Static mode: the smallest eigenvalue of the free-DOF Hessian at the end (N/m; None
+    /// when no rod could be checked), and whether it is negative.
+    pub min_eigenvalue: Option<f64>,
+    pub unstable_equilibrium: bool,
 }
 
 /// Output arrays of one rod for the step-end view.
@@ -277,7 +287,23 @@ impl Simulation {
             contact_out: Vec::new(),
         };
         sim.place_bodies(true);
+        sim.start_balance();
         sim
+    }
+
+    /// The balance's starting point: kinetic energy of the free nodes and elastic energy.
+    fn start_balance(&mut self) {
+        let mut e0 = 0.0;
+        for (rod, w) in self.rods.iter().zip(&mut self.work) {
+            w.energy_start = w.energy;
+            e0 += w.energy;
+            for i in (0..rod.n).filter(|&i| !rod.clamped[i]) {
+                let v2 = w.u[2 * i] * w.u[2 * i] + w.u[2 * i + 1] * w.u[2 * i + 1];
+                self.stats.energy.kinetic_j += 0.5 * rod.mass[i] * v2;
+            }
+        }
+        self.stats.energy.elastic_j = e0;
+        self.stats.energy.initial_j = e0 + self.stats.energy.kinetic_j;
     }
 
     pub fn rod_infos(&self) -> &[RodInfo] {
@@ -577,6 +603,10 @@ impl Simulation {
         let mut lambda = 0.0;
         let mut inc = self.scenario.solve.load_step;
         let mut backoffs = 0u32;
+        let amp = self.scenario.solve.imperfection;
+        for (rod, w) in self.rods.iter_mut().zip(&mut self.work) {
+            stability::imperfection(rod, w, amp);
+        }
         while lambda < 1.0 {
             self.check_interrupt()?;
             let target = (lambda + inc).min(1.0);
@@ -613,6 +643,36 @@ impl Simulation {
                     }
                 }
             }
+        }
+        self.check_stability();
+        if amp > 0.0 {
+            self.seek_stable_branch(obs)?;
+        }
+        Ok(())
+    }
+
+    /// Static mode with an imperfection: the load ramp can still land on the unstable branch
+    /// past a bifurcation (near-straight, bent against the imperfection). Push the shape along
+    /// the unstable mode, both ways, by growing amounts, and re-solve at full load until the
+    /// equilibrium is stable.
+    fn seek_stable_branch<O: Observer>(&mut self, obs: &mut O) -> Result<(), SimError> {
+        for k in 0..12 {
+            if !self.stats.unstable_equilibrium {
+                return Ok(());
+            }
+            let push = 0.02 * (1 + k / 2) as f64;
+            let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let saved: Vec<Vec<f64>> = self.work.iter().map(|w| w.q.clone()).collect();
+            for (rod, w) in self.rods.iter().zip(&mut self.work) {
+                stability::push_along_mode(rod, w, push, sign);
+            }
+            if self.try_step(1.0, 1.0, false, obs).is_err() {
+                for (w, q) in self.work.iter_mut().zip(saved) {
+                    w.q = q;
+                }
+                continue;
+            }
+            self.check_stability();
         }
         Ok(())
     }
@@ -691,14 +751,19 @@ impl Simulation {
         best
     }
 
-    /// Adaptive stepping: the embedded error estimate of the step just solved, as a multiple
-    /// of the tolerance. Backward Euler's position differs from the trapezoidal rule's by
-    /// ½ dt (u_{k+1} − u_k) = ½ dt² a_{k+1}, its leading local error; the tolerance is
+    /// Adaptive stepping: the embedded error estimates of the step just solved, as multiples
+    /// of the tolerance: (first-order nodes, second-order nodes). Backward Euler's position
+    /// differs from the trapezoidal rule's by ½ dt (u_{k+1} − u_k) = ½ dt² a_{k+1}, its leading
+    /// local error. BDF2's is (2/9) dt³ q⁽³⁾ ≈ (2/9) dt² |a_{k+1} − a_k|. Nodes that drop to
+    /// first order under BDF2 (contact, no smooth history) are counted in
+    /// [`RunStats::first_order_node_steps`] and estimated as backward Euler. The tolerance is
     /// atol + rtol · L (the rod length). Nodes whose contact state changed in this step are
     /// left out: their velocity jump is the modelled inelastic impact, not truncation error.
-    fn error_estimate(&self, dt: f64) -> f64 {
+    fn error_estimate(&mut self, dt: f64) -> (f64, f64) {
         let s = &self.scenario.solve;
-        let mut err: f64 = 0.0;
+        let (mut err, mut err2): (f64, f64) = (0.0, 0.0);
+        let bdf2 = s.integrator == crate::scenario::Integrator::Bdf2;
+        let mut first_order = 0u64;
         for (rod, w) in self.rods.iter().zip(&self.work) {
             // A particle's length scale is 1 m (see `Rod::length`).
             let tol = s.atol + s.rtol * rod.length;
@@ -706,6 +771,19 @@ impl Simulation {
                 if rod.clamped[i] || w.contact_saved[i].is_some() != w.contact[i].is_some() {
                     continue;
                 }
+                if w.second_order(i) {
+                    let b = &w.bdf;
+                    let mut da = [0.0; 2];
+                    for (a, d) in da.iter_mut().enumerate() {
+                        let k = 2 * i + a;
+                        let un = (w.dq[k] - b.alpha * b.dq_prev[k]) / b.beta;
+                        let hu = w.u[k] + b.alpha * (w.u[k] - b.u_prev[k]);
+                        *d = (un - hu) / b.beta - w.a[k];
+                    }
+                    err2 = err2.max(2.0 / 9.0 * dt * dt * da[0].hypot(da[1]) / tol);
+                    continue;
+                }
+                first_order += bdf2 as u64;
                 let ax = (w.dq[2 * i] / dt - w.u[2 * i]) / dt;
                 let ay = (w.dq[2 * i + 1] / dt - w.u[2 * i + 1]) / dt;
                 let e = 0.5 * dt * dt * ax.hypot(ay) / tol;
@@ -714,7 +792,8 @@ impl Simulation {
                 }
             }
         }
-        err
+        self.stats.first_order_node_steps += first_order;
+        (err, err2)
     }
 
     /// Warn (once per rod) when a driven node enters an obstacle: driven nodes are not
@@ -787,6 +866,18 @@ impl Simulation {
         self.work[r].q.copy_from_slice(q);
         self.work[r].u.copy_from_slice(u);
         self.work[r].a.fill(0.0);
+        self.work[r].bdf.hist.fill(false);
+        self.work[r].bdf.dt_prev = 0.0;
+        let rod = &self.rods[r];
+        let w = &mut self.work[r];
+        let mut g = vec![0.0; 2 * rod.n];
+        w.energy = if rod.n > 1 {
+            newton::assemble(rod, &w.free_index, q, &mut g, None)
+        } else {
+            0.0
+        };
+        self.stats.energy = Default::default();
+        self.start_balance();
     }
 
     /// Replace the dead loads of rod `r` (N per DOF, interleaved).
@@ -798,8 +889,14 @@ impl Simulation {
             let mut w = RodWork::new(rod, g);
             w.q.copy_from_slice(&self.work[r].q);
             w.u.copy_from_slice(&self.work[r].u);
+            let mut g = vec![0.0; 2 * rod.n];
+            if rod.n > 1 {
+                w.energy = newton::assemble(rod, &w.free_index, &w.q, &mut g, None);
+            }
             w
         };
+        self.stats.energy = Default::default();
+        self.start_balance();
     }
 }
 

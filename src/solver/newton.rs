@@ -19,7 +19,9 @@
 use super::banded::BandLu;
 use crate::contact::compliant::{CompliantCircle, Pressed};
 pub use crate::contact::{Constraint, Corner};
-use crate::energy::{bend::bend, stretch::stretch};
+use crate::energy::bend::{bend, curvature_derivatives};
+use crate::energy::damping::{stretch_strain_gradient, viscous};
+use crate::energy::stretch::stretch;
 use crate::model::Rod;
 
 /// Per-rod solver state and scratch space, allocated once.
@@ -64,6 +66,77 @@ pub struct RodWork {
     /// Per node: its deepest compliant contact at the last residual evaluation (the force
     /// summed over all of them is in the balance).
     pub pressed: Vec<Option<Pressed>>,
+    /// The second-order integrator's state (unused under backward Euler).
+    pub bdf: Bdf2,
+    /// Material damping of the iterate: node velocities, dv/dΔq per node, viscous force per
+    /// DOF; `damped` when the force is in the residual.
+    pub v1: Vec<f64>,
+    pub vfac: Vec<f64>,
+    pub fd: Vec<f64>,
+    pub damped: bool,
+    /// Elastic energy of the last iterate, and at the start of the step (J).
+    pub energy: f64,
+    pub energy_start: f64,
+}
+
+/// Variable-step BDF2 on (q, u): q₁ = ĥ_q + β u₁, u₁ = ĥ_u + β a₁ with ω = dt/dt_prev,
+/// α = ω²/(1+2ω), β = dt (1+ω)/(1+2ω), ĥ_q = q + α (q − q_prev), ĥ_u = u + α (u − u_prev).
+/// Eliminating u₁: M/β² (Δq − s) = f(q₁) with s = α Δq_prev + β ĥ_u — eq. 2 with c = 1/β² and
+/// s in place of dt u. A node uses it only when it had a free step before and touches nothing
+/// in this one ([`RodWork::second_order`]); otherwise it takes the backward Euler row.
+#[derive(Debug, Clone, Default)]
+pub struct Bdf2 {
+    /// This step uses BDF2 where a node's history allows (false: backward Euler throughout).
+    pub on: bool,
+    pub alpha: f64,
+    pub beta: f64,
+    /// 1/β².
+    pub c: f64,
+    /// The inertial offset s per DOF.
+    pub s: Vec<f64>,
+    /// The last accepted step's Δq and the velocity before it.
+    pub dq_prev: Vec<f64>,
+    pub u_prev: Vec<f64>,
+    /// Per node: the last accepted step was free of contact (a smooth history).
+    pub hist: Vec<bool>,
+    /// The last accepted step's dt (0 before the first).
+    pub dt_prev: f64,
+}
+
+impl RodWork {
+    /// Whether node i takes the BDF2 row in the step being solved: a smooth history and no
+    /// contact at the start or now (a contact step is first order: the modified mass
+    /// method's inelastic impact and its impulse bookkeeping are backward Euler's).
+    #[inline(always)]
+    pub fn second_order(&self, i: usize) -> bool {
+        self.bdf.on
+            && self.bdf.hist[i]
+            && self.contact[i].is_none()
+            && self.contact_saved[i].is_none()
+    }
+
+    /// Set up the BDF2 coefficients of a step of size `dt` (`on`: the scenario asks for it).
+    pub fn begin_bdf2(&mut self, on: bool, dt: f64) {
+        let b = &mut self.bdf;
+        let omega = if b.dt_prev > 0.0 {
+            dt / b.dt_prev
+        } else {
+            f64::INFINITY
+        };
+        // Variable-step BDF2 is zero-stable for ω < 1 + √2; larger jumps (after a
+        // time-of-impact sliver) take one backward Euler step.
+        b.on = on && omega <= 2.0 + 1e-9;
+        if !b.on {
+            return;
+        }
+        b.alpha = omega * omega / (1.0 + 2.0 * omega);
+        b.beta = dt * (1.0 + omega) / (1.0 + 2.0 * omega);
+        b.c = 1.0 / (b.beta * b.beta);
+        for k in 0..self.u.len() {
+            let hu = self.u[k] + b.alpha * (self.u[k] - b.u_prev[k]);
+            b.s[k] = b.alpha * b.dq_prev[k] + b.beta * hu;
+        }
+    }
 }
 
 /// Why Newton gave up.
@@ -119,6 +192,11 @@ impl RodWork {
         }
         let force_scale = force_scale.max(f64::MIN_POSITIVE);
         let mean_mass = rod.mass.iter().sum::<f64>() / n as f64;
+        let e0 = if n > 1 {
+            assemble(rod, &free_index, &rod.q0, &mut vec![0.0; 2 * n], None)
+        } else {
+            0.0
+        };
         let dim = 2 * nfree;
         Self {
             q: rod.q0.clone(),
@@ -159,6 +237,19 @@ impl RodWork {
             filter_scale: mean_mass,
             compliant: Vec::new(),
             pressed: vec![None; n],
+            v1: vec![0.0; 2 * n],
+            vfac: vec![0.0; n],
+            fd: vec![0.0; 2 * n],
+            damped: false,
+            energy: e0,
+            energy_start: 0.0,
+            bdf: Bdf2 {
+                s: vec![0.0; 2 * n],
+                dq_prev: vec![0.0; 2 * n],
+                u_prev: vec![0.0; 2 * n],
+                hist: vec![false; n],
+                ..Bdf2::default()
+            },
         }
     }
 }
@@ -328,13 +419,14 @@ pub fn residual(
     for k in 0..2 * n {
         w.qn[k] = w.q[k] + w.dq[k];
     }
-    assemble(
+    w.energy = assemble(
         rod,
         &w.free_index,
         &w.qn,
         &mut w.grad,
         if hessian { Some(&mut w.band) } else { None },
     );
+    damping(rod, w, opt, hessian);
     // Residual on every DOF (on driven nodes it is the drive force).
     let mut res = 0.0f64;
     let mut worst = 0usize;
@@ -381,7 +473,11 @@ pub fn add_mass(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
         if fi == usize::MAX {
             continue;
         }
-        let cm = opt.c * rod.mass[i];
+        let cm = if w.second_order(i) {
+            w.bdf.c * rod.mass[i]
+        } else {
+            opt.c * rod.mass[i]
+        };
         w.band.add(2 * fi, 2 * fi, cm);
         w.band.add(2 * fi + 1, 2 * fi + 1, cm);
     }
@@ -549,7 +645,8 @@ pub fn finish_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
     for k in 0..2 * rod.n {
         w.qn[k] = w.q[k] + w.dq[k];
     }
-    assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
+    w.energy = assemble(rod, &w.free_index, &w.qn, &mut w.grad, None);
+    damping(rod, w, opt, false);
     eq2_residual(rod, w, opt);
     press_compliant(rod, w, false);
 }
@@ -587,13 +684,96 @@ pub fn press_compliant(rod: &Rod, w: &mut RodWork, hessian: bool) {
     }
 }
 
+/// The step's node velocities as functions of Δq: backward Euler Δq/dt, BDF2 (Δq − α Δq_prev)/β
+/// on second-order nodes. With their derivatives dv/dΔq per node.
+pub fn step_velocities(rod: &Rod, w: &mut RodWork, dt: f64) {
+    for i in 0..rod.n {
+        let second = w.second_order(i);
+        for k in 2 * i..2 * i + 2 {
+            w.v1[k] = if second {
+                (w.dq[k] - w.bdf.alpha * w.bdf.dq_prev[k]) / w.bdf.beta
+            } else {
+                w.dq[k] / dt
+            };
+        }
+        w.vfac[i] = if second { 1.0 / w.bdf.beta } else { 1.0 / dt };
+    }
+}
+
+/// Kelvin–Voigt damping forces of the iterate into `w.fd` (and their Jacobian into the band
+/// when `hessian`): dynamic mode, rods with a retardation time only.
+fn damping(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions, hessian: bool) {
+    w.damped = rod.damping_time > 0.0 && opt.dt > 0.0 && rod.n > 1;
+    if !w.damped {
+        return;
+    }
+    step_velocities(rod, w, opt.dt);
+    w.fd.fill(0.0);
+    let tau = rod.damping_time;
+    let (n, q) = (rod.n, &w.qn);
+    let (mut f4, mut h4) = ([0.0; 4], [[0.0; 4]; 4]);
+    for e in 0..n - 1 {
+        let s = 2 * e;
+        let x = [q[s], q[s + 1], q[s + 2], q[s + 3]];
+        let v = [w.v1[s], w.v1[s + 1], w.v1[s + 2], w.v1[s + 3]];
+        let g = stretch_strain_gradient(&x, rod.rest_length[e]);
+        let k = rod.ea * rod.rest_length[e];
+        let jac = if hessian { Some(&mut h4) } else { None };
+        viscous(&g, &v, tau * k, &w.vfac[e..e + 2], &mut f4, jac);
+        for a in 0..4 {
+            w.fd[s + a] += f4[a];
+        }
+        if hessian {
+            scatter(&mut w.band, &w.free_index, e, &h4);
+        }
+    }
+    let (mut f6, mut h6, mut g6) = ([0.0; 6], [[0.0; 6]; 6], [0.0; 6]);
+    for i in 1..n - 1 {
+        let s = 2 * (i - 1);
+        let x = [q[s], q[s + 1], q[s + 2], q[s + 3], q[s + 4], q[s + 5]];
+        let v = [
+            w.v1[s],
+            w.v1[s + 1],
+            w.v1[s + 2],
+            w.v1[s + 3],
+            w.v1[s + 4],
+            w.v1[s + 5],
+        ];
+        curvature_derivatives(&x, &mut g6, None);
+        let k = rod.ei / rod.bend_length(i);
+        let jac = if hessian { Some(&mut h6) } else { None };
+        viscous(&g6, &v, tau * k, &w.vfac[i - 1..i + 2], &mut f6, jac);
+        for a in 0..6 {
+            w.fd[s + a] += f6[a];
+        }
+        if hessian {
+            scatter(&mut w.band, &w.free_index, i - 1, &h6);
+        }
+    }
+}
+
 /// r = c M (Δq − dt u) + ∇E − λ F on every DOF: eq. 2's reaction (the drive force on driven
-/// nodes, the contact force on constrained ones, zero on free ones at convergence).
+/// nodes, the contact force on constrained ones, zero on free ones at convergence). Nodes on
+/// the second-order rule use c = 1/β² and the BDF2 offset s in place of dt u.
 #[inline]
 fn eq2_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
-    for k in 0..2 * rod.n {
-        let m = rod.mass[k / 2];
-        w.r[k] = opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
+    for i in 0..rod.n {
+        let m = rod.mass[i];
+        if w.second_order(i) {
+            for k in 2 * i..2 * i + 2 {
+                w.r[k] = w.bdf.c * m * (w.dq[k] - w.bdf.s[k]) + w.grad[k] - opt.lambda * w.fext[k];
+            }
+        } else {
+            for k in 2 * i..2 * i + 2 {
+                w.r[k] =
+                    opt.c * m * (w.dq[k] - opt.dt * w.u[k]) + w.grad[k] - opt.lambda * w.fext[k];
+            }
+        }
+    }
+    if w.damped {
+        for k in 0..2 * rod.n {
+            w.r[k] += w.fd[k];
+        }
     }
 }
 

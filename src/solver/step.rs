@@ -5,8 +5,9 @@
 use super::coupled::Coupled;
 use super::newton::{self, IterationReport, NewtonFailure, NewtonOptions};
 use super::{Simulation, StepError};
+use crate::energy::balance::StepTerms;
 use crate::events::{Event, Observer, Phase};
-use crate::scenario::{Mode, Stepping};
+use crate::scenario::{Integrator, Mode, Stepping};
 
 /// What every part of one step needs to know.
 pub(super) struct StepCtx {
@@ -14,6 +15,8 @@ pub(super) struct StepCtx {
     pub t1: f64,
     pub step: u64,
     pub dynamic: bool,
+    /// The scenario asks for the second-order integrator (dynamic mode).
+    pub bdf2: bool,
     pub opt: NewtonOptions,
     pub max_passes: u32,
     pub wants_iter: bool,
@@ -35,6 +38,7 @@ impl Simulation {
             t1: if dynamic { self.t + dt } else { lambda },
             step: self.step + 1,
             dynamic,
+            bdf2: dynamic && solve.integrator == Integrator::Bdf2,
             opt: NewtonOptions {
                 c: if dynamic { 1.0 / (dt * dt) } else { 0.0 },
                 dt: if dynamic { dt } else { 0.0 },
@@ -109,6 +113,7 @@ impl Simulation {
             let w = &mut self.work[r];
             w.contact_saved.copy_from_slice(&w.contact);
             w.step_dt = if ctx.dynamic { ctx.dt } else { 0.0 };
+            w.begin_bdf2(ctx.bdf2, ctx.dt);
             // Prescribed displacement of driven nodes; initial guess for the rest.
             let (g, mirror) = self.rod_actuator[r];
             let motion = self.actuators[g].motion(ctx.t1.max(0.0));
@@ -311,12 +316,17 @@ impl Simulation {
     /// Adaptive stepping: reject the step when the error estimate exceeds the tolerance, or
     /// propose the next step size.
     fn adapt(&mut self, dt: f64) -> Result<(), StepError> {
-        let err = self.error_estimate(dt);
-        let factor = if err > 0.0 {
+        let (err, err2) = self.error_estimate(dt);
+        let mut factor = if err > 0.0 {
             (0.9 / err.sqrt()).clamp(0.2, 2.0)
         } else {
             2.0
         };
+        if err2 > 0.0 {
+            // Second-order nodes: local error O(dt³).
+            factor = factor.min((0.9 / err2.cbrt()).clamp(0.2, 2.0));
+        }
+        let err = err.max(err2);
         let (dt_min, dt_max) = (self.scenario.solve.dt_min, self.scenario.solve.dt_max);
         if err > 1.0 && dt > dt_min * (1.0 + 1e-12) {
             self.rollback();
@@ -349,21 +359,43 @@ impl Simulation {
         newton_iterations: u32,
         passes: u32,
     ) {
+        if ctx.dynamic {
+            self.energy_step(ctx);
+        }
         let mut max_pen = self.stats.max_penetration;
         for r in 0..self.rods.len() {
             let rod = &self.rods[r];
             let w = &mut self.work[r];
-            for k in 0..2 * rod.n {
-                let qn = w.q[k] + w.dq[k];
-                if ctx.dynamic {
-                    let un = w.dq[k] / ctx.dt;
-                    w.a[k] = (un - w.u[k]) / ctx.dt;
-                    w.u[k] = un;
-                } else {
-                    w.u[k] = 0.0;
+            for i in 0..rod.n {
+                let second = w.second_order(i);
+                for k in 2 * i..2 * i + 2 {
+                    let qn = w.q[k] + w.dq[k];
+                    let u0 = w.u[k];
+                    if second {
+                        let b = &w.bdf;
+                        let un = (w.dq[k] - b.alpha * b.dq_prev[k]) / b.beta;
+                        let hu = u0 + b.alpha * (u0 - b.u_prev[k]);
+                        w.a[k] = (un - hu) / b.beta;
+                        w.u[k] = un;
+                    } else if ctx.dynamic {
+                        let un = w.dq[k] / ctx.dt;
+                        w.a[k] = (un - w.u[k]) / ctx.dt;
+                        w.u[k] = un;
+                    } else {
+                        w.u[k] = 0.0;
+                    }
+                    if ctx.bdf2 {
+                        w.bdf.dq_prev[k] = w.dq[k];
+                        w.bdf.u_prev[k] = u0;
+                    }
+                    w.q[k] = qn;
                 }
-                w.q[k] = qn;
+                w.bdf.hist[i] = ctx.bdf2
+                    && !rod.clamped[i]
+                    && w.contact[i].is_none()
+                    && w.contact_saved[i].is_none();
             }
+            w.bdf.dt_prev = if ctx.bdf2 { ctx.dt } else { 0.0 };
             w.clear_release_marks();
         }
         self.driven_velocities(ctx);
@@ -386,6 +418,45 @@ impl Simulation {
             }
             self.fill_contact_outputs(ctx.dt);
             self.emit_step_end(obs, ctx.dt, newton_iterations, passes);
+        }
+    }
+
+    /// The energy balance of the step being accepted (see [`crate::energy::balance`]).
+    fn energy_step(&mut self, ctx: &StepCtx) {
+        for r in 0..self.rods.len() {
+            let rod = &self.rods[r];
+            let w = &mut self.work[r];
+            newton::step_velocities(rod, w, ctx.dt);
+            let mut t = StepTerms {
+                elastic_before: w.energy_start,
+                elastic_after: w.energy,
+                ..StepTerms::default()
+            };
+            let mut grad_dq = 0.0;
+            for i in 0..rod.n {
+                let m = rod.mass[i];
+                for k in 2 * i..2 * i + 2 {
+                    let (dq, fd) = (w.dq[k], if w.damped { w.fd[k] } else { 0.0 });
+                    grad_dq += w.grad[k] * dq;
+                    t.damping += fd * dq;
+                    if rod.clamped[i] {
+                        t.drive += (w.grad[k] + fd) * dq;
+                        continue;
+                    }
+                    let (u0, v1) = (w.u[k], w.v1[k]);
+                    t.kinetic_before += 0.5 * m * u0 * u0;
+                    t.kinetic_after += 0.5 * m * v1 * v1;
+                    t.integrator += 0.5 * m * (v1 - u0) * (v1 - u0);
+                    t.gravity -= w.fext[k] * dq;
+                    if w.contact[i].is_some() {
+                        t.contact += w.r[k] * dq;
+                    }
+                }
+            }
+            // B = E(q₀) − E(q₁) + ∇E(q₁)·Δq: the quadrature error of backward Euler's energy.
+            t.integrator += w.energy_start - w.energy + grad_dq;
+            w.energy_start = w.energy;
+            self.stats.energy.add(&t, ctx.bdf2);
         }
     }
 

@@ -25,8 +25,9 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
     let dir = bench(&["--quick"]);
     let csv = std::fs::read_to_string(dir.path().join("work-precision.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    // 4 cases × (2 fixed + 2 proximity + 2 adaptive + 2 adaptive+toi) rungs.
-    assert_eq!(lines.len(), 1 + 4 * 8, "{csv}");
+    // 4 cases × (2 fixed + 2 proximity + 2 adaptive + 2 adaptive+toi + 2 bdf2 +
+    // 2 bdf2+adaptive+toi) rungs.
+    assert_eq!(lines.len(), 1 + 4 * 12, "{csv}");
     assert!(lines[0].starts_with("case,strategy,parameter,value,steps"));
     for l in &lines[1..] {
         let f: Vec<&str> = l.split(',').collect();

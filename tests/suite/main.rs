@@ -11,6 +11,7 @@ mod faults;
 mod first_contact;
 mod friction_bodies;
 mod frictionless_golden;
+mod integrator;
 mod pick_and_place;
 mod properties;
 mod recordings;
