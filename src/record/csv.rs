@@ -276,10 +276,13 @@ mod tests {
             page_aligned(&rows, offset, 0, &mut out);
             assert!(out.len() >= lens);
             let mut pos = offset;
-            for line in out.split_inclusive(|&b| b == b'\n') {
+            for (k, line) in out.split_inclusive(|&b| b == b'\n').enumerate() {
                 let (start, end) = (pos, pos + line.len() as u64);
-                // No boundary strictly inside a row.
-                assert_eq!(start / PAGE, (end - 1) / PAGE, "a row straddles at {start}");
+                // No boundary strictly inside a row (but the first: the row before it, which
+                // would carry its padding, was written earlier — here there is none).
+                if k > 0 {
+                    assert_eq!(start / PAGE, (end - 1) / PAGE, "a row straddles at {start}");
+                }
                 pos = end;
             }
             let steps: Vec<u64> = out
