@@ -12,7 +12,8 @@
 //! | `/sim/iteration` | `gripsim.Iteration` (protobuf) | one per Newton iteration (`--detail iteration`) |
 //! | `/sim/contact` | `gripsim.Contact` | one per constraint added or released |
 //! | `/sim/event` | `gripsim.Event` | dt changes, Newton failures, warnings, run end |
-//! | `/scene` | `foxglove.SceneUpdate` | one per step: the scene for Foxglove's 3D panel |
+//! | `/scene` | `foxglove.SceneUpdate` | one per step: the rods and free bodies for Foxglove's 3D panel |
+//! | `/scene/static` | `foxglove.SceneUpdate` | one, before the first step: obstacles and legend |
 //!
 //! The file is chunked and zstd-compressed with message indexes and a summary (the `mcap`
 //! writer's defaults). Log times are simulated time in ns (static runs: step number in s),
@@ -44,7 +45,7 @@ pub const FORMAT_VERSION: u32 = 2;
 pub const LIBRARY: &str = concat!("gripsim ", env!("CARGO_PKG_VERSION"));
 
 /// Every channel: topic, schema name, schema text.
-pub const CHANNELS: [(&str, &str, &str); 6] = [
+pub const CHANNELS: [(&str, &str, &str); 7] = [
     (
         "/sim/meta",
         "gripsim.Meta",
@@ -76,6 +77,12 @@ pub const CHANNELS: [(&str, &str, &str); 6] = [
         "foxglove.SceneUpdate",
         include_str!("schemas/foxglove.SceneUpdate.json"),
     ),
+    // What never moves (obstacle outlines, the legend): one message before the first step.
+    (
+        "/scene/static",
+        "foxglove.SceneUpdate",
+        include_str!("schemas/foxglove.SceneUpdate.json"),
+    ),
 ];
 
 const META: usize = 0;
@@ -84,6 +91,7 @@ const ITERATION: usize = 2;
 const CONTACT: usize = 3;
 const EVENT: usize = 4;
 const SCENE: usize = 5;
+const SCENE_STATIC: usize = 6;
 
 /// The channels written as protobuf (the others are JSON).
 pub const PROTOBUF: [usize; 2] = [STEP, ITERATION];
@@ -95,8 +103,8 @@ pub struct McapSink {
     out: OutputFile,
     writer: Option<Writer>,
     opts: RecordOptions,
-    channels: [u16; 6],
-    sequence: [u32; 6],
+    channels: [u16; 7],
+    sequence: [u32; 7],
     buf: Vec<u8>,
     step_encoder: super::proto::StepEncoder,
     static_mode: bool,
@@ -137,7 +145,7 @@ impl McapSink {
             .compression_threads(0)
             .create(BufWriter::with_capacity(1 << 16, file))
             .map_err(err)?;
-        let mut channels = [0u16; 6];
+        let mut channels = [0u16; 7];
         let descriptors = super::proto::file_descriptor_set();
         for (k, (topic, schema, text)) in CHANNELS.iter().enumerate() {
             let (sid, encoding) = if PROTOBUF.contains(&k) {
@@ -163,7 +171,7 @@ impl McapSink {
                 ..opts
             },
             channels,
-            sequence: [0; 6],
+            sequence: [0; 7],
             buf: Vec::with_capacity(1 << 14),
             step_encoder: Default::default(),
             static_mode: false,
@@ -293,6 +301,16 @@ impl McapSink {
             );
             self.obstacle_entity = obstacle_entity(&self.obstacles, &self.bodies, &style);
             self.style = Some(style);
+            // The obstacles and the legend, once: Foxglove keeps an entity until it is
+            // replaced, and after a seek it reads the last message of each topic, which for
+            // this topic is this one.
+            let time = self.time(ev.step, ev.t);
+            self.buf.clear();
+            self.buf
+                .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
+            self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
+            self.buf.extend_from_slice(b"]}");
+            self.write_buf(SCENE_STATIC, time);
         }
         let time = self.time(ev.step, ev.t);
         let fields = super::proto::StepFields {
@@ -317,7 +335,8 @@ impl McapSink {
         }
     }
 
-    /// The `/scene` message: the obstacles (cached) and one entity per rod.
+    /// The `/scene` message: one entity per rod and per free body (the obstacles are on
+    /// `/scene/static`).
     fn scene(&mut self, time: u64, rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) {
         let Some(style) = self.style.as_ref() else {
             return;
@@ -326,10 +345,11 @@ impl McapSink {
         self.buf.clear();
         self.buf
             .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
-        self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
         for (r, v) in rods.iter().enumerate() {
             let entity = rod_entity(&self.rods[r], style, r, v, stamp);
-            self.buf.push(b',');
+            if r > 0 {
+                self.buf.push(b',');
+            }
             if let Err(e) = serde_json::to_writer(&mut self.buf, &entity) {
                 return self.fail(e);
             }
@@ -352,7 +372,9 @@ impl McapSink {
             let Some((head, tail)) = text.split_once("\"points\":[]") else {
                 return self.fail("a body entity without its points");
             };
-            self.buf.push(b',');
+            if self.buf.last() != Some(&b'[') {
+                self.buf.push(b',');
+            }
             self.buf.extend_from_slice(head.as_bytes());
             self.buf.extend_from_slice(b"\"points\":");
             self.buf

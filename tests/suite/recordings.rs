@@ -228,6 +228,12 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     assert!(report["validated"].as_u64().unwrap() > 100);
     assert_eq!(report["topics"]["/sim/step"]["messages"], steps + 1);
     assert_eq!(report["topics"]["/scene"]["messages"], steps + 1);
+    // Obstacles and legend once, not in every /scene message.
+    assert_eq!(report["topics"]["/scene/static"]["messages"], 1);
+    assert_eq!(
+        report["topics"]["/scene/static"]["schema"],
+        "foxglove.SceneUpdate"
+    );
     assert_eq!(report["topics"]["/sim/iteration"]["messages"], newton);
     assert_eq!(report["topics"]["/sim/meta"]["messages"], 1);
     assert_eq!(report["last_event"]["kind"], "run_end");
