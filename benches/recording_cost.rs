@@ -1,12 +1,14 @@
-//! What recording costs: seed-grasp-r5 run with no sink, with each sink alone, with the
-//! default .rrd + .mcap at step detail, and at iteration detail.
+//! What recording costs: a scenario (default seed-grasp-r5) run with no sink, with each sink
+//! alone, with .rrd + .mcap at step detail, and at iteration detail.
 //!
-//!     cargo bench --bench recording_cost [-- REPEATS]
+//!     cargo bench --bench recording_cost [-- REPEATS] [SCENARIO]
 //!
+//! SCENARIO is a name under scenarios/ (`two-prong-grasp`) or a path to a .toml file.
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
 //! (default 7), the mean CPU time of the process per run (all threads, from /proc/self/stat;
-//! steadier than wall time on a busy machine), their ratios to the run without sinks, and the
-//! file sizes.
+//! steadier than wall time on a busy machine), their ratios to the run without sinks, the
+//! file sizes and the bytes on disk per node-step (all files of the row together, over
+//! (steps + 1) × nodes: every recorded step holds the initial state too).
 
 use gripsim::events::{Fanout, NullObserver, Observer};
 use gripsim::record::csv::CsvSink;
@@ -78,12 +80,21 @@ fn cpu_time() -> Option<f64> {
 }
 
 fn main() {
-    let repeats: usize = std::env::args()
-        .skip(1)
-        .find_map(|a| a.parse().ok())
-        .unwrap_or(7);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let repeats: usize = args.iter().find_map(|a| a.parse().ok()).unwrap_or(7);
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let sc = Scenario::load(&root.join("scenarios/seed-grasp-r5.toml"), &[]).unwrap();
+    // cargo passes `--bench` to a bench without a harness: skip flags.
+    let name = args
+        .iter()
+        .find(|a| a.parse::<usize>().is_err() && !a.starts_with('-'))
+        .cloned()
+        .unwrap_or_else(|| "seed-grasp-r5".into());
+    let path = if name.ends_with(".toml") {
+        PathBuf::from(&name)
+    } else {
+        root.join("scenarios").join(format!("{name}.toml"))
+    };
+    let sc = Scenario::load(&path, &[]).unwrap();
     let dir = std::env::temp_dir().join(format!("gripsim-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let step = Detail::Step;
@@ -117,7 +128,7 @@ fn main() {
             detail: step,
         },
         Case {
-            name: ".rrd + .mcap, step detail (the default)",
+            name: ".rrd + .mcap, step detail",
             rrd: true,
             mcap: true,
             csv: false,
@@ -131,13 +142,17 @@ fn main() {
             detail: Detail::Iteration,
         },
     ];
+    let steps = (sc.solve.t_end / sc.solve.dt).round();
+    let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
+    let node_steps = (steps + 1.0) * nodes as f64;
     println!(
-        "seed-grasp-r5 ({} steps), median of {repeats} runs, flush every {} steps\n",
-        (sc.solve.t_end / sc.solve.dt).round(),
-        sc.flush_every
+        "{} ({steps} steps, {nodes} nodes), median of {repeats} runs, flush every {} steps\n",
+        sc.name, sc.flush_every
     );
-    println!("| sinks | wall time (s) | × no sink | CPU time (s) | × no sink | files |");
-    println!("|---|---:|---:|---:|---:|---|");
+    println!(
+        "| sinks | wall time (s) | × no sink | CPU time (s) | × no sink | files | bytes per node-step |"
+    );
+    println!("|---|---:|---:|---:|---:|---|---:|");
     let mut base = None;
     let mut cpu_base = None;
     for case in cases {
@@ -164,14 +179,20 @@ fn main() {
             .iter()
             .map(|(f, n)| format!("{f} {:.1} MB", *n as f64 / 1e6))
             .collect();
+        let bytes: u64 = sizes.iter().map(|(_, n)| n).sum();
         println!(
-            "| {} | {median:.4} | {:.1} | {cpu_text} | {} |",
+            "| {} | {median:.4} | {:.1} | {cpu_text} | {} | {} |",
             case.name,
             median / base,
             if files.is_empty() {
                 "-".into()
             } else {
                 files.join(", ")
+            },
+            if bytes == 0 {
+                "-".into()
+            } else {
+                format!("{:.1}", bytes as f64 / node_steps)
             }
         );
     }

@@ -1,16 +1,19 @@
-//! The MCAP sink: the archival record of a run, JSON messages with JSON schemas.
+//! The MCAP sink: the archival record of a run. The high-rate channels are protobuf (their
+//! schema, a `FileDescriptorSet`, is in the file: see [`super::proto`]), the rest JSON messages
+//! with JSON schemas, for a human to read.
 //!
-//! Channels (each documented field by field in docs/recording-format.md, and by the JSON
-//! schemas in `src/record/schemas/`, which the file carries):
+//! Channels (each documented field by field in docs/recording-format.md, and by the schemas
+//! in `src/record/schemas/` and [`super::proto`], which the file carries):
 //!
 //! | topic | schema | messages |
 //! |---|---|---|
 //! | `/sim/meta` | `gripsim.Meta` | one, first: scenario text, rods, obstacles, units |
-//! | `/sim/step` | `gripsim.Step` | one per step, from step 0 (the initial state) |
-//! | `/sim/iteration` | `gripsim.Iteration` | one per Newton iteration (`--detail iteration`) |
+//! | `/sim/step` | `gripsim.Step` (protobuf) | one per step, from step 0 (the initial state) |
+//! | `/sim/iteration` | `gripsim.Iteration` (protobuf) | one per Newton iteration (`--detail iteration`) |
 //! | `/sim/contact` | `gripsim.Contact` | one per constraint added or released |
 //! | `/sim/event` | `gripsim.Event` | dt changes, Newton failures, warnings, run end |
-//! | `/scene` | `foxglove.SceneUpdate` | one per step: the scene for Foxglove's 3D panel |
+//! | `/scene` | `foxglove.SceneUpdate` | one per step: the rods and free bodies for Foxglove's 3D panel |
+//! | `/scene/static` | `foxglove.SceneUpdate` | one, before the first step: obstacles and legend |
 //!
 //! The file is chunked and zstd-compressed with message indexes and a summary (the `mcap`
 //! writer's defaults). Log times are simulated time in ns (static runs: step number in s),
@@ -23,8 +26,8 @@ use super::{
     OBSTACLE_COLOR, PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
-    BodyView, ContactChange, ContactView, Event, Observer, Phase, ReleaseReason, RodInfo,
-    RodStepView, RunInfo,
+    BodyView, ContactChange, ContactView, Event, Observer, ReleaseReason, RodInfo, RodStepView,
+    RunInfo,
 };
 use crate::obstacle::Obstacle;
 use crate::scenario::Mode;
@@ -35,13 +38,14 @@ use std::io::BufWriter;
 use std::path::Path;
 
 /// Version of the recording format; bumped when a field changes meaning or is removed.
-pub const FORMAT_VERSION: u32 = 1;
+/// Format 2: `/sim/step` and `/sim/iteration` are protobuf (format 1: JSON; still read).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// The `library` string in the MCAP header.
 pub const LIBRARY: &str = concat!("gripsim ", env!("CARGO_PKG_VERSION"));
 
 /// Every channel: topic, schema name, schema text.
-pub const CHANNELS: [(&str, &str, &str); 6] = [
+pub const CHANNELS: [(&str, &str, &str); 7] = [
     (
         "/sim/meta",
         "gripsim.Meta",
@@ -73,6 +77,12 @@ pub const CHANNELS: [(&str, &str, &str); 6] = [
         "foxglove.SceneUpdate",
         include_str!("schemas/foxglove.SceneUpdate.json"),
     ),
+    // What never moves (obstacle outlines, the legend): one message before the first step.
+    (
+        "/scene/static",
+        "foxglove.SceneUpdate",
+        include_str!("schemas/foxglove.SceneUpdate.json"),
+    ),
 ];
 
 const META: usize = 0;
@@ -81,6 +91,10 @@ const ITERATION: usize = 2;
 const CONTACT: usize = 3;
 const EVENT: usize = 4;
 const SCENE: usize = 5;
+const SCENE_STATIC: usize = 6;
+
+/// The channels written as protobuf (the others are JSON).
+pub const PROTOBUF: [usize; 2] = [STEP, ITERATION];
 
 type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 
@@ -89,9 +103,10 @@ pub struct McapSink {
     out: OutputFile,
     writer: Option<Writer>,
     opts: RecordOptions,
-    channels: [u16; 6],
-    sequence: [u32; 6],
+    channels: [u16; 7],
+    sequence: [u32; 7],
     buf: Vec<u8>,
+    step_encoder: super::proto::StepEncoder,
     static_mode: bool,
     last_time: u64,
     rods: Vec<RodInfo>,
@@ -103,6 +118,9 @@ pub struct McapSink {
     /// The obstacles' and the legend's scene entities as JSON (the same in every `/scene`
     /// message).
     obstacle_entity: String,
+    /// Per free body (by obstacle index): its outline in its own frame as a JSON array of
+    /// points, made at its first step.
+    body_points: BTreeMap<usize, String>,
     /// Simulated time of the current step's start: the log time of its Newton iterations and
     /// contact changes.
     step_start: f64,
@@ -127,13 +145,22 @@ impl McapSink {
             .compression_threads(0)
             .create(BufWriter::with_capacity(1 << 16, file))
             .map_err(err)?;
-        let mut channels = [0u16; 6];
+        let mut channels = [0u16; 7];
+        let descriptors = super::proto::file_descriptor_set();
         for (k, (topic, schema, text)) in CHANNELS.iter().enumerate() {
-            let sid = w
-                .add_schema(schema, "jsonschema", text.as_bytes())
-                .map_err(err)?;
+            let (sid, encoding) = if PROTOBUF.contains(&k) {
+                let sid = w
+                    .add_schema(schema, "protobuf", &descriptors)
+                    .map_err(err)?;
+                (sid, "protobuf")
+            } else {
+                let sid = w
+                    .add_schema(schema, "jsonschema", text.as_bytes())
+                    .map_err(err)?;
+                (sid, "json")
+            };
             channels[k] = w
-                .add_channel(sid, topic, "json", &BTreeMap::new())
+                .add_channel(sid, topic, encoding, &BTreeMap::new())
                 .map_err(err)?;
         }
         Ok(Self {
@@ -144,8 +171,9 @@ impl McapSink {
                 ..opts
             },
             channels,
-            sequence: [0; 6],
+            sequence: [0; 7],
             buf: Vec::with_capacity(1 << 14),
+            step_encoder: Default::default(),
             static_mode: false,
             last_time: 0,
             rods: Vec::new(),
@@ -154,6 +182,7 @@ impl McapSink {
             view: ViewOptions::default(),
             style: None,
             obstacle_entity: String::new(),
+            body_points: BTreeMap::new(),
             step_start: 0.0,
             completed: false,
             end: BTreeMap::new(),
@@ -272,19 +301,30 @@ impl McapSink {
             );
             self.obstacle_entity = obstacle_entity(&self.obstacles, &self.bodies, &style);
             self.style = Some(style);
+            // The obstacles and the legend, once: Foxglove keeps an entity until it is
+            // replaced, and after a seek it reads the last message of each topic, which for
+            // this topic is this one.
+            let time = self.time(ev.step, ev.t);
+            self.buf.clear();
+            self.buf
+                .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
+            self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
+            self.buf.extend_from_slice(b"]}");
+            self.write_buf(SCENE_STATIC, time);
         }
         let time = self.time(ev.step, ev.t);
-        let msg = StepMsg {
+        let fields = super::proto::StepFields {
             step: ev.step,
             t: ev.t,
             dt: ev.dt,
             newton_iterations: ev.newton_iterations,
             passes: ev.passes,
-            rods: Rods(ev.rods),
+            rods: ev.rods,
             bodies: ev.bodies,
             contacts: ev.contacts,
         };
-        self.send(STEP, time, &msg);
+        self.step_encoder.encode(&fields, &mut self.buf);
+        self.write_buf(STEP, time);
         self.scene(time, ev.rods, ev.bodies);
         if ev.step.is_multiple_of(self.opts.flush_every) {
             if let Some(w) = self.writer.as_mut() {
@@ -295,7 +335,8 @@ impl McapSink {
         }
     }
 
-    /// The `/scene` message: the obstacles (cached) and one entity per rod.
+    /// The `/scene` message: one entity per rod and per free body (the obstacles are on
+    /// `/scene/static`).
     fn scene(&mut self, time: u64, rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) {
         let Some(style) = self.style.as_ref() else {
             return;
@@ -304,23 +345,41 @@ impl McapSink {
         self.buf.clear();
         self.buf
             .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
-        self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
         for (r, v) in rods.iter().enumerate() {
             let entity = rod_entity(&self.rods[r], style, r, v, stamp);
-            self.buf.push(b',');
+            if r > 0 {
+                self.buf.push(b',');
+            }
             if let Err(e) = serde_json::to_writer(&mut self.buf, &entity) {
                 return self.fail(e);
             }
         }
         for b in bodies {
-            let mut e = Entity::new(format!("body/{}", b.name), stamp);
-            let pts = super::body_outline(&self.obstacles[b.obstacle], &self.bodies, b, style);
-            e.lines
-                .push(Line::strip(pts.into_iter(), 2.0, Color::rgb(BODY_COLOR)));
-            self.buf.push(b',');
-            if let Err(err) = serde_json::to_writer(&mut self.buf, &e) {
-                return self.fail(err);
+            // The outline in the body's frame is the same every step (its JSON is made once);
+            // the line's pose places it.
+            if !self.body_points.contains_key(&b.obstacle) {
+                let text = body_points_json(&self.obstacles[b.obstacle], &self.bodies, b, style);
+                self.body_points.insert(b.obstacle, text);
             }
+            let mut e = Entity::new(format!("body/{}", b.name), stamp);
+            let mut line = Line::strip(std::iter::empty(), 2.0, Color::rgb(BODY_COLOR));
+            line.pose = Pose::at(b.position[0], b.position[1], b.angle);
+            e.lines.push(line);
+            let text = match serde_json::to_string(&e) {
+                Ok(t) => t,
+                Err(err) => return self.fail(err),
+            };
+            let Some((head, tail)) = text.split_once("\"points\":[]") else {
+                return self.fail("a body entity without its points");
+            };
+            if self.buf.last() != Some(&b'[') {
+                self.buf.push(b',');
+            }
+            self.buf.extend_from_slice(head.as_bytes());
+            self.buf.extend_from_slice(b"\"points\":");
+            self.buf
+                .extend_from_slice(self.body_points[&b.obstacle].as_bytes());
+            self.buf.extend_from_slice(tail.as_bytes());
         }
         self.buf.extend_from_slice(b"]}");
         self.write_buf(SCENE, time);
@@ -395,18 +454,12 @@ impl Observer for McapSink {
             } => {
                 if self.opts.detail == Detail::Iteration {
                     let time = self.time(step, self.step_start.min(t));
-                    let msg = IterationMsg {
-                        step,
-                        t,
-                        phase,
-                        pass,
-                        iteration,
-                        rod,
-                        residual,
-                        update,
-                        q,
-                    };
-                    self.send(ITERATION, time, &msg);
+                    let msg = super::proto::iteration(
+                        step, t, phase, pass, iteration, rod, residual, update, q,
+                    );
+                    self.buf.clear();
+                    prost::Message::encode(&msg, &mut self.buf).expect("a Vec grows as needed");
+                    self.write_buf(ITERATION, time);
                 }
             }
             Event::ConstraintAdded(c) => self.contact(&c, None),
@@ -609,99 +662,6 @@ impl<'a> From<&'a RodInfo> for RodMeta<'a> {
             particle: r.particle,
         }
     }
-}
-
-#[derive(Serialize)]
-struct StepMsg<'a> {
-    step: u64,
-    t: f64,
-    dt: f64,
-    newton_iterations: u32,
-    passes: u32,
-    rods: Rods<'a, 'a>,
-    #[serde(skip_serializing_if = "<[_]>::is_empty")]
-    bodies: &'a [BodyView<'a>],
-    #[serde(skip_serializing_if = "<[_]>::is_empty")]
-    contacts: &'a [ContactView],
-}
-
-/// Serialises the rods' step views as [`RodMsg`]s.
-struct Rods<'e, 'a>(&'e [RodStepView<'a>]);
-
-impl Serialize for Rods<'_, '_> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(self.0.iter().map(RodMsg::from))
-    }
-}
-
-#[derive(Serialize)]
-struct RodMsg<'a> {
-    q: &'a [f64],
-    u: &'a [f64],
-    reaction: &'a [f64],
-    reaction_norm: Norms<'a>,
-    impulse: &'a [f64],
-    drive_force: &'a [f64],
-    normal: &'a [f64],
-    in_contact: &'a [bool],
-    contact_obstacle: Obstacles<'a>,
-    normal2: &'a [f64],
-    contact_obstacle2: Obstacles<'a>,
-    bending_stress: &'a [f64],
-    gap: &'a [f64],
-    q_predictor: &'a [f64],
-}
-
-impl<'a> From<&RodStepView<'a>> for RodMsg<'a> {
-    fn from(v: &RodStepView<'a>) -> Self {
-        Self {
-            q: v.q,
-            u: v.u,
-            reaction: v.reaction,
-            reaction_norm: Norms(v.reaction),
-            impulse: v.impulse,
-            drive_force: v.drive_force,
-            normal: v.normal,
-            in_contact: v.in_contact,
-            contact_obstacle: Obstacles(v.contact_obstacle),
-            normal2: v.normal2,
-            contact_obstacle2: Obstacles(v.contact_obstacle2),
-            bending_stress: v.bending_stress,
-            gap: v.gap,
-            q_predictor: v.q_predictor,
-        }
-    }
-}
-
-/// Serialises the per-node magnitudes of an interleaved vector array.
-struct Norms<'a>(&'a [f64]);
-
-impl Serialize for Norms<'_> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq((0..self.0.len() / 2).map(|i| node_norm(self.0, i)))
-    }
-}
-
-/// Serialises obstacle indices with `usize::MAX` (free) as null.
-struct Obstacles<'a>(&'a [usize]);
-
-impl Serialize for Obstacles<'_> {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(self.0.iter().map(|&k| (k != usize::MAX).then_some(k)))
-    }
-}
-
-#[derive(Serialize)]
-struct IterationMsg<'a> {
-    step: u64,
-    t: f64,
-    phase: Phase,
-    pass: u32,
-    iteration: u32,
-    rod: usize,
-    residual: f64,
-    update: f64,
-    q: &'a [f64],
 }
 
 #[derive(Serialize)]
@@ -990,6 +950,26 @@ fn obstacle_entity(obstacles: &[Obstacle], bodies: &[BodySpec], style: &SceneSty
         serde_json::to_string(&e).expect("a scene entity serialises"),
         serde_json::to_string(&legend).expect("a scene entity serialises")
     )
+}
+
+/// A free body's outline (with a spoke from its centre that shows the rotation) in its own
+/// frame: centroid at the origin, unrotated; a JSON array of f32 points.
+fn body_points_json(
+    shape: &Obstacle,
+    specs: &[BodySpec],
+    b: &BodyView<'_>,
+    style: &SceneStyle,
+) -> String {
+    let at_rest = BodyView {
+        position: [0.0, 0.0],
+        angle: 0.0,
+        ..*b
+    };
+    let pts: Vec<Vec3> = super::body_outline(shape, specs, &at_rest, style)
+        .into_iter()
+        .map(|p| Vec3::xy(p[0], p[1]))
+        .collect();
+    serde_json::to_string(&pts).expect("points serialise")
 }
 
 /// One rod: centre line, nodes coloured by reaction (the recording's colour map), reactions

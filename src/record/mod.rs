@@ -13,6 +13,7 @@ pub mod accepted;
 pub mod csv;
 pub mod grasp;
 pub mod mcap;
+pub mod proto;
 pub mod rerun;
 pub mod summary;
 

@@ -29,9 +29,12 @@
 //! | `events` | TextLog | contacts added/released, dt changes, Newton failures, warnings, run end |
 //! | `events/bookmarks` | TextLog (level BOOKMARK) | first contact, each contact change, the peak forces, dt changes, Newton trouble |
 //!
-//! Every series has a static SeriesLines with its own colour and a short name. Scene entities
-//! are logged row by row; the many scalar series are buffered and sent as columns at every
-//! flush (every `flush_every` steps), which is much cheaper.
+//! Every series has a static SeriesLines with its own colour and a short name. Whatever changes
+//! every step (the scalar series, node positions, centre lines, the magnified step) is buffered
+//! and sent as columns at every flush (every `flush_every` steps); a scalar series skips the
+//! inside of runs of equal values, node colours are sent only when they change, and what never
+//! changes (radii, line colours, draw orders) is static. The sparse entities (forces,
+//! predictor) are logged as rows on the steps that show them.
 
 use super::summary::Window;
 use super::{
@@ -74,6 +77,8 @@ pub struct RerunSink {
     /// The `iteration` timeline's next value.
     iteration: i64,
     per_step: Series,
+    /// Per rod: its scene rows of the steps since the last flush.
+    scene: Vec<SceneColumns>,
     /// Per rod: log10 residual and pass of each of its Newton iterations.
     per_iteration: Vec<Series>,
     /// Per rod and node: the impulse-consistent force's window.
@@ -126,6 +131,7 @@ pub struct RodEntities {
     had_contacts: bool,
     had_predictor: bool,
     had_iterate: bool,
+    had_mag_correction: bool,
 }
 
 /// How a rod is drawn.
@@ -139,45 +145,181 @@ pub enum Look {
     Other,
 }
 
-/// Scalar time series that share their time points, buffered until the next flush.
+/// The three timelines of one row: step, sim_time (s), iteration.
+type Now = (i64, f64, i64);
+
+/// Time points of buffered rows, sent as the three time columns of `send_columns`.
 #[derive(Default)]
-struct Series {
+struct Times {
     step: Vec<i64>,
     sim_time: Vec<f64>,
     iteration: Vec<i64>,
+}
+
+impl Times {
+    fn push(&mut self, (step, t, it): Now) {
+        self.step.push(step);
+        self.sim_time.push(t);
+        self.iteration.push(it);
+    }
+
+    fn is_empty(&self) -> bool {
+        self.step.is_empty()
+    }
+
+    fn columns(&self) -> [TimeColumn; 3] {
+        [
+            TimeColumn::new_sequence("step", self.step.iter().copied()),
+            TimeColumn::new_duration_secs("sim_time", self.sim_time.iter().copied()),
+            TimeColumn::new_sequence("iteration", self.iteration.iter().copied()),
+        ]
+    }
+
+    fn clear(&mut self) {
+        self.step.clear();
+        self.sim_time.clear();
+        self.iteration.clear();
+    }
+}
+
+/// One buffered scalar series. A value equal to the last one sent is held back: a run of
+/// equal values is sent as its first and last points (the plot is the same, flat between
+/// them), so a force that stays 0 costs two points per flush instead of one per step.
+#[derive(Default)]
+struct Column {
+    times: Times,
+    values: Vec<f64>,
+    /// The last value buffered (bits), and the latest equal point not sent yet.
+    last: Option<u64>,
+    held: Option<(Now, f64)>,
+}
+
+impl Column {
+    fn push(&mut self, now: Now, x: f64) {
+        if self.last == Some(x.to_bits()) {
+            self.held = Some((now, x));
+            return;
+        }
+        if let Some((at, y)) = self.held.take() {
+            self.times.push(at);
+            self.values.push(y);
+        }
+        self.times.push(now);
+        self.values.push(x);
+        self.last = Some(x.to_bits());
+    }
+}
+
+/// Scalar time series buffered until the next flush and sent as columns.
+#[derive(Default)]
+struct Series {
     paths: Vec<EntityPath>,
-    values: Vec<Vec<f64>>,
+    columns: Vec<Column>,
+    now: Now,
 }
 
 impl Series {
     fn add(&mut self, path: EntityPath) -> usize {
         self.paths.push(path);
-        self.values.push(Vec::new());
+        self.columns.push(Column::default());
         self.paths.len() - 1
     }
 
+    /// The time point of the values pushed next.
     fn at(&mut self, step: u64, t: f64, iteration: i64) {
-        self.step.push(step as i64);
-        self.sim_time.push(t);
-        self.iteration.push(iteration);
+        self.now = (step as i64, t, iteration);
     }
 
+    fn push(&mut self, k: usize, x: f64) {
+        let now = self.now;
+        self.columns[k].push(now, x);
+    }
+
+    /// Send what is buffered, including the held end of a run of equal values (so the file
+    /// read up to this flush shows every series up to its last point).
     fn send(&mut self, rec: &RecordingStream) -> ::rerun::RecordingStreamResult<()> {
-        if self.step.is_empty() {
-            return Ok(());
+        for (path, c) in self.paths.iter().zip(&mut self.columns) {
+            if let Some((at, y)) = c.held.take() {
+                c.times.push(at);
+                c.values.push(y);
+            }
+            if c.times.is_empty() {
+                continue;
+            }
+            let columns = Scalars::new(c.values.drain(..)).columns_of_unit_batches()?;
+            rec.send_columns(path.clone(), c.times.columns(), columns)?;
+            c.times.clear();
         }
-        for (path, values) in self.paths.iter().zip(&mut self.values) {
-            let times = [
-                TimeColumn::new_sequence("step", self.step.iter().copied()),
-                TimeColumn::new_duration_secs("sim_time", self.sim_time.iter().copied()),
-                TimeColumn::new_sequence("iteration", self.iteration.iter().copied()),
-            ];
-            let columns = Scalars::new(values.drain(..)).columns_of_unit_batches()?;
-            rec.send_columns(path.clone(), times, columns)?;
+        Ok(())
+    }
+}
+
+/// One rod's per-step scene rows, buffered until the next flush and sent as columns: node
+/// positions and the centre line every step, node colours only when they changed, the
+/// magnified step when drawn. Radii, line colours and draw orders are static (logged once).
+#[derive(Default)]
+struct SceneColumns {
+    times: Times,
+    points: Vec<[f32; 2]>,
+    nodes: usize,
+    color_times: Times,
+    colors: Vec<Color>,
+    last_colors: Vec<Color>,
+    mag_times: Times,
+    mag: Vec<Vec<[f32; 2]>>,
+}
+
+impl SceneColumns {
+    fn push(&mut self, now: Now, points: &[[f32; 2]], colors: Vec<Color>) {
+        self.times.push(now);
+        self.nodes = points.len();
+        self.points.extend_from_slice(points);
+        if colors != self.last_colors {
+            self.color_times.push(now);
+            self.colors.extend_from_slice(&colors);
+            self.last_colors = colors;
         }
-        self.step.clear();
-        self.sim_time.clear();
-        self.iteration.clear();
+    }
+
+    fn send(
+        &mut self,
+        rec: &RecordingStream,
+        e: &RodEntities,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        if !self.times.is_empty() {
+            let n = self.nodes;
+            let rows = self.times.step.len();
+            let strips: Vec<Vec<[f32; 2]>> = self
+                .points
+                .chunks_exact(n.max(1))
+                .map(|c| c.to_vec())
+                .collect();
+            let nodes = Points2D::update_fields()
+                .with_positions(self.points.drain(..))
+                .columns(std::iter::repeat_n(n, rows))?;
+            rec.send_columns(e.nodes.clone(), self.times.columns(), nodes)?;
+            let line = LineStrips2D::update_fields()
+                .with_strips(strips)
+                .columns_of_unit_batches()?;
+            rec.send_columns(e.centerline.clone(), self.times.columns(), line)?;
+            self.times.clear();
+        }
+        if !self.color_times.is_empty() {
+            let rows = self.color_times.step.len();
+            let colors = Points2D::update_fields()
+                .with_colors(self.colors.drain(..))
+                .columns(std::iter::repeat_n(self.nodes, rows))?;
+            rec.send_columns(e.nodes.clone(), self.color_times.columns(), colors)?;
+            self.color_times.clear();
+        }
+        if !self.mag_times.is_empty() {
+            // One strip per row.
+            let strips = LineStrips2D::update_fields()
+                .with_strips(self.mag.drain(..))
+                .columns_of_unit_batches()?;
+            rec.send_columns(e.mag_step.clone(), self.mag_times.columns(), strips)?;
+            self.mag_times.clear();
+        }
         Ok(())
     }
 }
@@ -355,6 +497,7 @@ impl RerunSink {
             style: None,
             iteration: 0,
             per_step: Series::default(),
+            scene: Vec::new(),
             per_iteration: Vec::new(),
             windows: Vec::new(),
             last_t: 0.0,
@@ -417,6 +560,7 @@ impl RerunSink {
         self.bodies = info.bodies.to_vec();
         for r in info.rods {
             self.rods.push(RodEntities::new(&["scene"], r.clone()));
+            self.scene.push(SceneColumns::default());
         }
         // Per-node series, each with its colour and name (static, so every time point has them).
         let mut lines: Vec<(EntityPath, [u8; 3], String)> = Vec::new();
@@ -523,6 +667,11 @@ impl RerunSink {
                 })
                 .and_then(|_| log_legend(&rec, &style));
             self.check(r);
+            let mut r = Ok(());
+            for (e, rs) in self.rods.iter().zip(&style.rods) {
+                r = r.and_then(|_| e.log_static_style(&rec, rs));
+            }
+            self.check(r);
         }
         self.style = Some(style);
     }
@@ -546,11 +695,27 @@ impl RerunSink {
         self.iteration += 1;
         self.set_time(&rec, step, t, it);
         let style = self.style.clone().expect("set above");
+        let now = (step as i64, t.max(0.0), it);
         for (r, v) in rods.iter().enumerate() {
-            let res = self.rods[r].draw(&rec, &style, r, v, passes > 0, Look::Live);
+            // Nodes and centre line (every step) go out as columns at the next flush; the
+            // sparse entities (forces, predictor) are logged as rows when they change.
+            let e = &mut self.rods[r];
+            let points: Vec<[f32; 2]> = v.q.chunks_exact(2).map(|c| f32x2([c[0], c[1]])).collect();
+            let colors = e.node_colors(&style, v);
+            self.scene[r].push(now, &points, colors);
+            let res = e
+                .draw_forces(&rec, &style, r, v, Look::Live)
+                .and_then(|_| e.draw_predictor(&rec, &style.rods[r], v, passes > 0));
             self.check(res);
             let res = self.rods[r].draw_magnified(&rec, &style, r, v, passes > 0, step);
-            self.check(res);
+            match res {
+                Ok(Some(strip)) => {
+                    self.scene[r].mag_times.push(now);
+                    self.scene[r].mag.push(strip);
+                }
+                Ok(None) => {}
+                Err(e) => self.check(Err(e)),
+            }
         }
         // Scalars: per rod and node, then the solver's.
         let t0 = if step == 0 { t } else { self.last_t };
@@ -581,13 +746,13 @@ impl RerunSink {
                     if pick == 0 {
                         note_peak(&mut self.marks.peak, x, step, t, it, r, i);
                     }
-                    self.per_step.values[k].push(x);
+                    self.per_step.push(k, x);
                     k += 1;
                 }
             }
         }
         for x in [iterations as f64, passes as f64, dt] {
-            self.per_step.values[k].push(x);
+            self.per_step.push(k, x);
             k += 1;
         }
         if step.is_multiple_of(self.opts.flush_every) {
@@ -679,8 +844,8 @@ impl RerunSink {
         self.set_time(&rec, ev.step, ev.t, it);
         if let Some(s) = self.per_iteration.get_mut(ev.rod) {
             s.at(ev.step, ev.t, it);
-            s.values[0].push(ev.residual.max(1e-300).log10());
-            s.values[1].push(ev.pass as f64);
+            s.push(0, ev.residual.max(1e-300).log10());
+            s.push(1, ev.pass as f64);
         }
         let Some(style) = self.style.clone() else {
             return;
@@ -770,6 +935,9 @@ impl RerunSink {
         let mut r = self.per_step.send(rec);
         for s in &mut self.per_iteration {
             r = r.and_then(|_| s.send(rec));
+        }
+        for (c, e) in self.scene.iter_mut().zip(&self.rods) {
+            r = r.and_then(|_| c.send(rec, e));
         }
         self.check(r);
         if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
@@ -1122,12 +1290,55 @@ impl RodEntities {
             had_contacts: true,
             had_predictor: true,
             had_iterate: false,
+            had_mag_correction: true,
             info,
         }
     }
 
     fn clamped(&self, i: usize) -> bool {
         self.info.clamped.get(i).copied().unwrap_or(false)
+    }
+
+    /// The live look's node colours: |R| on the recording's colour map, grey when driven.
+    fn node_colors(&self, style: &SceneStyle, v: &RodStepView<'_>) -> Vec<Color> {
+        (0..v.in_contact.len())
+            .map(|i| {
+                if self.clamped(i) {
+                    rgb(DRIVEN_COLOR)
+                } else {
+                    rgb(style.forces.color(node_norm(v.reaction, i)))
+                }
+            })
+            .collect()
+    }
+
+    /// What never changes in a live run's nodes, centre line and magnified step: logged once,
+    /// static, so the per-step columns carry positions (and changed colours) only.
+    fn log_static_style(
+        &self,
+        rec: &RecordingStream,
+        rs: &RodStyle,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        rec.log_static(
+            self.nodes.clone(),
+            &Points2D::update_fields()
+                .with_radii([rs.node_radius as f32])
+                .with_draw_order(DRAW_NODES),
+        )?;
+        rec.log_static(
+            self.centerline.clone(),
+            &LineStrips2D::update_fields()
+                .with_colors([rgb(ROD_COLOR)])
+                .with_radii([Radius::new_ui_points(1.5)])
+                .with_draw_order(DRAW_ROD),
+        )?;
+        rec.log_static(
+            self.mag_step.clone(),
+            &LineStrips2D::update_fields()
+                .with_colors([rgb(ROD_COLOR)])
+                .with_radii([Radius::new_ui_points(1.0)])
+                .with_draw_order(DRAW_MAGNIFIED),
+        )
     }
 
     /// Log the rod's state `v` (rod number `r` of `style`) at the stream's current time.
@@ -1443,8 +1654,9 @@ impl RodEntities {
         v: &RodStepView<'_>,
         corrected: bool,
         _step: u64,
-    ) -> ::rerun::RecordingStreamResult<()> {
+    ) -> ::rerun::RecordingStreamResult<Option<Vec<[f32; 2]>>> {
         let k = style.magnify;
+        let mut strip = None;
         if self.had_iterate {
             // The same columns as an iterate's row (so both kinds of row share their chunks),
             // all empty.
@@ -1466,7 +1678,6 @@ impl RodEntities {
             let n = v.q.len() / 2;
             let at = |q: &[f64], i: usize| self.magnified(k, i, [q[2 * i], q[2 * i + 1]]);
             let end: Vec<[f32; 2]> = (0..n).map(|i| at(v.q, i)).collect();
-            rec.log(self.mag_step.clone(), &mag_step_strip(vec![end.clone()]))?;
             let corrected = corrected && v.q_predictor.len() == v.q.len();
             let (mut pred, mut orig, mut vecs, mut labels) =
                 (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -1493,18 +1704,23 @@ impl RodEntities {
                     }
                 }
             }
-            rec.log(self.mag_predictor.clone(), &mag_predictor_points(pred, rad))?;
-            rec.log(
-                self.mag_correction.clone(),
-                &mag_correction_arrows(orig, vecs, labels, rad),
-            )?;
+            // Logged when there is a correction, and once (empty) after the last one.
+            if corrected || self.had_mag_correction {
+                rec.log(self.mag_predictor.clone(), &mag_predictor_points(pred, rad))?;
+                rec.log(
+                    self.mag_correction.clone(),
+                    &mag_correction_arrows(orig, vecs, labels, rad),
+                )?;
+            }
+            self.had_mag_correction = corrected;
+            strip = Some(end);
         }
         self.surface_step = None;
         self.start.clear();
         self.start.extend_from_slice(v.q);
         self.start_u.clear();
         self.start_u.extend_from_slice(v.u);
-        Ok(())
+        Ok(strip)
     }
 }
 
@@ -1706,5 +1922,38 @@ impl Recording for RerunSink {
 
     fn failure(&self) -> Option<std::sync::Arc<std::sync::atomic::AtomicBool>> {
         Some(self.failed.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run of equal values is sent as its first and last points; the plot (linear between
+    /// points) is the same as with every point.
+    #[test]
+    fn a_series_sends_the_ends_of_runs_of_equal_values() {
+        let mut c = Column::default();
+        let xs = [0.0, 0.0, 0.0, 0.0, 3.0, 3.0, 5.0, 0.0, 0.0, 0.0];
+        for (k, x) in xs.iter().enumerate() {
+            c.push((k as i64, k as f64 * 0.1, k as i64), *x);
+        }
+        // Steps 0 and 3 (ends of the zeros), 4 and 5 (the threes), 6, 7 (then 8, 9 held).
+        assert_eq!(c.times.step, [0, 3, 4, 5, 6, 7]);
+        assert_eq!(c.values, [0.0, 0.0, 3.0, 3.0, 5.0, 0.0]);
+        assert_eq!(c.held, Some(((9, 0.9, 9), 0.0)));
+        // Linear interpolation between the sent points gives every value back.
+        for (k, x) in xs.iter().enumerate().take(8) {
+            let k = k as i64;
+            let j = c.times.step.iter().rposition(|&s| s <= k).unwrap();
+            let y = if c.times.step[j] == k {
+                c.values[j]
+            } else {
+                let (s0, s1) = (c.times.step[j], c.times.step[j + 1]);
+                let (y0, y1) = (c.values[j], c.values[j + 1]);
+                y0 + (y1 - y0) * (k - s0) as f64 / (s1 - s0) as f64
+            };
+            assert_eq!(y, *x, "step {k}");
+        }
     }
 }

@@ -9,6 +9,7 @@
 use super::ReplayError;
 use crate::events::{ContactChange, Phase, ReleaseReason, RodInfo};
 use crate::record::mcap::FORMAT_VERSION;
+use crate::record::proto;
 use crate::scenario::{Mode, Scenario};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
@@ -262,6 +263,93 @@ pub struct Iteration {
     pub q: Vec<f64>,
 }
 
+/// An index of the protobuf encoding: −1 is none.
+fn pb_index(k: i64) -> Option<usize> {
+    usize::try_from(k).ok()
+}
+
+/// Two numbers, or why not.
+fn pair(what: &str, v: &[f64]) -> Result<[f64; 2], String> {
+    <[f64; 2]>::try_from(v).map_err(|_| format!("`{what}` has {} numbers, expected 2", v.len()))
+}
+
+impl TryFrom<proto::Step> for Step {
+    type Error = String;
+    fn try_from(s: proto::Step) -> Result<Self, String> {
+        let rods = s
+            .rods
+            .into_iter()
+            .map(|r| RodState {
+                q: r.q,
+                u: r.u,
+                reaction: r.reaction,
+                impulse: r.impulse,
+                drive_force: r.drive_force,
+                normal: r.normal,
+                in_contact: r.in_contact,
+                contact_obstacle: r.contact_obstacle.into_iter().map(pb_index).collect(),
+                bending_stress: r.bending_stress,
+                gap: r.gap,
+                q_predictor: r.q_predictor,
+                normal2: r.normal2,
+                contact_obstacle2: r.contact_obstacle2.into_iter().map(pb_index).collect(),
+            })
+            .collect();
+        let bodies = s
+            .bodies
+            .iter()
+            .map(|b| {
+                Ok(BodyState {
+                    obstacle: b.obstacle as usize,
+                    position: pair("position", &b.position)?,
+                    velocity: pair("velocity", &b.velocity)?,
+                })
+            })
+            .collect::<Result<_, String>>()?;
+        let contacts = s
+            .contacts
+            .iter()
+            .map(|c| ContactState {
+                rod: pb_index(c.rod),
+                obstacle: c.obstacle as usize,
+            })
+            .collect();
+        Ok(Step {
+            step: s.step,
+            t: s.t,
+            dt: s.dt,
+            newton_iterations: s.newton_iterations,
+            passes: s.passes,
+            rods,
+            bodies,
+            contacts,
+        })
+    }
+}
+
+impl TryFrom<proto::Iteration> for Iteration {
+    type Error = String;
+    fn try_from(i: proto::Iteration) -> Result<Self, String> {
+        let phase = match i.phase.as_str() {
+            "predictor" => Phase::Predictor,
+            "corrector" => Phase::Corrector,
+            "static" => Phase::Static,
+            other => return Err(format!("unknown phase {other:?}")),
+        };
+        Ok(Iteration {
+            step: i.step,
+            t: i.t,
+            phase,
+            pass: i.pass,
+            iteration: i.iteration,
+            rod: usize::try_from(i.rod).map_err(|_| format!("rod {}", i.rod))?,
+            residual: i.residual,
+            update: i.update,
+            q: i.q,
+        })
+    }
+}
+
 /// A decoded message, in file order.
 #[derive(Debug, Clone)]
 pub enum Message {
@@ -416,6 +504,8 @@ pub fn read_messages(
     let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
     // id -> topic
     let mut channels: HashMap<u16, String> = HashMap::new();
+    // ids of the channels whose messages are protobuf (format 2 /sim/step, /sim/iteration)
+    let mut protobuf: std::collections::HashSet<u16> = Default::default();
     let mut status = ReadStatus::default();
     let mut shape: Option<Shape> = None;
     let mut steps = 0u64;
@@ -443,14 +533,23 @@ pub fn read_messages(
                 schemas.insert(header.id, (header.name.clone(), header.encoding.clone()));
             }
             Record::Channel(c) => {
+                let got = schemas.get(&c.schema_id);
+                // Format 2 writes these as protobuf, format 1 as JSON: both are read.
+                let binary = ["/sim/step", "/sim/iteration"].contains(&c.topic.as_str())
+                    && c.message_encoding == "protobuf"
+                    && got.is_some_and(|(_, enc)| enc == "protobuf");
+                if binary {
+                    protobuf.insert(c.id);
+                }
                 if let Some((_, want)) = REQUIRED.iter().find(|(t, _)| *t == c.topic) {
-                    let got = schemas.get(&c.schema_id);
-                    let ok = got.is_some_and(|(name, enc)| name == want && enc == "jsonschema")
-                        && c.message_encoding == "json";
+                    let ok = got
+                        .is_some_and(|(name, enc)| name == want && (enc == "jsonschema" || binary))
+                        && (c.message_encoding == "json" || binary);
                     if !ok {
                         return Err(err(format!(
-                            "wrong schema on {}: expected {want} (jsonschema, json messages), \
-                             found {} ({} messages); not a gripsim recording of this format",
+                            "wrong schema on {}: expected {want} (jsonschema, json messages; \
+                             or protobuf), found {} ({} messages); not a gripsim recording of \
+                             this format",
                             c.topic,
                             got.map(|(n, e)| format!("{n} ({e})"))
                                 .unwrap_or_else(|| "no schema".into()),
@@ -524,12 +623,19 @@ pub fn read_messages(
                         let Some(sh) = shape.as_ref() else {
                             return Err(err("a /sim/step message before /sim/meta".into()));
                         };
-                        let s: Step = serde_json::from_slice(&data).map_err(|e| {
+                        let bad = |e: String| {
                             err(format!(
                                 "/sim/step message {} does not match schema gripsim.Step: {e}",
                                 steps + 1
                             ))
-                        })?;
+                        };
+                        let s: Step = if protobuf.contains(&header.channel_id) {
+                            let pb = <proto::Step as prost::Message>::decode(data.as_ref())
+                                .map_err(|e| bad(e.to_string()))?;
+                            Step::try_from(pb).map_err(bad)?
+                        } else {
+                            serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
+                        };
                         check_step(&s, sh).map_err(err)?;
                         if let Some((k, t)) = last_step {
                             if s.step <= k || s.t < t {
@@ -574,11 +680,18 @@ pub fn read_messages(
                         let Some(sh) = shape.as_ref() else {
                             return Err(err("a /sim/iteration message before /sim/meta".into()));
                         };
-                        let it: Iteration = serde_json::from_slice(&data).map_err(|e| {
+                        let bad = |e: String| {
                             err(format!(
                                 "a /sim/iteration message does not match schema gripsim.Iteration: {e}"
                             ))
-                        })?;
+                        };
+                        let it: Iteration = if protobuf.contains(&header.channel_id) {
+                            let pb = <proto::Iteration as prost::Message>::decode(data.as_ref())
+                                .map_err(|e| bad(e.to_string()))?;
+                            Iteration::try_from(pb).map_err(bad)?
+                        } else {
+                            serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
+                        };
                         check_node("/sim/iteration", it.step, it.rod, 0, sh).map_err(err)?;
                         if it.q.len() != 2 * sh.nodes[it.rod] {
                             return Err(err(format!(

@@ -4,8 +4,10 @@
 Usage: read_mcap.py FILE.mcap
 
 Reads every record in file order with CRC validation (chunk CRCs and, for a finished file,
-the data section CRC), decodes every message as JSON, validates samples of each channel
-against the JSON schema the file carries, and prints a JSON report on stdout:
+the data section CRC), decodes every message: JSON channels as JSON, validating samples of
+each against the JSON schema the file carries; protobuf channels (/sim/step, /sim/iteration
+of format 2) with Google's `protobuf` library from the FileDescriptorSet the file carries
+(through `mcap-protobuf-support`'s decoder factory). Prints a JSON report on stdout:
 
   topics        {topic: {schema, schema_encoding, message_encoding, messages}}
   summary       whether the summary section (with statistics) and the footer are there,
@@ -14,7 +16,11 @@ against the JSON schema the file carries, and prints a JSON report on stdout:
   steps         step numbers of the /sim/step messages, in order
   last_event    the last /sim/event message
   log_time_monotone   whether log times never decrease in file order
-  validated     how many messages were validated against their schema
+  validated     how many messages were validated against their schema (JSON) or decoded
+                by the protobuf library (protobuf)
+  step_samples  the first /sim/step messages and every 250th after, as the protobuf (or
+                JSON) library decoded them: step, t, dt and per rod q, reaction_norm,
+                in_contact, gap (null for no obstacle)
   error         null, or why reading stopped early (a file cut short by a crash)
 
 A file cut short (no summary, last chunk half written) is read up to its last complete
@@ -22,12 +28,35 @@ record; `error` then says where reading stopped.
 """
 
 import json
+import math
 import sys
 
 import jsonschema
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema, Statistics
 from mcap.stream_reader import StreamReader
+from mcap_protobuf.decoder import DecoderFactory
+
+
+def finite(xs):
+    return [x if math.isfinite(x) else None for x in xs]
+
+
+def step_sample(msg):
+    """What the report shows of a /sim/step message (a protobuf message or a JSON dict)."""
+    get = (lambda m, k: m[k]) if isinstance(msg, dict) else getattr
+    rods = []
+    for r in get(msg, "rods"):
+        gap = [math.inf if g is None else g for g in get(r, "gap")]
+        rods.append(
+            {
+                "q": list(get(r, "q")),
+                "reaction_norm": list(get(r, "reaction_norm")),
+                "in_contact": list(get(r, "in_contact")),
+                "gap": finite(gap),
+            }
+        )
+    return {"step": int(get(msg, "step")), "t": get(msg, "t"), "dt": get(msg, "dt"), "rods": rods}
 
 
 def main(path):
@@ -36,6 +65,7 @@ def main(path):
     report = {"summary": {"statistics": False, "footer": False, "data_end": False}}
     last_event, last_time, monotone = None, -1, True
     seen, validated, error = {}, 0, None
+    protobuf, decoders, samples = DecoderFactory(), {}, []
     with open(path, "rb") as f:
         try:
             for record in StreamReader(f, validate_crcs=True).records:
@@ -55,6 +85,8 @@ def main(path):
                     )
                     if schema and schema.encoding == "jsonschema" and record.id not in validators:
                         validators[record.id] = jsonschema.Draft202012Validator(json.loads(schema.data))
+                    if record.message_encoding == "protobuf":
+                        decoders[record.id] = protobuf.decoder_for(record.message_encoding, schema)
                 elif isinstance(record, Message):
                     channel = channels[record.channel_id]
                     topic = channel.topic
@@ -62,15 +94,22 @@ def main(path):
                     if record.log_time < last_time:
                         monotone = False
                     last_time = record.log_time
-                    msg = json.loads(record.data)
                     n = seen.get(topic, 0)
                     seen[topic] = n + 1
-                    # Validate the first messages of each channel and a sample after.
-                    if n < 20 or n % 250 == 0:
-                        validators[record.channel_id].validate(msg)
+                    if record.channel_id in decoders:
+                        msg = decoders[record.channel_id](record.data)
                         validated += 1
+                    else:
+                        msg = json.loads(record.data)
+                        # Validate the first messages of each channel and a sample after.
+                        if n < 20 or n % 250 == 0:
+                            validators[record.channel_id].validate(msg)
+                            validated += 1
                     if topic == "/sim/step":
-                        steps.append(msg["step"])
+                        step = msg["step"] if isinstance(msg, dict) else msg.step
+                        steps.append(int(step))
+                        if n < 20 or n % 250 == 0:
+                            samples.append(step_sample(msg))
                     elif topic == "/sim/event":
                         last_event = msg
                 elif isinstance(record, Metadata):
@@ -98,6 +137,7 @@ def main(path):
         last_event=last_event,
         log_time_monotone=monotone,
         validated=validated,
+        step_samples=samples,
         error=error,
     )
     json.dump(report, sys.stdout)

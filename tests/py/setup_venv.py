@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Create the test venv `.venv` at the repository root with the independent readers that
 `tests/recordings.rs` checks recordings with (the Rerun CLI from rerun-sdk, the mcap Python
-reader, jsonschema).
+reader with its protobuf decoder (mcap-protobuf-support, which brings Google's `protobuf`),
+jsonschema).
 
 Idempotent and safe to run concurrently: an exclusive file lock serialises callers, and a
 marker file inside the venv records which requirements are installed, so a second call only
@@ -15,7 +16,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-REQUIREMENTS = ["rerun-sdk==0.36.3", "mcap==1.6.0", "jsonschema==4.26.0"]
+REQUIREMENTS = [
+    "rerun-sdk==0.36.3",
+    "mcap==1.6.0",
+    "jsonschema==4.26.0",
+    "mcap-protobuf-support==0.6.0",
+    "protobuf==7.36.2",
+]
 
 ROOT = Path(__file__).resolve().parents[2]
 VENV = Path(os.environ.get("GRIPSIM_TEST_VENV", ROOT / ".venv"))

@@ -7,7 +7,7 @@
 //! /sim/meta), a missing /sim/step channel, a /sim/step body that does not match its schema, a
 //! missing file, and a diff of a one-rod with a two-rod run. The classes here are the others.
 
-use crate::common::{gripsim, scenario};
+use crate::common::{gripsim, message_json, scenario};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -97,7 +97,7 @@ fn messages(path: &Path) -> Messages {
                 m.channel.topic.clone(),
                 schema.name.clone(),
                 schema.data.to_vec(),
-                serde_json::from_slice(&m.data).unwrap(),
+                message_json(&m),
             )
         })
         .collect()

@@ -40,3 +40,11 @@ pub fn venv() -> &'static Path {
         PathBuf::from(String::from_utf8(out.stdout).unwrap().trim())
     })
 }
+
+/// A message of a gripsim MCAP in its JSON form, whatever its encoding (format 2 writes
+/// `/sim/step` and `/sim/iteration` as protobuf, the rest and format 1 as JSON).
+pub fn message_json(m: &mcap::Message) -> serde_json::Value {
+    let schema = m.channel.schema.as_ref().expect("a schema");
+    gripsim::record::proto::decode_json(&schema.name, &m.channel.message_encoding, &m.data)
+        .unwrap_or_else(|| panic!("{}: a message that does not decode", m.channel.topic))
+}

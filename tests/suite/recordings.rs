@@ -2,7 +2,7 @@
 //! independent readers (the Rerun CLI and the `mcap` Python package, installed into `.venv`
 //! by tests/py/setup_venv.py) and by the `mcap` crate.
 
-use crate::common::{gripsim, scenario, venv, ROOT};
+use crate::common::{gripsim, message_json, scenario, venv, ROOT};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -81,7 +81,7 @@ fn read_mcap_rust(path: &Path) -> (Vec<Msg>, Option<String>) {
             Ok(m) => msgs.push(Msg {
                 topic: m.channel.topic.clone(),
                 log_time: m.log_time,
-                json: serde_json::from_slice(&m.data).expect("JSON message"),
+                json: message_json(&m),
             }),
             Err(e) => return (msgs, Some(e.to_string())),
         }
@@ -102,8 +102,15 @@ fn assert_channels(report: &Value) {
     for (topic, schema) in CHANNELS {
         let t = &report["topics"][topic];
         assert_eq!(t["schema"], schema, "{topic}: {t}");
-        assert_eq!(t["schema_encoding"], "jsonschema", "{topic}");
-        assert_eq!(t["message_encoding"], "json", "{topic}");
+        // The high-rate channels are protobuf with the schema in the file, the rest JSON.
+        let binary = topic == "/sim/step" || topic == "/sim/iteration";
+        let (schema_encoding, message_encoding) = if binary {
+            ("protobuf", "protobuf")
+        } else {
+            ("jsonschema", "json")
+        };
+        assert_eq!(t["schema_encoding"], schema_encoding, "{topic}");
+        assert_eq!(t["message_encoding"], message_encoding, "{topic}");
     }
 }
 
@@ -221,6 +228,12 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     assert!(report["validated"].as_u64().unwrap() > 100);
     assert_eq!(report["topics"]["/sim/step"]["messages"], steps + 1);
     assert_eq!(report["topics"]["/scene"]["messages"], steps + 1);
+    // Obstacles and legend once, not in every /scene message.
+    assert_eq!(report["topics"]["/scene/static"]["messages"], 1);
+    assert_eq!(
+        report["topics"]["/scene/static"]["schema"],
+        "foxglove.SceneUpdate"
+    );
     assert_eq!(report["topics"]["/sim/iteration"]["messages"], newton);
     assert_eq!(report["topics"]["/sim/meta"]["messages"], 1);
     assert_eq!(report["last_event"]["kind"], "run_end");
@@ -270,6 +283,38 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     assert!(contacts_seen > 100);
     assert_eq!(mcap_peak, peak, "peak reaction per node: MCAP vs --summary");
 
+    // Google's protobuf library (Python), from the schema in the file, reads the same numbers
+    // as gripsim's own decoder, bit for bit.
+    let samples = report["step_samples"].as_array().unwrap();
+    assert!(samples.len() > 20, "{} samples", samples.len());
+    let steps_json: BTreeMap<u64, &Value> = msgs
+        .iter()
+        .filter(|m| m.topic == "/sim/step")
+        .map(|m| (m.json["step"].as_u64().unwrap(), &m.json))
+        .collect();
+    let mut contact_samples = 0;
+    for s in samples {
+        let ours = steps_json[&s["step"].as_u64().unwrap()];
+        for key in ["t", "dt"] {
+            assert_eq!(
+                s[key].as_f64(),
+                ours[key].as_f64(),
+                "{key} of {}",
+                s["step"]
+            );
+        }
+        let (theirs, ours) = (&s["rods"][0], &ours["rods"][0]);
+        for key in ["q", "reaction_norm", "in_contact", "gap"] {
+            assert_eq!(theirs[key], ours[key], "{key} at step {}", s["step"]);
+        }
+        contact_samples += theirs["in_contact"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c == true) as usize;
+    }
+    assert!(contact_samples > 0, "a sample in contact");
+
     // The CSV: header, one row per step and node, the same peaks.
     let mut rdr = csv::Reader::from_path(&csv).unwrap();
     let header: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
@@ -313,7 +358,7 @@ fn seed_grasp_recordings_agree_with_the_summary() {
 
     // The MCAP alone rebuilds the run: its scenario text runs to the same summary.
     let meta = &msgs.iter().find(|m| m.topic == "/sim/meta").unwrap().json;
-    assert_eq!(meta["format_version"], 1);
+    assert_eq!(meta["format_version"], 2);
     let replay = d.join("replay.toml");
     std::fs::write(&replay, meta["scenario_text"].as_str().unwrap()).unwrap();
     let again = d.join("again.json");

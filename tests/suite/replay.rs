@@ -848,7 +848,11 @@ fn bad_input_is_a_clear_error() {
         "1",
     );
     let newer = d.join("newer.mcap");
-    let newer_meta = meta.replacen("\"format_version\":1", "\"format_version\":99", 1);
+    let version = format!(
+        "\"format_version\":{}",
+        gripsim::record::mcap::FORMAT_VERSION
+    );
+    let newer_meta = meta.replacen(&version, "\"format_version\":99", 1);
     assert_ne!(newer_meta, meta);
     handmade(&newer, &[("/sim/meta", "gripsim.Meta")], &newer_meta, "99");
     let missing = d.join("missing.mcap");

@@ -587,7 +587,15 @@ fn drop_corner_normals(from: &Path, to: &Path) {
                 .unwrap()
         });
         let mut data = m.data.to_vec();
-        if ch.topic == "/sim/step" {
+        if ch.topic == "/sim/step" && ch.message_encoding == "protobuf" {
+            use prost::Message as _;
+            let mut s = gripsim::record::proto::Step::decode(data.as_slice()).unwrap();
+            for r in &mut s.rods {
+                r.normal2.clear();
+                r.contact_obstacle2.clear();
+            }
+            data = s.encode_to_vec();
+        } else if ch.topic == "/sim/step" {
             let mut v: Value = serde_json::from_slice(&data).unwrap();
             for r in v["rods"].as_array_mut().unwrap() {
                 let r = r.as_object_mut().unwrap();

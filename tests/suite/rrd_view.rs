@@ -3,7 +3,7 @@
 //! contact oscillation — phase and pass on every iterate, arrows proportional to the force at
 //! the printed scale, distinct series colours, and bookmarks at the right steps.
 
-use crate::common::{gripsim, scenario, venv, ROOT};
+use crate::common::{gripsim, message_json, scenario, venv, ROOT};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -45,10 +45,7 @@ fn mcap_messages(path: &Path) -> Vec<(String, Value)> {
         .unwrap()
         .map(|m| {
             let m = m.unwrap();
-            (
-                m.channel.topic.clone(),
-                serde_json::from_slice(&m.data).unwrap(),
-            )
+            (m.channel.topic.clone(), message_json(&m))
         })
         .collect()
 }
