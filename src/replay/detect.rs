@@ -501,6 +501,9 @@ pub struct Detector {
     pub t_end: f64,
     /// The grasp rules, when the scenario has a free body.
     grasp: Option<super::grasp::GraspRule>,
+    /// Per rod: the largest static friction coefficient of its contact pairs (the cone that
+    /// bounds the tangential part of an impact).
+    mu: Vec<f64>,
 }
 
 impl Detector {
@@ -527,6 +530,16 @@ impl Detector {
             steps: 0,
             t_end: 0.0,
             grasp: super::grasp::GraspRule::of(sc),
+            mu: sc
+                .rods
+                .iter()
+                .map(|r| {
+                    sc.obstacle_names
+                        .iter()
+                        .map(|o| sc.friction.between(&r.name, o).mu_s)
+                        .fold(0.0, f64::max)
+                })
+                .collect(),
         }
     }
 
@@ -669,7 +682,13 @@ impl Detector {
             let e = [dv[0] - fdv[0], dv[1] - fdv[1]];
             let node_ref = a_scene.max(norm([f[2 * i], f[2 * i + 1]]) / m);
             let (impact, approach, rest) = if cur.in_contact[i] {
-                split_contact(e, fdv, prev, cur.normal(i), cur.normal2(i))
+                let (impact, approach, rest, held) =
+                    split_contact(e, fdv, prev, cur.normal(i), cur.normal2(i));
+                (
+                    impact,
+                    approach,
+                    within_cone(rest, cur.normal(i), self.mu[r] * held),
+                )
             } else {
                 (0.0, 0.0, e)
             };
@@ -714,17 +733,37 @@ impl Detector {
     }
 }
 
+/// With Coulomb friction a contact's tangential impulse is at most μ_s times its normal one:
+/// the tangential part of the rest `r` (against the normal `n`) is explained up to `cone`
+/// (μ_s times the normal jump the contact explains). A stick at the moment of impact stops a
+/// node's sliding within the step; without this it read as an unexplained jump.
+fn within_cone(r: [f64; 2], n: [f64; 2], cone: f64) -> [f64; 2] {
+    if !(cone > 0.0) {
+        return r;
+    }
+    let rn = dot(r, n);
+    let t = [r[0] - rn * n[0], r[1] - rn * n[1]];
+    let tl = norm(t);
+    let k = if tl > 0.0 {
+        (tl - cone).max(0.0) / tl
+    } else {
+        0.0
+    };
+    [rn * n[0] + k * t[0], rn * n[1] + k * t[1]]
+}
+
 /// Split the jump `e` of a node held on the surface(s) n1 (and n2 at a corner) into what an
 /// inelastic frictionless contact explains — per surface, support up to what the forces push
 /// into it over the step (−n·Δt f/m) and impact up to the normal velocity the node brought
-/// into the step (−n·u_k) — and the rest. Returns (|impact|, approach speed, rest).
+/// into the step (−n·u_k) — and the rest. Returns (|impact|, approach speed, rest, the normal
+/// jump explained: support + impact).
 fn split_contact(
     e: [f64; 2],
     fdv: [f64; 2],
     u_prev: [f64; 2],
     n1: [f64; 2],
     n2: Option<[f64; 2]>,
-) -> (f64, f64, [f64; 2]) {
+) -> (f64, f64, [f64; 2], f64) {
     // Coefficients along the surface normals: one surface, or both of a corner.
     let corner = n2.and_then(|n2| {
         let ce = decompose(e, n1, n2)?;
@@ -748,11 +787,11 @@ fn split_contact(
                 e[0] - x1 * n1[0] - x2 * n2[0],
                 e[1] - x1 * n1[1] - x2 * n2[1],
             ];
-            (norm(impact), norm(approach), rest)
+            (norm(impact), norm(approach), rest, x1.hypot(x2))
         }
         None => {
             let (x, impact, approach) = part(dot(e, n1), dot(fdv, n1), dot(u_prev, n1));
-            (impact, approach, [e[0] - x * n1[0], e[1] - x * n1[1]])
+            (impact, approach, [e[0] - x * n1[0], e[1] - x * n1[1]], x)
         }
     }
 }
