@@ -210,15 +210,7 @@ impl Simulation {
     pub fn new(scenario: &Scenario) -> Self {
         let rods: Vec<Rod> = scenario.rods.iter().map(Rod::new).collect();
         let g = scenario.solve.gravity;
-        let mut work: Vec<RodWork> = rods.iter().map(|r| RodWork::new(r, g)).collect();
-        for (w, spec) in work.iter_mut().zip(&scenario.rods) {
-            w.compliant = contact::compliant::circles_for(
-                spec,
-                scenario.contact.offset(spec),
-                &scenario.obstacles,
-                &scenario.materials,
-            );
-        }
+        let work = rod_works(scenario, &rods);
         let out = rods.iter().map(|r| RodOut::new(r.n)).collect();
         let infos = rods.iter().map(|r| r.info()).collect();
         let bodies: Vec<Body> = scenario.bodies.iter().map(|b| Body::new(b, g)).collect();
@@ -903,6 +895,21 @@ impl Simulation {
 /// The actuators of a scenario (its `[[actuator]]`s, then one per rod driven by its own
 /// `drive`), their names for messages, and each rod's actuator and mirror line.
 #[allow(clippy::type_complexity)]
+/// Each rod's Newton workspace, with the compliant fruits its nodes can press into.
+fn rod_works(scenario: &Scenario, rods: &[Rod]) -> Vec<RodWork> {
+    let g = scenario.solve.gravity;
+    let mut work: Vec<RodWork> = rods.iter().map(|r| RodWork::new(r, g)).collect();
+    for (w, spec) in work.iter_mut().zip(&scenario.rods) {
+        w.compliant = contact::compliant::circles_for(
+            spec,
+            scenario.contact.offset(spec),
+            &scenario.obstacles,
+            &scenario.materials,
+        );
+    }
+    work
+}
+
 fn build_actuators(
     scenario: &Scenario,
     rods: &[Rod],

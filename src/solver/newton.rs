@@ -157,26 +157,25 @@ pub struct IterationReport<'a> {
 }
 
 impl RodWork {
-    pub fn new(rod: &Rod, gravity: [f64; 2]) -> Self {
-        let n = rod.n;
-        let mut free_index = vec![usize::MAX; n];
+    /// Each free node's index among the free nodes (usize::MAX for clamped ones), and their
+    /// number.
+    fn free_indices(rod: &Rod) -> (Vec<usize>, usize) {
+        let mut free_index = vec![usize::MAX; rod.n];
         let mut nfree = 0;
-        for i in 0..n {
+        for i in 0..rod.n {
             if !rod.clamped[i] {
                 free_index[i] = nfree;
                 nfree += 1;
             }
         }
+        (free_index, nfree)
+    }
+
+    /// The constant external force (loads and gravity on the free nodes) and the force scale
+    /// of the residual test: the largest of EI/L², a free node's weight and its load.
+    fn external_force(rod: &Rod, gravity: [f64; 2]) -> (Vec<f64>, f64) {
+        let n = rod.n;
         let mut fext = rod.load.clone();
-        for i in 0..n {
-            if !rod.clamped[i] {
-                fext[2 * i] += rod.mass[i] * gravity[0];
-                fext[2 * i + 1] += rod.mass[i] * gravity[1];
-            } else {
-                fext[2 * i] = 0.0;
-                fext[2 * i + 1] = 0.0;
-            }
-        }
         let g = (gravity[0].powi(2) + gravity[1].powi(2)).sqrt();
         let mut force_scale = if n > 1 {
             rod.ei / (rod.length * rod.length)
@@ -184,13 +183,24 @@ impl RodWork {
             0.0
         };
         for i in 0..n {
-            if !rod.clamped[i] {
-                force_scale = force_scale.max(rod.mass[i] * g);
-                force_scale =
-                    force_scale.max((rod.load[2 * i].powi(2) + rod.load[2 * i + 1].powi(2)).sqrt());
+            if rod.clamped[i] {
+                fext[2 * i] = 0.0;
+                fext[2 * i + 1] = 0.0;
+                continue;
             }
+            fext[2 * i] += rod.mass[i] * gravity[0];
+            fext[2 * i + 1] += rod.mass[i] * gravity[1];
+            force_scale = force_scale.max(rod.mass[i] * g);
+            force_scale =
+                force_scale.max((rod.load[2 * i].powi(2) + rod.load[2 * i + 1].powi(2)).sqrt());
         }
-        let force_scale = force_scale.max(f64::MIN_POSITIVE);
+        (fext, force_scale.max(f64::MIN_POSITIVE))
+    }
+
+    pub fn new(rod: &Rod, gravity: [f64; 2]) -> Self {
+        let n = rod.n;
+        let (free_index, nfree) = Self::free_indices(rod);
+        let (fext, force_scale) = Self::external_force(rod, gravity);
         let mean_mass = rod.mass.iter().sum::<f64>() / n as f64;
         let e0 = if n > 1 {
             assemble(rod, &free_index, &rod.q0, &mut vec![0.0; 2 * n], None)

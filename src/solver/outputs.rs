@@ -51,28 +51,16 @@ impl Simulation {
             }
             o.impulse[2 * i] = o.reaction[2 * i] * dt;
             o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
-            match c {
-                Some(c) if !rod.clamped[i] => {
-                    o.normal[2 * i] = c.normal[0];
-                    o.normal[2 * i + 1] = c.normal[1];
-                    o.obstacle[i] = c.obstacle;
-                    o.in_contact[i] = true;
-                }
-                _ => match pressed {
-                    Some(p) => {
-                        o.normal[2 * i] = p.normal[0];
-                        o.normal[2 * i + 1] = p.normal[1];
-                        o.obstacle[i] = p.obstacle;
-                        o.in_contact[i] = true;
-                    }
-                    None => {
-                        o.normal[2 * i] = 0.0;
-                        o.normal[2 * i + 1] = 0.0;
-                        o.obstacle[i] = usize::MAX;
-                        o.in_contact[i] = false;
-                    }
-                },
-            }
+            // Held by a constraint, else pressed into a compliant fruit, else free.
+            let held = match c {
+                Some(c) if !rod.clamped[i] => Some((c.normal, c.obstacle)),
+                _ => pressed.map(|p| (p.normal, p.obstacle)),
+            };
+            let n = held.map_or([0.0; 2], |h| h.0);
+            o.normal[2 * i] = n[0];
+            o.normal[2 * i + 1] = n[1];
+            o.obstacle[i] = held.map_or(usize::MAX, |h| h.1);
+            o.in_contact[i] = held.is_some();
             // The second surface of a corner.
             let second = c.filter(|_| !rod.clamped[i]).and_then(|c| c.second);
             o.normal2[2 * i] = second.map_or(0.0, |s| s.normal[0]);

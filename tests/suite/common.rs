@@ -2,7 +2,7 @@
 //! that holds the independent readers (rerun-sdk, mcap).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 
 /// The repository root.
@@ -47,4 +47,39 @@ pub fn message_json(m: &mcap::Message) -> serde_json::Value {
     let schema = m.channel.schema.as_ref().expect("a schema");
     gripsim::record::proto::decode_json(&schema.name, &m.channel.message_encoding, &m.data)
         .unwrap_or_else(|| panic!("{}: a message that does not decode", m.channel.topic))
+}
+
+/// A finished command's status, stdout and stderr, for messages.
+pub fn text(out: &Output) -> String {
+    format!(
+        "status {}\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+/// Run, expect exit `code`, never a panic.
+pub fn expect(cmd: &mut Command, code: i32) -> Output {
+    let out = cmd.output().expect("gripsim starts");
+    assert_eq!(out.status.code(), Some(code), "{cmd:?}\n{}", text(&out));
+    assert!(
+        !String::from_utf8_lossy(&out.stderr).contains("panicked"),
+        "{cmd:?} panicked:\n{}",
+        text(&out)
+    );
+    out
+}
+
+/// Run, expect success.
+pub fn run_ok(cmd: &mut Command) -> Output {
+    let out = cmd.output().expect("gripsim starts");
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed with {}:\n{}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }

@@ -2,24 +2,12 @@
 //! independent readers (the Rerun CLI and the `mcap` Python package, installed into `.venv`
 //! by tests/py/setup_venv.py) and by the `mcap` crate.
 
-use crate::common::{gripsim, message_json, scenario, venv, ROOT};
+use crate::common::{gripsim, message_json, run_ok, scenario, venv, ROOT};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-fn run_ok(cmd: &mut Command) -> Output {
-    let out = cmd.output().expect("gripsim starts");
-    assert!(
-        out.status.success(),
-        "{cmd:?} failed with {}:\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
 
 /// `rerun rrd <args>` from the test venv.
 fn rerun_rrd(args: &[&Path], sub: &str) -> Output {

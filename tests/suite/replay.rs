@@ -2,7 +2,7 @@
 //! checked, runs are diffed, stored runs are turned into .rrd files, bad input is refused,
 //! and the README's CI example runs against the committed golden recording.
 
-use crate::common::{gripsim, scenario, venv, ROOT};
+use crate::common::{expect, gripsim, scenario, text, venv, ROOT};
 use gripsim::events::{ContactChange, Event, Observer, ReleaseReason, RodStepView, RunInfo};
 use gripsim::record::mcap::McapSink;
 use gripsim::record::{Detail, RecordOptions, Recording};
@@ -11,27 +11,6 @@ use serde_json::Value;
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn text(out: &Output) -> String {
-    format!(
-        "status {}\nstdout:\n{}\nstderr:\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
-}
-
-/// Run, expect exit `code`, never a panic.
-fn expect(cmd: &mut Command, code: i32) -> Output {
-    let out = cmd.output().expect("gripsim starts");
-    assert_eq!(out.status.code(), Some(code), "{cmd:?}\n{}", text(&out));
-    assert!(
-        !String::from_utf8_lossy(&out.stderr).contains("panicked"),
-        "{cmd:?} panicked:\n{}",
-        text(&out)
-    );
-    out
-}
 
 fn run_to(sc: &Path, mcap: &Path, sets: &[&str]) {
     let mut c = gripsim();

@@ -3,32 +3,10 @@
 //! and `sweep`, golden guards that fail when their physics regresses, and the reader's answers
 //! to damaged input. Small scenes and short runs throughout (CI has 2 cores).
 
-use crate::common::{gripsim, scenario, ROOT};
+use crate::common::{expect, gripsim, scenario, text, ROOT};
 use gripsim::replay::detect::{Detector, Findings, RodSample, Thresholds};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn text(out: &Output) -> String {
-    format!(
-        "status {}\nstdout:\n{}\nstderr:\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    )
-}
-
-/// Run, expect exit `code`, never a panic.
-fn expect(cmd: &mut Command, code: i32) -> Output {
-    let out = cmd.output().expect("gripsim starts");
-    assert_eq!(out.status.code(), Some(code), "{cmd:?}\n{}", text(&out));
-    assert!(
-        !String::from_utf8_lossy(&out.stderr).contains("panicked"),
-        "{cmd:?} panicked:\n{}",
-        text(&out)
-    );
-    out
-}
 
 /// Write a scenario text into `dir` and return its path.
 fn write_scenario(dir: &Path, name: &str, text: &str) -> PathBuf {

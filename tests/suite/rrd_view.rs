@@ -3,23 +3,11 @@
 //! contact oscillation — phase and pass on every iterate, arrows proportional to the force at
 //! the printed scale, distinct series colours, and bookmarks at the right steps.
 
-use crate::common::{gripsim, message_json, scenario, venv, ROOT};
+use crate::common::{gripsim, message_json, run_ok, scenario, venv, ROOT};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn run_ok(cmd: &mut Command) -> Output {
-    let out = cmd.output().expect("gripsim starts");
-    assert!(
-        out.status.success(),
-        "{cmd:?} failed with {}:\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
+use std::process::Command;
 
 /// The report of tests/py/read_rrd.py.
 fn read_rrd(path: &Path) -> Value {
