@@ -163,3 +163,21 @@ fn pick_and_place_runs_its_program_and_holds_the_fruit() {
     let p = sim.bodies[0].pose.c;
     assert!((p[1] + 0.06).abs() < 1e-6, "{p:?}");
 }
+
+/// `force_filter`: read through the raw per-step reaction (0), the squeeze ends at the first
+/// touch, whose reaction is the impact impulse over Δt, so the grip — and the margin at the
+/// lift — depends on Δt; through the default 5 ms sensor it does not.
+#[test]
+fn the_force_sensor_makes_the_grip_independent_of_dt() {
+    let margin = |sets: &[&str]| {
+        let g = summary(&shipped("jaw-grasp-hold", sets)).grasp.unwrap();
+        g.safety_margin_at_lift.unwrap()
+    };
+    let (sensed, sensed_fine) = (margin(&[]), margin(&["solve.dt=2e-5"]));
+    let raw = margin(&["actuator.0.force_filter=0"]);
+    let raw_fine = margin(&["actuator.0.force_filter=0", "solve.dt=2e-5"]);
+    println!("margin at the lift: sensed {sensed:.4} / {sensed_fine:.4}, raw {raw:.4} / {raw_fine:.4} (dt 5e-5 / 2e-5)");
+    assert!((sensed - sensed_fine).abs() < 0.01 * sensed);
+    // The raw reaction stops the close at the touch: a weaker grip, smaller at finer dt.
+    assert!(raw < 0.9 * sensed && raw_fine < raw);
+}
