@@ -107,7 +107,11 @@ pub fn decide_on(
     }
     match grip {
         Grip::Stick { .. } => {
-            if rn > 0.0 && rt.abs() > coulomb.mu_s * rn {
+            // Outside the cone; with R_n ≤ 0 any tangential hold is. A stuck contact whose
+            // normal reaction pulls is let slide before it may be released: holding the
+            // tangential velocity can itself make the normal reaction adhesive (a node
+            // stopped dead on a curved or moving surface).
+            if rt != 0.0 && rt.abs() > coulomb.mu_s * rn.max(0.0) {
                 // The surface holds the node with R_t; released, it slides the other way.
                 Some(Switch::ToSlide {
                     sign: if rt > 0.0 { -1.0 } else { 1.0 },

@@ -205,6 +205,13 @@ impl Simulation {
         let reaction = [w.r[2 * i], w.r[2 * i + 1]];
         // The reaction's normal parts: along n, or on n₁ and n₂ in a corner.
         let (rn, rn2) = contact::normal_parts(&c, reaction);
+        if rn < 0.0 && matches!(c.grip, Grip::Stick { .. }) {
+            // Stuck and pulling: slide first (Coulomb), release only if it still pulls.
+            if let Some(nc) = self.friction_switch(ctx, r, i, &c, reaction, pass, obs) {
+                self.work[r].contact[i] = Some(nc);
+                return true;
+            }
+        }
         if rn < 0.0 && !c.locked {
             // In a corner the node stays on the other surface, unless that one pulls too.
             let keep = c.second.filter(|_| rn2 >= 0.0);
@@ -396,7 +403,12 @@ impl Simulation {
             let b = &self.bodies[bi];
             let c = b.contacts[j];
             let lam = b.reaction.get(j).copied().unwrap_or([0.0; 2]);
-            if lam[0] < 0.0 && !c.locked {
+            // Stuck and pulling: slide first (Coulomb), release only if it still pulls.
+            let slides_first = lam[0] < 0.0
+                && c.is_stuck()
+                && friction::decide_on(c.coulomb, c.grip, c.switches, lam[0], lam[1], 0.0)
+                    .is_some();
+            if lam[0] < 0.0 && !c.locked && !slides_first {
                 let b = &mut self.bodies[bi];
                 b.contacts.remove(j);
                 if j < b.reaction.len() {
