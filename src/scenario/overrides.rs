@@ -1,8 +1,9 @@
 //! `--set KEY=VALUE`: override any scenario value by a dotted path (`obstacle.0.radius=0.04`,
 //! `rod.0.E=1e9`, `solve.stepping=proximity`, `rod.1.drive.acceleration=[9.8,0]`).
 //!
-//! Every table or array on the path must exist; the last key may be new (the scenario reader
-//! then checks that it is a known key). The value is read as a TOML value, or as a string when
+//! Every array on the path must exist; a missing table is created (`--set
+//! contact.surface=face` on a scenario without `[contact]`) and the last key may be new (the
+//! scenario reader then checks that they are known keys). The value is read as a TOML value, or as a string when
 //! it is not one (so `solve.mode=static` needs no quotes).
 
 use toml::{Table, Value};
@@ -84,6 +85,12 @@ fn set_path(
                 if last {
                     t.insert(part.to_string(), value.take().unwrap());
                     return Ok(());
+                }
+                let index_next = parts[i + 1].parse::<usize>().is_ok();
+                if !t.contains_key(*part) && !index_next {
+                    // A table the scenario leaves out (e.g. `[contact]`): created empty; the
+                    // scenario reader then checks its name and keys like any other.
+                    t.insert(part.to_string(), Value::Table(Table::new()));
                 }
                 if !t.contains_key(*part) {
                     let known: Vec<&str> = t.keys().map(|k| k.as_str()).collect();

@@ -1443,6 +1443,26 @@ fn set_new_key_that_is_unknown() {
 }
 
 #[test]
+fn set_creates_a_table_the_scenario_leaves_out() {
+    // BASE has no [contact] table: --set creates it, and the reader checks its keys.
+    assert!(!BASE.contains("[contact]"));
+    let case = Case::new(BASE.as_bytes());
+    let out = case.run("run", &["--no-record", "-q"], &["contact.surface=face"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let err = reject_set(BASE, &["contact.surfce=face"]);
+    has(
+        &err,
+        &[&kv("contact.surfce", "\"face\""), &did_you_mean("surface")],
+    );
+    let err = reject_set(BASE, &["contct.surface=face"]);
+    has(&err, &["contct", &did_you_mean("contact")]);
+}
+
+#[test]
 fn set_index_out_of_range() {
     let err = reject_set(BASE, &["obstacle.3.radius=0.04"]);
     has(
