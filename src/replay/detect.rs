@@ -11,9 +11,9 @@
 //!   frictionless contact does along the outward normal of every surface the node is held
 //!   against (cancel what the forces push into it — support — and remove at most the normal
 //!   velocity the node brought into the step — impact) and the rest.
-//!   - `impact`: the impact part is ≥ `spike_floor`, its implied acceleration ≥
-//!     `spike_accel_ratio` × the scene's acceleration scale, and the displacement it stands
-//!     for, jump × Δt, ≥ `spike_displacement`.
+//!   - `impact`: the impact part is ≥ `spike_floor` and the displacement it stands for,
+//!     jump × Δt, ≥ `spike_displacement` (its implied acceleration, jump / Δt, is no measure:
+//!     a coarser step makes it smaller and the impact worse).
 //!   - `unexplained`: the rest is ≥ `spike_floor` and ≥ `spike_accel_ratio` × the node's
 //!     acceleration scale, at any Δt.
 //! * **Sticking** (per free node): `toggling`, ≥ `stick_toggles` constraint changes of
@@ -27,6 +27,7 @@
 //! [`Detector`] called from [`Detector::step`] (or [`Detector::flush_contacts`] for event
 //! rules) that pushes to [`Findings`] and a count in [`Counts`].
 
+use super::bruise::PressureSample;
 use crate::energy::{bend::bend, stretch::stretch};
 use crate::events::{Event, Observer, RodStepView};
 use crate::model::Rod;
@@ -43,9 +44,8 @@ pub struct Thresholds {
     /// velocity scale sqrt(a L)].
     #[arg(long, value_name = "M/S")]
     pub spike_floor: Option<f64>,
-    /// Spikes: the jump's implied acceleration |jump|/dt must exceed this many times the
-    /// scene's acceleration scale (impacts) or the node's own max(scene, |f|/m) (unexplained
-    /// jumps) [default: 10].
+    /// Unexplained spikes: the jump's implied acceleration |jump|/dt must exceed this many
+    /// times the node's own acceleration scale max(scene, |f|/m) [default: 10].
     #[arg(long, value_name = "RATIO")]
     pub spike_accel_ratio: Option<f64>,
     /// Impact spikes: the displacement the jump stands for, |jump| x dt (m), must exceed this
@@ -56,7 +56,8 @@ pub struct Thresholds {
     /// [default: the larger of 2e-3 x the scene's time scale sqrt(L/a) and 20 x solve.dt].
     #[arg(long, value_name = "S")]
     pub stick_window: Option<f64>,
-    /// Sticking (toggling): constraint changes (added or released) needed within the window [4].
+    /// Sticking (toggling): constraint changes (added or released) needed within the window [5: more than
+    /// one rebound].
     #[arg(long, value_name = "N")]
     pub stick_toggles: Option<u64>,
 }
@@ -232,7 +233,7 @@ impl Effective {
             spike_accel_ratio: th.spike_accel_ratio.unwrap_or(10.0),
             spike_displacement: th.spike_displacement.unwrap_or(1e-4 * s.length),
             stick_window: th.stick_window.unwrap_or((2e-3 * s.time).max(20.0 * s.dt)),
-            stick_toggles: th.stick_toggles.unwrap_or(4),
+            stick_toggles: th.stick_toggles.unwrap_or(5),
         }
     }
 }
@@ -307,6 +308,9 @@ pub struct Findings {
     /// Slips and drops the scenario expects (`[expect] grasp`): reported, not flagged.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub grasp_expected: Vec<super::grasp::GraspFlag>,
+    /// Contacts on a compliant fruit above its bruise threshold.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub bruise: Vec<super::bruise::BruiseFlag>,
 }
 
 /// Counts by kind.
@@ -321,6 +325,8 @@ pub struct Counts {
     pub drop: usize,
     /// A fruit held where the scenario expects a slip or a drop.
     pub held: usize,
+    /// Stretches of a contact above the fruit's bruise pressure.
+    pub bruise: usize,
 }
 
 impl Findings {
@@ -336,11 +342,15 @@ impl Findings {
             slip: self.grasp.iter().filter(|g| g.kind == "slip").count(),
             drop: self.grasp.iter().filter(|g| g.kind == "drop").count(),
             held: self.grasp.iter().filter(|g| g.kind == "held").count(),
+            bruise: self.bruise.len(),
         }
     }
 
     pub fn is_empty(&self) -> bool {
-        self.spikes.is_empty() && self.sticking.is_empty() && self.grasp.is_empty()
+        self.spikes.is_empty()
+            && self.sticking.is_empty()
+            && self.grasp.is_empty()
+            && self.bruise.is_empty()
     }
 
     fn sort(&mut self) {
@@ -504,6 +514,8 @@ pub struct Detector {
     /// Per rod: the largest static friction coefficient of its contact pairs (the cone that
     /// bounds the tangential part of an impact).
     mu: Vec<f64>,
+    /// Contacts on a compliant fruit above its bruise pressure.
+    bruise: super::bruise::BruiseRule,
 }
 
 impl Detector {
@@ -540,7 +552,13 @@ impl Detector {
                         .fold(0.0, f64::max)
                 })
                 .collect(),
+            bruise: Default::default(),
         }
+    }
+
+    /// The compliant contacts of an accepted step (after [`Detector::step`]).
+    pub fn pressure(&mut self, step: u64, t: f64, samples: &[super::bruise::PressureSample]) {
+        self.bruise.step(step, t, samples, &self.names);
     }
 
     /// The grasp rules for one step (after [`Detector::step`]): the rods' positions, the first
@@ -591,6 +609,7 @@ impl Detector {
             self.out.grasp = found.flags;
             self.out.grasp_expected = found.expected;
         }
+        self.out.bruise = std::mem::take(&mut self.bruise).finish();
         for (r, nodes) in self.nodes.iter_mut().enumerate() {
             for (i, n) in nodes.iter_mut().enumerate() {
                 if let Some(ep) = n.toggle_open.take() {
@@ -699,7 +718,9 @@ impl Detector {
             // step turns position round-off into velocity noise of any size).
             let flag_unexplained =
                 large(unexplained, node_ref) && unexplained * dt >= 1e-9 * self.scales.length;
-            let flag_impact = large(impact, a_scene) && impact * dt >= th.spike_displacement;
+            // An impact is judged by the displacement it stands for, not by its implied
+            // acceleration: 10× coarser steps make that 10× smaller and the impact worse.
+            let flag_impact = impact >= th.spike_floor && impact * dt >= th.spike_displacement;
             let make = |kind: &'static str, jump: f64, accel_ref: f64| Spike {
                 kind,
                 rod: r,
@@ -845,6 +866,20 @@ impl Observer for DetectObserver {
             } => {
                 let samples: Vec<RodSample<'_>> = rods.iter().map(RodSample::from).collect();
                 self.detector.step(*step, *t, *dt, &samples);
+                let pressures: Vec<PressureSample> = contacts
+                    .iter()
+                    .filter(|c| c.rod != usize::MAX && c.peak_pressure > 0.0)
+                    .map(|c| PressureSample {
+                        rod: c.rod,
+                        node: c.node,
+                        peak_pressure: c.peak_pressure,
+                        bruise_pressure: c.bruise_pressure,
+                        bruise_half_width: c.bruise_half_width,
+                    })
+                    .collect();
+                if !pressures.is_empty() {
+                    self.detector.pressure(*step, *t, &pressures);
+                }
                 if let Some(b) = bodies.first() {
                     let q: Vec<&[f64]> = rods.iter().map(|r| r.q).collect();
                     let touching = contacts
@@ -870,6 +905,7 @@ pub fn detect(run: &super::read::Run, th: &Thresholds) -> Findings {
         let samples: Vec<RodSample<'_>> = st.rods.iter().map(|r| r.sample()).collect();
         d.step(st.step, st.t, st.dt, &samples);
         st.grasp(&mut d);
+        st.pressure(&mut d);
     }
     d.finish()
 }

@@ -11,6 +11,7 @@
 //! (an error, reported on stderr with the file it concerns) or 3 ([`EXIT_INCOMPLETE`]: a
 //! recording that stops before its run's end, unless `--allow-partial`).
 
+pub mod bruise;
 pub mod detect;
 pub mod diff;
 pub mod grasp;
@@ -171,6 +172,9 @@ pub struct CheckReport {
     /// The slips and drops the scenario expects (`[expect] grasp`): not flagged.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub grasp_expected: Vec<grasp::GraspFlag>,
+    /// Contacts on a compliant fruit above its bruise threshold.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub bruise: Vec<bruise::BruiseFlag>,
 }
 
 impl CheckReport {
@@ -204,6 +208,7 @@ impl CheckReport {
             sticking: found.sticking,
             grasp: found.grasp,
             grasp_expected: found.grasp_expected,
+            bruise: found.bruise,
         }
     }
 
@@ -244,6 +249,7 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<(CheckReport, Option<String
                         st.rods.iter().map(|r| r.sample()).collect();
                     d.step(st.step, st.t, st.dt, &samples);
                     st.grasp(d);
+                    st.pressure(d);
                 }
                 last = Some((st.step, st.t));
                 steps += 1;
@@ -338,6 +344,21 @@ pub fn format_check(rep: &CheckReport) -> String {
                 s,
                 "  {:<5} step {} t = {:.6} s: the fruit moved {:.3e} m in the gripper (tolerance {:.3e} m){note}",
                 f.kind, f.step, f.t, f.slip_m, f.hold_tolerance_m
+            );
+        }
+    }
+    if !rep.bruise.is_empty() {
+        let _ = writeln!(
+            s,
+            "bruise    {:>5}  (contacts above the fruit's bruise pressure)",
+            c.bruise
+        );
+        for f in rep.bruise.iter().take(MAX_ROWS) {
+            let _ = writeln!(
+                s,
+                "  rod {} node {} steps {}-{} (t = {:.6}-{:.6} s): peak pressure {:.4e} Pa at t = {:.6} s, {:.2}x the threshold {:.4e} Pa, up to {:.3e} m wide above it",
+                f.rod_name, f.node, f.step, f.last_step, f.t, f.last_t, f.max_pressure_pa,
+                f.max_pressure_t, f.ratio, f.bruise_pressure_pa, f.max_bruise_width_m
             );
         }
     }

@@ -377,6 +377,7 @@ const IMPACT_COLOR: [u8; 3] = [230, 40, 200];
 const UNEXPLAINED_COLOR: [u8; 3] = [200, 0, 60];
 const ALTERNATING_COLOR: [u8; 3] = [130, 60, 255];
 const STICK_COLOR: [u8; 3] = [255, 150, 0];
+const BRUISE_COLOR: [u8; 3] = [150, 60, 200];
 const DIVERGENCE_COLOR: [u8; 3] = [255, 30, 30];
 /// Rings sit over the nodes (they are outlines and hide nothing).
 const DRAW_HALO: f32 = 45.0;
@@ -492,6 +493,23 @@ fn marks(run: &Run, f: &Findings, b: bool) -> Vec<Mark> {
             show_label: false,
         });
     }
+    for s in &f.bruise {
+        out.push(Mark {
+            t: s.max_pressure_t,
+            rod: s.rod,
+            at: node_at(run, s.rod, s.node, s.step),
+            entity: entity("bruise", &s.rod_name, s.node),
+            label: String::new(),
+            text: format!(
+                "{tag}bruise at rod {:?} node {}: peak pressure {:.3e} Pa, {:.2}x the threshold, steps {}-{}",
+                s.rod_name, s.node, s.max_pressure_pa, s.ratio, s.step, s.last_step
+            ),
+            color: BRUISE_COLOR,
+            scale: if b { 3.0 } else { 3.3 },
+            width,
+            show_label: false,
+        });
+    }
     out.sort_by(|p, q| p.t.total_cmp(&q.t));
     out
 }
@@ -537,6 +555,7 @@ pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), Repla
         sticking: rep.sticking.clone(),
         grasp: rep.grasp.clone(),
         grasp_expected: rep.grasp_expected.clone(),
+        bruise: rep.bruise.clone(),
     };
     let marks = marks(run, &found, false);
     let mut next = 0;

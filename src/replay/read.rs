@@ -106,6 +106,16 @@ pub struct BodyState {
 pub struct ContactState {
     pub rod: Option<usize>,
     pub obstacle: usize,
+    /// The node, and a compliant fruit's Hertz peak pressure, bruise threshold and the
+    /// half-width above it (0 in recordings without them, and at rigid obstacles).
+    #[serde(default)]
+    pub node: usize,
+    #[serde(default)]
+    pub peak_pressure: f64,
+    #[serde(default)]
+    pub bruise_pressure: f64,
+    #[serde(default)]
+    pub bruise_half_width: f64,
 }
 
 impl Step {
@@ -118,6 +128,27 @@ impl Step {
                 .iter()
                 .any(|c| c.rod.is_some() && c.obstacle == b.obstacle);
             d.grasp(self.step, self.t, &q, Some(b.position), touching);
+        }
+    }
+
+    /// Feed the bruise rule of `d` with this step's compliant contacts (after `d.step`).
+    pub fn pressure(&self, d: &mut super::detect::Detector) {
+        let samples: Vec<super::bruise::PressureSample> = self
+            .contacts
+            .iter()
+            .filter_map(|c| {
+                let rod = c.rod?;
+                (c.peak_pressure > 0.0).then_some(super::bruise::PressureSample {
+                    rod,
+                    node: c.node,
+                    peak_pressure: c.peak_pressure,
+                    bruise_pressure: c.bruise_pressure,
+                    bruise_half_width: c.bruise_half_width,
+                })
+            })
+            .collect();
+        if !samples.is_empty() {
+            d.pressure(self.step, self.t, &samples);
         }
     }
 }
@@ -312,6 +343,10 @@ impl TryFrom<proto::Step> for Step {
             .map(|c| ContactState {
                 rod: pb_index(c.rod),
                 obstacle: c.obstacle as usize,
+                node: c.node as usize,
+                peak_pressure: 0.0,
+                bruise_pressure: 0.0,
+                bruise_half_width: 0.0,
             })
             .collect();
         Ok(Step {

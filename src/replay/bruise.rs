@@ -1,0 +1,165 @@
+//! The bruise rule of `replay check` (and `run --check`, `sweep`): a contact on a compliant
+//! fruit whose Hertz peak pressure p₀ exceeds the fruit's bruise threshold (issue 11; the
+//! contact law and the thresholds' sources are in docs/model.md). One episode per node and
+//! contiguous stretch of steps above the threshold, with the largest pressure, when, and the
+//! widest part of the contact above the threshold. A rigid fruit has no pressure and is never
+//! flagged.
+
+use serde::Serialize;
+
+/// One contact of one step, as the rule reads it (a live contact view or a recorded one).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressureSample {
+    pub rod: usize,
+    pub node: usize,
+    /// Hertz peak pressure p₀ (Pa); 0 at a rigid obstacle.
+    pub peak_pressure: f64,
+    /// The fruit's bruise threshold (Pa); 0 when it has none.
+    pub bruise_pressure: f64,
+    /// Half-width of the part of the contact above the threshold (m).
+    pub bruise_half_width: f64,
+}
+
+impl PressureSample {
+    fn over(&self) -> bool {
+        self.bruise_pressure > 0.0 && self.peak_pressure > self.bruise_pressure
+    }
+}
+
+/// One stretch of a node's contact above the bruise threshold.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BruiseFlag {
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    /// First and last step above the threshold, and their times (s).
+    pub step: u64,
+    pub t: f64,
+    pub last_step: u64,
+    pub last_t: f64,
+    /// The largest p₀ of the stretch (Pa) and when (s).
+    pub max_pressure_pa: f64,
+    pub max_pressure_t: f64,
+    pub bruise_pressure_pa: f64,
+    /// max p₀ / threshold.
+    pub ratio: f64,
+    /// Widest part of the contact above the threshold (m, the full width).
+    pub max_bruise_width_m: f64,
+}
+
+/// The rule's state: the open stretches, and the closed ones.
+#[derive(Debug, Clone, Default)]
+pub struct BruiseRule {
+    open: Vec<BruiseFlag>,
+    pub flags: Vec<BruiseFlag>,
+}
+
+impl BruiseRule {
+    /// The compliant contacts of one accepted step.
+    pub fn step(&mut self, step: u64, t: f64, samples: &[PressureSample], names: &[String]) {
+        for s in samples.iter().filter(|s| s.over()) {
+            let at = self
+                .open
+                .iter()
+                .position(|f| (f.rod, f.node) == (s.rod, s.node));
+            let f = match at {
+                Some(k) => &mut self.open[k],
+                None => {
+                    self.open.push(BruiseFlag {
+                        rod: s.rod,
+                        rod_name: names.get(s.rod).cloned().unwrap_or_default(),
+                        node: s.node,
+                        step,
+                        t,
+                        last_step: step,
+                        last_t: t,
+                        max_pressure_pa: 0.0,
+                        max_pressure_t: t,
+                        bruise_pressure_pa: s.bruise_pressure,
+                        ratio: 0.0,
+                        max_bruise_width_m: 0.0,
+                    });
+                    self.open.last_mut().expect("just pushed")
+                }
+            };
+            f.last_step = step;
+            f.last_t = t;
+            f.max_bruise_width_m = f.max_bruise_width_m.max(2.0 * s.bruise_half_width);
+            if s.peak_pressure > f.max_pressure_pa {
+                f.max_pressure_pa = s.peak_pressure;
+                f.max_pressure_t = t;
+                f.bruise_pressure_pa = s.bruise_pressure;
+                f.ratio = s.peak_pressure / s.bruise_pressure;
+            }
+        }
+        // Stretches that did not go on in this step are over.
+        let mut k = 0;
+        while k < self.open.len() {
+            if self.open[k].last_step != step {
+                self.flags.push(self.open.remove(k));
+            } else {
+                k += 1;
+            }
+        }
+    }
+
+    /// Everything found, open stretches closed at the last step, in time order.
+    pub fn finish(mut self) -> Vec<BruiseFlag> {
+        self.flags.append(&mut self.open);
+        self.flags.sort_by(|a, b| {
+            a.t.total_cmp(&b.t)
+                .then((a.rod, a.node).cmp(&(b.rod, b.node)))
+        });
+        self.flags
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn s(node: usize, p: f64) -> PressureSample {
+        PressureSample {
+            rod: 0,
+            node,
+            peak_pressure: p,
+            bruise_pressure: 1e5,
+            bruise_half_width: if p > 1e5 { 1e-4 } else { 0.0 },
+        }
+    }
+
+    #[test]
+    fn a_stretch_above_the_threshold_is_one_flag_with_its_peak() {
+        let names = vec!["prong".to_string()];
+        let mut r = BruiseRule::default();
+        r.step(1, 0.1, &[s(3, 0.9e5)], &names);
+        r.step(2, 0.2, &[s(3, 1.2e5), s(4, 1.1e5)], &names);
+        r.step(3, 0.3, &[s(3, 1.5e5)], &names);
+        r.step(4, 0.4, &[s(3, 0.8e5)], &names);
+        r.step(5, 0.5, &[s(3, 1.3e5)], &names);
+        let f = r.finish();
+        let got: Vec<_> = f
+            .iter()
+            .map(|f| (f.node, f.step, f.last_step, f.max_pressure_pa))
+            .collect();
+        assert_eq!(
+            got,
+            vec![(3, 2, 3, 1.5e5), (4, 2, 2, 1.1e5), (3, 5, 5, 1.3e5)]
+        );
+        assert_eq!(f[0].max_pressure_t, 0.3);
+        assert!((f[0].ratio - 1.5).abs() < 1e-15);
+        assert_eq!(f[0].max_bruise_width_m, 2e-4);
+        assert_eq!(f[0].rod_name, "prong");
+    }
+
+    #[test]
+    fn a_rigid_fruit_or_one_without_a_threshold_is_never_flagged() {
+        let mut r = BruiseRule::default();
+        let rigid = PressureSample {
+            bruise_pressure: 0.0,
+            ..s(1, 1e9)
+        };
+        r.step(1, 0.1, &[rigid, s(2, 0.0)], &[]);
+        assert!(r.finish().is_empty());
+    }
+}
