@@ -634,7 +634,7 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
     say!("wall time       {:.3} s", s.wall_time_s);
     match &s.peak_reaction_node {
         Some(n) => say!(
-            "peak reaction   {:.4} N at rod {:?} node {} (t = {:.6} s)",
+            "peak reaction   {:.4} N at rod {:?} node {} (t = {:.6} s; eq. 2, the seed's figure)",
             s.peak_reaction_force_n,
             n.rod,
             n.node,
@@ -647,6 +647,9 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
     }
     if let Some(g) = &s.grasp {
         print_grasp(g);
+    }
+    if let Some(p) = &s.contact_pressure {
+        print_pressure(p);
     }
     say!(
         "penetration     {:.3e} m max after the corrector",
@@ -679,6 +682,34 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
         }
         say!();
     }
+}
+
+/// A compliant fruit's contact: force of the contact law, Hertz pressure, bruise verdict.
+fn print_pressure(p: &gripsim::record::summary::PressureSummary) {
+    say!(
+        "fruit contact   peak force {:.4} N (the contact law's), peak pressure {:.4e} Pa at rod {:?} node {} (t = {:.6} s, half-width {:.3e} m), deepest indentation {:.3e} m",
+        p.peak_contact_force_n,
+        p.max_pressure_pa,
+        p.max_pressure_node.rod,
+        p.max_pressure_node.node,
+        p.max_pressure_time_s,
+        p.half_width_at_max_m,
+        p.max_indentation_m
+    );
+    say!(
+        "bruise          {}: peak pressure {:.3} x the bruise pressure {:.4e} Pa{}",
+        if p.bruised { "BRUISED" } else { "not bruised" },
+        p.bruise_ratio,
+        p.bruise_pressure_pa,
+        if p.bruised {
+            format!(
+                ", up to {:.3e} m of the contact above it",
+                p.max_bruise_width_m
+            )
+        } else {
+            String::new()
+        }
+    );
 }
 
 fn list_scenarios(dir: &Path) -> ExitCode {

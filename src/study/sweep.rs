@@ -161,6 +161,24 @@ pub struct Metrics {
     pub max_slip_m: Option<f64>,
     #[serde(default)]
     pub first_slip_s: Option<f64>,
+    /// A compliant fruit's contact (empty columns at a rigid one): the largest contact force
+    /// of the law (N), peak Hertz pressure (Pa), deepest indentation (m), whether the pressure
+    /// exceeded the bruise threshold, by how much (max p₀ / threshold), the widest part of a
+    /// contact above it (m), and the stretches `replay check` flags as `bruise`.
+    #[serde(default)]
+    pub peak_contact_force_n: Option<f64>,
+    #[serde(default)]
+    pub max_pressure_pa: Option<f64>,
+    #[serde(default)]
+    pub max_indentation_m: Option<f64>,
+    #[serde(default)]
+    pub bruised: Option<bool>,
+    #[serde(default)]
+    pub bruise_ratio: Option<f64>,
+    #[serde(default)]
+    pub max_bruise_width_m: Option<f64>,
+    #[serde(default)]
+    pub bruise: usize,
     pub wall_time_s: f64,
 }
 
@@ -225,6 +243,13 @@ impl Metrics {
             min_safety_margin: s.grasp.as_ref().and_then(|g| g.min_safety_margin),
             max_slip_m: s.grasp.as_ref().map(|g| g.max_slip_m),
             first_slip_s: s.grasp.as_ref().and_then(|g| g.first_slip_time_s),
+            peak_contact_force_n: s.contact_pressure.as_ref().map(|p| p.peak_contact_force_n),
+            max_pressure_pa: s.contact_pressure.as_ref().map(|p| p.max_pressure_pa),
+            max_indentation_m: s.contact_pressure.as_ref().map(|p| p.max_indentation_m),
+            bruised: s.contact_pressure.as_ref().map(|p| p.bruised),
+            bruise_ratio: s.contact_pressure.as_ref().map(|p| p.bruise_ratio),
+            max_bruise_width_m: s.contact_pressure.as_ref().map(|p| p.max_bruise_width_m),
+            bruise: 0,
             wall_time_s: s.wall_time_s,
         }
     }
@@ -615,6 +640,7 @@ fn run_case(
         metrics: Metrics {
             spikes: found.spikes,
             sticking: found.sticking,
+            bruise: found.bruise,
             ..Metrics::from_summary(&summary, trace.releases, trace.warnings.len())
         },
         warnings: trace.warnings.clone(),
@@ -758,7 +784,7 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
                             }
                         }
                         let line = format!(
-                            "[{}/{}] {} {} in {:.2} s: peak {:.4} N{}, impulse-consistent {:.4} N{}{}{}",
+                            "[{}/{}] {} {} in {:.2} s: peak eq. 2 (seed) {:.4} N{}, impulse-consistent {:.4} N{}{}{}",
                             report.ran,
                             todo.len(),
                             rec.id,
@@ -935,6 +961,13 @@ fn csv_header(manifest: &Manifest) -> Vec<String> {
             "min_safety_margin",
             "max_slip_m",
             "first_slip_s",
+            "peak_contact_force_n",
+            "max_pressure_pa",
+            "max_indentation_m",
+            "bruised",
+            "bruise_ratio",
+            "max_bruise_width_m",
+            "bruise",
             "error",
             "wall_time_s",
         ]
@@ -1006,6 +1039,13 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
         m.min_safety_margin.map(num).unwrap_or_default(),
         m.max_slip_m.map(num).unwrap_or_default(),
         m.first_slip_s.map(num).unwrap_or_default(),
+        m.peak_contact_force_n.map(num).unwrap_or_default(),
+        m.max_pressure_pa.map(num).unwrap_or_default(),
+        m.max_indentation_m.map(num).unwrap_or_default(),
+        opt(&m.bruised),
+        m.bruise_ratio.map(num).unwrap_or_default(),
+        m.max_bruise_width_m.map(num).unwrap_or_default(),
+        m.bruise.to_string(),
         opt(&m.error),
         num(m.wall_time_s),
     ]);
