@@ -246,6 +246,21 @@ impl Law {
         }
     }
 
+    /// The largest |s̈| of the law (m/s² or rad/s²), the acceleration scale it imposes.
+    /// `constant_velocity` and `table` change ṡ in steps (at their start, at a table's
+    /// points): no finite acceleration, 0 here.
+    pub fn peak_acceleration(&self) -> f64 {
+        match self {
+            Law::ConstantVelocity { .. } | Law::Table(_) => 0.0,
+            Law::ConstantAcceleration { acceleration } => acceleration.abs(),
+            Law::Trapezoid(tr) => tr.acceleration,
+            // s̈ = D/T² (60u − 180u² + 120u³), largest at u = 1/2 ∓ √3/6: 10√3/3 · D/T².
+            Law::SCurve { distance, duration } => {
+                10.0 * 3f64.sqrt() / 3.0 * distance.abs() / (duration * duration)
+            }
+        }
+    }
+
     /// The law's name as the scenario writes it.
     pub fn name(&self) -> &'static str {
         match self {

@@ -191,6 +191,20 @@ impl Phase {
 
     /// The measured grip: drive force along the direction (translate) or drive torque in the
     /// rotation's sense (rotate); None for a hold.
+    /// The largest acceleration the phase gives a point at distance `lever` (m) from its
+    /// pivot (m/s²; rotations: angular acceleration × lever).
+    pub fn peak_acceleration(&self, lever: impl Fn([f64; 2]) -> f64) -> f64 {
+        match &self.movement {
+            Movement::Hold => 0.0,
+            Movement::Translate { law, .. } => law.peak_acceleration(),
+            Movement::TranslateVector { law } => match law {
+                VectorLaw::Velocity(_) => 0.0,
+                VectorLaw::Acceleration(a) => a[0].hypot(a[1]),
+            },
+            Movement::Rotate { pivot, law, .. } => law.peak_acceleration() * lever(*pivot),
+        }
+    }
+
     pub fn grip(&self, m: &Measure) -> Option<f64> {
         match &self.movement {
             Movement::Hold => None,

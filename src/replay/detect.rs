@@ -111,8 +111,9 @@ pub struct Scales {
     /// gap to the nearest obstacle (a drop height) and v0 × t_end (how far it slides); 1 m
     /// when all of them are 0.
     pub length: f64,
-    /// Acceleration scale a (m/s²): the largest of |g|, the drives' accelerations, the loads
-    /// per node mass and the particles' v0²/L; L/t_end² when all of them are 0.
+    /// Acceleration scale a (m/s²): the largest of |g|, the drives' and actuator programs'
+    /// accelerations, the loads per node mass and the particles' v0²/L; L/t_end² when all of
+    /// them are 0.
     pub acceleration: f64,
     /// Velocity scale √(a L) (m/s).
     pub velocity: f64,
@@ -176,6 +177,7 @@ impl Scales {
             let v0 = rod.velocity[0].hypot(rod.velocity[1]);
             accel = accel.max(v0 * v0 / length);
         }
+        accel = accel.max(actuator_acceleration(sc, &rods));
         if !(accel > 0.0) {
             // Nothing accelerates anything: the run's own span sets the scale.
             accel = length / (t_end * t_end);
@@ -192,6 +194,29 @@ impl Scales {
             },
         }
     }
+}
+
+/// The largest acceleration an `[[actuator]]` program gives a rod it moves: its laws' peak
+/// accelerations (a rotation's angular acceleration times the farthest node's distance from
+/// its pivot, which the gripper's rigid motion keeps).
+fn actuator_acceleration(sc: &Scenario, rods: &[Rod]) -> f64 {
+    let mut accel = 0.0f64;
+    for (spec, rod) in sc.rods.iter().zip(rods) {
+        let Some(program) = spec.actuator.and_then(|k| sc.actuators.get(k)) else {
+            continue;
+        };
+        let mirror_x = program.program.mirror_x.filter(|_| spec.mirror);
+        let lever = |pivot: [f64; 2]| {
+            let px = mirror_x.map_or(pivot[0], |m| 2.0 * m - pivot[0]);
+            (0..rod.n)
+                .map(|i| (rod.q0[2 * i] - px).hypot(rod.q0[2 * i + 1] - pivot[1]))
+                .fold(0.0, f64::max)
+        };
+        for phase in &program.program.phases {
+            accel = accel.max(phase.peak_acceleration(lever));
+        }
+    }
+    accel
 }
 
 /// The size of an obstacle's features (m); 0 for a plane.

@@ -977,3 +977,16 @@ fn a_bruised_fruit_is_flagged_and_a_soft_grasp_is_not() {
     let p1: f64 = cells(1)[2].parse().unwrap();
     assert_eq!(p1, p["max_pressure_pa"].as_f64().unwrap());
 }
+
+/// The acceleration scale counts an actuator program's accelerations (issue 12: "gravity or
+/// drive acceleration"); before, only the seed's `drive` was counted, and jaws moved by an
+/// `[[actuator]]` in a weightless scene fell back to L/t_end². jaw-grasp-hold without gravity:
+/// the close accelerates at 0.5 m/s², the S-curve lift peaks at 10√3/3 · D/T² (D 4 cm, T 0.6 s).
+#[test]
+fn the_acceleration_scale_counts_actuator_programs() {
+    let sets = ["solve.gravity=[0.0, 0.0]", "solve.t_end=0.01"];
+    let (_, rep, _) = run_check("jaw-grasp-hold", &sets, &[]);
+    let a = rep["scales"]["acceleration"].as_f64().unwrap();
+    let lift = 10.0 * 3f64.sqrt() / 3.0 * 0.04 / (0.6 * 0.6);
+    assert!((a - lift).abs() < 1e-12 * lift, "{a} vs {lift}");
+}
