@@ -174,8 +174,14 @@ mod tests {
             decide(&stuck, [-0.6, 1.0], 0.0),
             Some(Switch::ToSlide { sign: -1.0 })
         );
-        // Pulling away never slides (that is a release, decided elsewhere).
-        assert_eq!(decide(&stuck, [-0.6, -1.0], 0.0), None);
+        // Pulling (R_n ≤ 0): no tangential hold is inside the cone, so a stuck contact slides
+        // first (the release is decided after, if it still pulls); with no tangential part
+        // there is nothing to slide.
+        assert_eq!(
+            decide(&stuck, [-0.6, -1.0], 0.0),
+            Some(Switch::ToSlide { sign: -1.0 })
+        );
+        assert_eq!(decide(&stuck, [0.0, -1.0], 0.0), None);
         assert!((utilisation(&stuck, [-0.4, 1.0]) - 0.8).abs() < 1e-15);
     }
 
