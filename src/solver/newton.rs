@@ -361,7 +361,11 @@ pub fn solve(
     let stol = opt.step_tol * w.length_scale;
     let mut iterations = 0u32;
     loop {
-        let want_hessian = iterations < opt.max_iterations;
+        // The Hessian comes with the first residual (nearly every step needs an update); after
+        // an update most steps have converged, so the residual is assembled without it first
+        // and again with it only when another update is needed (same numbers, half the
+        // Hessians of a one-update step).
+        let want_hessian = iterations == 0 && opt.max_iterations > 0;
         let (res, worst) = residual(rod, w, opt, want_hessian, iterations)?;
         if res <= ftol {
             return all_finite(w, res, iterations);
@@ -373,6 +377,9 @@ pub fn solve(
                 reason: "Newton did not converge",
                 iterations,
             });
+        }
+        if !want_hessian {
+            residual(rod, w, opt, true, iterations)?;
         }
         jacobian(rod, w, opt);
         factor(w, res, iterations)?;
