@@ -292,11 +292,11 @@ pub struct Case {
 
 fn cases(quick: bool) -> Vec<Case> {
     let (dts, rtols, ref_dt) = if quick {
-        (vec![1e-4, 1e-5], vec![1e-4, 1e-6], 1e-6)
+        (vec![1e-4, 3e-5, 1e-5], vec![1e-4, 1e-5, 1e-6], 1e-6)
     } else {
         (
             vec![1e-4, 3e-5, 1e-5, 3e-6, 1e-6],
-            vec![1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
+            vec![1e-3, 1e-4, 1e-5, 3e-6, 1e-6, 1e-7],
             1e-7,
         )
     };
@@ -385,6 +385,85 @@ fn opt(v: Option<f64>) -> String {
     v.map(|x| format!("{x:e}")).unwrap_or_default()
 }
 
+/// The accuracy the issue 13 target compares at: 1 % largest per-node impulse error.
+pub const IMPULSE_LIMIT: f64 = 0.01;
+
+/// For one case: the cheapest rung of fixed backward Euler and of BDF2 + adaptive + time of
+/// impact that are within the impulse error limit, from the same run of the bench.
+#[derive(Debug, Clone)]
+pub struct Target {
+    pub case: String,
+    pub limit: f64,
+    pub fixed: Option<Row>,
+    pub bdf2: Option<Row>,
+}
+
+impl Target {
+    /// Fewer steps and less wall time of the BDF2 rung against the fixed rung.
+    pub fn ratios(&self) -> Option<(f64, f64)> {
+        let (f, b) = (self.fixed.as_ref()?, self.bdf2.as_ref()?);
+        Some((
+            f.steps as f64 / b.steps.max(1) as f64,
+            f.wall_s / b.wall_s.max(1e-12),
+        ))
+    }
+
+    pub fn describe(&self) -> String {
+        let rung = |r: &Option<Row>| match r {
+            Some(r) => format!(
+                "{} {}={:e}: {} steps, {:.3} ms, impulse error {:.3} %",
+                r.strategy,
+                r.param_name,
+                r.param,
+                r.steps,
+                r.wall_s * 1e3,
+                r.err.impulse_rel.unwrap_or(f64::NAN) * 100.0
+            ),
+            None => "no rung of the ladder is within the limit".into(),
+        };
+        let verdict = match self.ratios() {
+            Some((s, w)) => format!("{s:.1}x fewer steps, {w:.1}x less wall time"),
+            None => "no comparison".into(),
+        };
+        format!(
+            "target {} (impulse error <= {} %): fixed backward Euler {}; bdf2+adaptive+toi {} => {verdict}",
+            self.case,
+            self.limit * 100.0,
+            rung(&self.fixed),
+            rung(&self.bdf2)
+        )
+    }
+}
+
+/// Per case with an impulse error: the fewest-step rung within `limit` of fixed backward Euler
+/// and of BDF2 + adaptive + time of impact.
+pub fn targets(rows: &[Row], limit: f64) -> Vec<Target> {
+    let mut cases: Vec<&str> = rows.iter().map(|r| r.case.as_str()).collect();
+    cases.dedup();
+    let best = |case: &str, strategy: Strategy| {
+        rows.iter()
+            .filter(|r| r.case == case && r.strategy == strategy.name())
+            .filter(|r| r.err.impulse_rel.is_some_and(|e| e <= limit))
+            .min_by_key(|r| r.steps)
+            .cloned()
+    };
+    cases
+        .into_iter()
+        .filter(|c| {
+            // Cases whose impulse error is round-off (the point mass) compare nothing.
+            rows.iter()
+                .filter(|r| r.case == *c)
+                .any(|r| r.err.impulse_rel.is_some_and(|e| e > 1e-10))
+        })
+        .map(|c| Target {
+            case: c.to_string(),
+            limit,
+            fixed: best(c, Strategy::Fixed),
+            bdf2: best(c, Strategy::Bdf2AdaptiveToi),
+        })
+        .collect()
+}
+
 /// Work-precision: every case under every strategy and rung. Writes `work-precision.csv` and
 /// `work-precision.{png,svg}` to `opt.out`. Returns the rows.
 pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<Vec<Row>, String> {
@@ -462,6 +541,17 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
     }
     crate::record::write_atomic(&opt_.out.join("work-precision.csv"), csv.as_bytes())
         .map_err(|e| e.to_string())?;
+    let mut text = String::new();
+    for t in targets(&rows, IMPULSE_LIMIT) {
+        let line = t.describe();
+        log(&line);
+        let _ = writeln!(text, "{line}");
+    }
+    crate::record::write_atomic(
+        &opt_.out.join("work-precision-targets.txt"),
+        text.as_bytes(),
+    )
+    .map_err(|e| e.to_string())?;
     let mut panels = Vec::new();
     let case_names: Vec<String> = {
         let mut v: Vec<String> = rows.iter().map(|r| r.case.clone()).collect();
