@@ -182,22 +182,51 @@ pub fn measure(text: &str, sets: &[String], samples: usize) -> Result<Measured, 
     })
 }
 
+/// CPU time of the calling thread (s; NaN where the clock is unavailable). Unlike wall time
+/// it leaves out the time other processes hold the cores, so it can be compared between runs
+/// on a shared machine.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec into the one it is given.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
 /// Median wall time (s) of `repeats` runs with no observer at all.
 pub fn time_run(text: &str, sets: &[String], repeats: usize) -> Result<(f64, u64, u64), String> {
+    time_run_cpu(text, sets, repeats).map(|(w, _, s, i)| (w, s, i))
+}
+
+/// Median wall time and median thread CPU time (s) of `repeats` runs with no observer, steps
+/// and Newton iterations.
+pub fn time_run_cpu(
+    text: &str,
+    sets: &[String],
+    repeats: usize,
+) -> Result<(f64, f64, u64, u64), String> {
     let sc = load(text, sets)?;
     let mut times = Vec::new();
+    let mut cpu = Vec::new();
     let mut steps = 0;
     let mut iters = 0;
     for _ in 0..repeats.max(1) {
         let mut sim = Simulation::new(&sc);
-        let t0 = Instant::now();
+        let (t0, c0) = (Instant::now(), thread_cpu_s());
         let stats = sim.run(&mut NullObserver).map_err(|e| e.to_string())?;
         times.push(t0.elapsed().as_secs_f64());
+        cpu.push(thread_cpu_s() - c0);
         steps = stats.steps;
         iters = stats.newton_iterations;
     }
     times.sort_by(|a, b| a.total_cmp(b));
-    Ok((times[times.len() / 2], steps, iters))
+    cpu.sort_by(|a, b| a.total_cmp(b));
+    Ok((times[times.len() / 2], cpu[cpu.len() / 2], steps, iters))
 }
 
 /// Errors of a run against a reference.
@@ -376,6 +405,8 @@ pub struct Row {
     pub steps: u64,
     pub newton_iterations: u64,
     pub wall_s: f64,
+    /// Median CPU time of the timed runs (s).
+    pub cpu_s: f64,
     pub err: Errors,
     pub peak_eq2_n: f64,
     pub peak_ic_n: f64,
@@ -399,34 +430,38 @@ pub struct Target {
 }
 
 impl Target {
-    /// Fewer steps and less wall time of the BDF2 rung against the fixed rung.
-    pub fn ratios(&self) -> Option<(f64, f64)> {
+    /// Fewer steps, less wall time and less CPU time of the BDF2 rung against the fixed rung.
+    pub fn ratios(&self) -> Option<(f64, f64, f64)> {
         let (f, b) = (self.fixed.as_ref()?, self.bdf2.as_ref()?);
         Some((
             f.steps as f64 / b.steps.max(1) as f64,
             f.wall_s / b.wall_s.max(1e-12),
+            f.cpu_s / b.cpu_s.max(1e-12),
         ))
     }
 
     pub fn describe(&self) -> String {
         let rung = |r: &Option<Row>| match r {
             Some(r) => format!(
-                "{} {}={:e}: {} steps, {:.3} ms, impulse error {:.3} %",
+                "{} {}={:e}: {} steps, {:.3} ms wall, {:.3} ms CPU, impulse error {:.3} %",
                 r.strategy,
                 r.param_name,
                 r.param,
                 r.steps,
                 r.wall_s * 1e3,
+                r.cpu_s * 1e3,
                 r.err.impulse_rel.unwrap_or(f64::NAN) * 100.0
             ),
             None => "no rung of the ladder is within the limit".into(),
         };
         let verdict = match self.ratios() {
-            Some((s, w)) => format!("{s:.1}x fewer steps, {w:.1}x less wall time"),
+            Some((s, w, c)) => {
+                format!("{s:.1}x fewer steps, {w:.1}x less wall time, {c:.1}x less CPU time")
+            }
             None => "no comparison".into(),
         };
         format!(
-            "target {} (impulse error <= {} %): fixed backward Euler {}; bdf2+adaptive+toi {} => {verdict}",
+            "target {} (impulse error <= {} %): {}; {} => {verdict}",
             self.case,
             self.limit * 100.0,
             rung(&self.fixed),
@@ -488,7 +523,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
                 let mut sets = case.sets.clone();
                 sets.extend(strategy.sets(p));
                 let m = measure(case.text, &sets, samples)?;
-                let (wall, steps, iters) = time_run(case.text, &sets, opt_.repeats)?;
+                let (wall, cpu, steps, iters) = time_run_cpu(case.text, &sets, opt_.repeats)?;
                 let err = errors(&m, &reference);
                 log(&format!(
                     "{:<20} {:<13} {}={p:<8e} steps {:>8} wall {:>9.3} ms  pos rms {:.2e} m  impulse {}",
@@ -508,6 +543,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
                     steps,
                     newton_iterations: iters,
                     wall_s: wall,
+                    cpu_s: cpu,
                     peak_eq2_n: m.summary.peak_reaction_force_n,
                     peak_ic_n: m.summary.peak_impulse_consistent_force_n,
                     err,
@@ -517,12 +553,12 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
     }
     std::fs::create_dir_all(&opt_.out).map_err(|e| format!("{}: {e}", opt_.out.display()))?;
     let mut csv = String::from(
-        "case,strategy,parameter,value,steps,newton_iterations,wall_s,pos_rms_m,impulse_rel_err,onset_err_s,peak_eq2_n,peak_eq2_rel_err,peak_ic_n,peak_ic_rel_err\n",
+        "case,strategy,parameter,value,steps,newton_iterations,wall_s,pos_rms_m,impulse_rel_err,onset_err_s,peak_eq2_n,peak_eq2_rel_err,peak_ic_n,peak_ic_rel_err,cpu_s\n",
     );
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{},{},{},{:e},{},{},{:e},{:e},{},{},{:e},{},{:e},{}",
+            "{},{},{},{:e},{},{},{:e},{:e},{},{},{:e},{},{:e},{},{:e}",
             r.case,
             r.strategy,
             r.param_name,
@@ -536,7 +572,8 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             r.peak_eq2_n,
             opt(r.err.peak_eq2_rel),
             r.peak_ic_n,
-            opt(r.err.peak_ic_rel)
+            opt(r.err.peak_ic_rel),
+            r.cpu_s
         );
     }
     crate::record::write_atomic(&opt_.out.join("work-precision.csv"), csv.as_bytes())
