@@ -182,22 +182,51 @@ pub fn measure(text: &str, sets: &[String], samples: usize) -> Result<Measured, 
     })
 }
 
+/// CPU time of the calling thread (s; NaN where the clock is unavailable). Unlike wall time
+/// it leaves out the time other processes hold the cores, so it can be compared between runs
+/// on a shared machine.
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec into the one it is given.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
 /// Median wall time (s) of `repeats` runs with no observer at all.
 pub fn time_run(text: &str, sets: &[String], repeats: usize) -> Result<(f64, u64, u64), String> {
+    time_run_cpu(text, sets, repeats).map(|(w, _, s, i)| (w, s, i))
+}
+
+/// Median wall time and median thread CPU time (s) of `repeats` runs with no observer, steps
+/// and Newton iterations.
+pub fn time_run_cpu(
+    text: &str,
+    sets: &[String],
+    repeats: usize,
+) -> Result<(f64, f64, u64, u64), String> {
     let sc = load(text, sets)?;
     let mut times = Vec::new();
+    let mut cpu = Vec::new();
     let mut steps = 0;
     let mut iters = 0;
     for _ in 0..repeats.max(1) {
         let mut sim = Simulation::new(&sc);
-        let t0 = Instant::now();
+        let (t0, c0) = (Instant::now(), thread_cpu_s());
         let stats = sim.run(&mut NullObserver).map_err(|e| e.to_string())?;
         times.push(t0.elapsed().as_secs_f64());
+        cpu.push(thread_cpu_s() - c0);
         steps = stats.steps;
         iters = stats.newton_iterations;
     }
     times.sort_by(|a, b| a.total_cmp(b));
-    Ok((times[times.len() / 2], steps, iters))
+    cpu.sort_by(|a, b| a.total_cmp(b));
+    Ok((times[times.len() / 2], cpu[cpu.len() / 2], steps, iters))
 }
 
 /// Errors of a run against a reference.
@@ -292,11 +321,11 @@ pub struct Case {
 
 fn cases(quick: bool) -> Vec<Case> {
     let (dts, rtols, ref_dt) = if quick {
-        (vec![1e-4, 1e-5], vec![1e-4, 1e-6], 1e-6)
+        (vec![1e-4, 3e-5, 1e-5], vec![1e-4, 1e-5, 1e-6], 1e-6)
     } else {
         (
             vec![1e-4, 3e-5, 1e-5, 3e-6, 1e-6],
-            vec![1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
+            vec![1e-3, 1e-4, 1e-5, 3e-6, 1e-6, 1e-7],
             1e-7,
         )
     };
@@ -376,6 +405,8 @@ pub struct Row {
     pub steps: u64,
     pub newton_iterations: u64,
     pub wall_s: f64,
+    /// Median CPU time of the timed runs (s).
+    pub cpu_s: f64,
     pub err: Errors,
     pub peak_eq2_n: f64,
     pub peak_ic_n: f64,
@@ -383,6 +414,89 @@ pub struct Row {
 
 fn opt(v: Option<f64>) -> String {
     v.map(|x| format!("{x:e}")).unwrap_or_default()
+}
+
+/// The accuracy the issue 13 target compares at: 1 % largest per-node impulse error.
+pub const IMPULSE_LIMIT: f64 = 0.01;
+
+/// For one case: the cheapest rung of fixed backward Euler and of BDF2 + adaptive + time of
+/// impact that are within the impulse error limit, from the same run of the bench.
+#[derive(Debug, Clone)]
+pub struct Target {
+    pub case: String,
+    pub limit: f64,
+    pub fixed: Option<Row>,
+    pub bdf2: Option<Row>,
+}
+
+impl Target {
+    /// Fewer steps, less wall time and less CPU time of the BDF2 rung against the fixed rung.
+    pub fn ratios(&self) -> Option<(f64, f64, f64)> {
+        let (f, b) = (self.fixed.as_ref()?, self.bdf2.as_ref()?);
+        Some((
+            f.steps as f64 / b.steps.max(1) as f64,
+            f.wall_s / b.wall_s.max(1e-12),
+            f.cpu_s / b.cpu_s.max(1e-12),
+        ))
+    }
+
+    pub fn describe(&self) -> String {
+        let rung = |r: &Option<Row>| match r {
+            Some(r) => format!(
+                "{} {}={:e}: {} steps, {:.3} ms wall, {:.3} ms CPU, impulse error {:.3} %",
+                r.strategy,
+                r.param_name,
+                r.param,
+                r.steps,
+                r.wall_s * 1e3,
+                r.cpu_s * 1e3,
+                r.err.impulse_rel.unwrap_or(f64::NAN) * 100.0
+            ),
+            None => "no rung of the ladder is within the limit".into(),
+        };
+        let verdict = match self.ratios() {
+            Some((s, w, c)) => {
+                format!("{s:.1}x fewer steps, {w:.1}x less wall time, {c:.1}x less CPU time")
+            }
+            None => "no comparison".into(),
+        };
+        format!(
+            "target {} (impulse error <= {} %): {}; {} => {verdict}",
+            self.case,
+            self.limit * 100.0,
+            rung(&self.fixed),
+            rung(&self.bdf2)
+        )
+    }
+}
+
+/// Per case with an impulse error: the fewest-step rung within `limit` of fixed backward Euler
+/// and of BDF2 + adaptive + time of impact.
+pub fn targets(rows: &[Row], limit: f64) -> Vec<Target> {
+    let mut cases: Vec<&str> = rows.iter().map(|r| r.case.as_str()).collect();
+    cases.dedup();
+    let best = |case: &str, strategy: Strategy| {
+        rows.iter()
+            .filter(|r| r.case == case && r.strategy == strategy.name())
+            .filter(|r| r.err.impulse_rel.is_some_and(|e| e <= limit))
+            .min_by_key(|r| r.steps)
+            .cloned()
+    };
+    cases
+        .into_iter()
+        .filter(|c| {
+            // Cases whose impulse error is round-off (the point mass) compare nothing.
+            rows.iter()
+                .filter(|r| r.case == *c)
+                .any(|r| r.err.impulse_rel.is_some_and(|e| e > 1e-10))
+        })
+        .map(|c| Target {
+            case: c.to_string(),
+            limit,
+            fixed: best(c, Strategy::Fixed),
+            bdf2: best(c, Strategy::Bdf2AdaptiveToi),
+        })
+        .collect()
 }
 
 /// Work-precision: every case under every strategy and rung. Writes `work-precision.csv` and
@@ -409,7 +523,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
                 let mut sets = case.sets.clone();
                 sets.extend(strategy.sets(p));
                 let m = measure(case.text, &sets, samples)?;
-                let (wall, steps, iters) = time_run(case.text, &sets, opt_.repeats)?;
+                let (wall, cpu, steps, iters) = time_run_cpu(case.text, &sets, opt_.repeats)?;
                 let err = errors(&m, &reference);
                 log(&format!(
                     "{:<20} {:<13} {}={p:<8e} steps {:>8} wall {:>9.3} ms  pos rms {:.2e} m  impulse {}",
@@ -429,6 +543,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
                     steps,
                     newton_iterations: iters,
                     wall_s: wall,
+                    cpu_s: cpu,
                     peak_eq2_n: m.summary.peak_reaction_force_n,
                     peak_ic_n: m.summary.peak_impulse_consistent_force_n,
                     err,
@@ -438,12 +553,12 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
     }
     std::fs::create_dir_all(&opt_.out).map_err(|e| format!("{}: {e}", opt_.out.display()))?;
     let mut csv = String::from(
-        "case,strategy,parameter,value,steps,newton_iterations,wall_s,pos_rms_m,impulse_rel_err,onset_err_s,peak_eq2_n,peak_eq2_rel_err,peak_ic_n,peak_ic_rel_err\n",
+        "case,strategy,parameter,value,steps,newton_iterations,wall_s,pos_rms_m,impulse_rel_err,onset_err_s,peak_eq2_n,peak_eq2_rel_err,peak_ic_n,peak_ic_rel_err,cpu_s\n",
     );
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{},{},{},{:e},{},{},{:e},{:e},{},{},{:e},{},{:e},{}",
+            "{},{},{},{:e},{},{},{:e},{:e},{},{},{:e},{},{:e},{},{:e}",
             r.case,
             r.strategy,
             r.param_name,
@@ -457,11 +572,23 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             r.peak_eq2_n,
             opt(r.err.peak_eq2_rel),
             r.peak_ic_n,
-            opt(r.err.peak_ic_rel)
+            opt(r.err.peak_ic_rel),
+            r.cpu_s
         );
     }
     crate::record::write_atomic(&opt_.out.join("work-precision.csv"), csv.as_bytes())
         .map_err(|e| e.to_string())?;
+    let mut text = String::new();
+    for t in targets(&rows, IMPULSE_LIMIT) {
+        let line = t.describe();
+        log(&line);
+        let _ = writeln!(text, "{line}");
+    }
+    crate::record::write_atomic(
+        &opt_.out.join("work-precision-targets.txt"),
+        text.as_bytes(),
+    )
+    .map_err(|e| e.to_string())?;
     let mut panels = Vec::new();
     let case_names: Vec<String> = {
         let mut v: Vec<String> = rows.iter().map(|r| r.case.clone()).collect();

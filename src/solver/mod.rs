@@ -459,11 +459,18 @@ impl Simulation {
     ) -> Result<u32, SimError> {
         let mut attempt = 0u32;
         let mut allow_split = self.scenario.solve.time_of_impact;
+        let mut split_from = None;
         loop {
             let (new_dt, reason) = match self.try_step(*dt, 0.0, allow_split, obs) {
-                Ok(()) => return Ok(attempt),
+                Ok(()) => {
+                    if let Some(rest) = split_from {
+                        self.resume_after_split(rest);
+                    }
+                    return Ok(attempt);
+                }
                 Err(StepError::Split { theta, .. }) => {
                     allow_split = false;
+                    split_from = Some(*dt * (1.0 - theta));
                     (
                         *dt * theta,
                         "time of impact: a free node reaches an obstacle inside the step",
@@ -494,6 +501,16 @@ impl Simulation {
             });
             *dt = new_dt;
             *prev_nominal = new_dt;
+        }
+    }
+
+    /// Adaptive stepping after a step cut short at a time of impact: the error estimate of
+    /// that (often tiny) step says nothing about the steps after it, so the next one may be as
+    /// long as the rest of the step that was cut (the estimate of that step decides).
+    fn resume_after_split(&mut self, rest: f64) {
+        let s = &self.scenario.solve;
+        if s.stepping == Stepping::Adaptive {
+            self.next_dt = self.next_dt.max(rest).clamp(s.dt_min, s.dt_max);
         }
     }
 

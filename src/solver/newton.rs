@@ -97,22 +97,24 @@ pub struct Bdf2 {
     /// The last accepted step's Δq and the velocity before it.
     pub dq_prev: Vec<f64>,
     pub u_prev: Vec<f64>,
-    /// Per node: the last accepted step was free of contact (a smooth history).
+    /// Per node: the last accepted step kept its contact state (a smooth history).
     pub hist: Vec<bool>,
+    /// Per node: the last accepted step took the BDF2 row (its contact impulse is then
+    /// BDF2's, see `Simulation::fill_outputs`).
+    pub second: Vec<bool>,
     /// The last accepted step's dt (0 before the first).
     pub dt_prev: f64,
 }
 
 impl RodWork {
-    /// Whether node i takes the BDF2 row in the step being solved: a smooth history and no
-    /// contact at the start or now (a contact step is first order: the modified mass
-    /// method's inelastic impact and its impulse bookkeeping are backward Euler's).
+    /// Whether node i takes the BDF2 row in the step being solved: a smooth history and the
+    /// same contact state at the start and now ([`smooth_contact`]: free, or held the same
+    /// way on the same fixed surface). A step that changes the state (impact, release,
+    /// stick/slip switch) is first order: the modified mass method's inelastic impact and its
+    /// impulse bookkeeping are backward Euler's.
     #[inline(always)]
     pub fn second_order(&self, i: usize) -> bool {
-        self.bdf.on
-            && self.bdf.hist[i]
-            && self.contact[i].is_none()
-            && self.contact_saved[i].is_none()
+        self.bdf.on && self.bdf.hist[i] && smooth_contact(self.contact_saved[i], self.contact[i])
     }
 
     /// Set up the BDF2 coefficients of a step of size `dt` (`on`: the scenario asks for it).
@@ -136,6 +138,30 @@ impl RodWork {
             let hu = self.u[k] + b.alpha * (self.u[k] - b.u_prev[k]);
             b.s[k] = b.alpha * b.dq_prev[k] + b.beta * hu;
         }
+    }
+}
+
+/// Whether a node's motion is smooth across a step with contact state `a` at its start and
+/// `b` at its end: free at both ends, or held on the same fixed surface in the same way at
+/// both (sliding in the same direction, or stuck; in the same corner or in none). A contact on
+/// a free body is never smooth here (the body is integrated at first order).
+#[inline(always)]
+pub fn smooth_contact(a: Option<Constraint>, b: Option<Constraint>) -> bool {
+    use crate::contact::Grip;
+    match (a, b) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            a.obstacle == b.obstacle
+                && a.body.is_none()
+                && b.body.is_none()
+                && a.second.map(|s| s.obstacle) == b.second.map(|s| s.obstacle)
+                && match (a.grip, b.grip) {
+                    (Grip::Slide { sign: x }, Grip::Slide { sign: y }) => x == y,
+                    (Grip::Stick { .. }, Grip::Stick { .. }) => true,
+                    _ => false,
+                }
+        }
+        _ => false,
     }
 }
 
@@ -258,6 +284,7 @@ impl RodWork {
                 dq_prev: vec![0.0; 2 * n],
                 u_prev: vec![0.0; 2 * n],
                 hist: vec![false; n],
+                second: vec![false; n],
                 ..Bdf2::default()
             },
         }
@@ -361,7 +388,11 @@ pub fn solve(
     let stol = opt.step_tol * w.length_scale;
     let mut iterations = 0u32;
     loop {
-        let want_hessian = iterations < opt.max_iterations;
+        // The Hessian comes with the first residual (nearly every step needs an update); after
+        // an update most steps have converged, so the residual is assembled without it first
+        // and again with it only when another update is needed (same numbers, half the
+        // Hessians of a one-update step).
+        let want_hessian = iterations == 0 && opt.max_iterations > 0;
         let (res, worst) = residual(rod, w, opt, want_hessian, iterations)?;
         if res <= ftol {
             return all_finite(w, res, iterations);
@@ -373,6 +404,9 @@ pub fn solve(
                 reason: "Newton did not converge",
                 iterations,
             });
+        }
+        if !want_hessian {
+            residual(rod, w, opt, true, iterations)?;
         }
         jacobian(rod, w, opt);
         factor(w, res, iterations)?;

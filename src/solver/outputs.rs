@@ -49,8 +49,18 @@ impl Simulation {
                 o.reaction[2 * i] = gx;
                 o.reaction[2 * i + 1] = gy;
             }
-            o.impulse[2 * i] = o.reaction[2 * i] * dt;
-            o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
+            if w.bdf.second[i] && dt > 0.0 {
+                // BDF2's contact impulse: m (Δu_k − α Δu_{k−1}) = β (f + R) per step, so the
+                // impulse J_k = β R + α J_{k−1} makes the impulses add up to the momentum
+                // change (R dt does not), and it is ∫ R dt to second order.
+                let b = &w.bdf;
+                o.impulse[2 * i] = b.beta * o.reaction[2 * i] + b.alpha * o.impulse[2 * i];
+                o.impulse[2 * i + 1] =
+                    b.beta * o.reaction[2 * i + 1] + b.alpha * o.impulse[2 * i + 1];
+            } else {
+                o.impulse[2 * i] = o.reaction[2 * i] * dt;
+                o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
+            }
             // Held by a constraint, else pressed into a compliant fruit, else free.
             let held = match c {
                 Some(c) if !rod.clamped[i] => Some((c.normal, c.obstacle)),

@@ -65,6 +65,9 @@ pub struct Trace {
     pub warnings: Vec<String>,
     /// Constraints released as adhesive.
     pub releases: u64,
+    /// Whether the time series are kept (false: only the warnings and releases, for a sweep
+    /// that draws no figures).
+    series: bool,
 }
 
 impl Trace {
@@ -92,6 +95,16 @@ impl Trace {
             ic_now: Vec::new(),
             warnings: Vec::new(),
             releases: 0,
+            series: true,
+        }
+    }
+
+    /// A trace that keeps only the warnings and the releases (no figures will be drawn from
+    /// it): the step events cost it nothing.
+    pub fn counts_only(sc: &Scenario) -> Self {
+        Self {
+            series: false,
+            ..Self::new(sc)
         }
     }
 }
@@ -116,6 +129,7 @@ impl Observer for Trace {
             }
             Event::Warning { message, .. } => self.warnings.push(message.to_string()),
             Event::ConstraintReleased(..) => self.releases += 1,
+            Event::StepEnd { .. } if !self.series => {}
             Event::StepEnd { t, dt, rods, .. } => {
                 let (t, dt) = (*t, *dt);
                 let b = if self.horizon > 0.0 {
@@ -147,8 +161,19 @@ impl Observer for Trace {
                     let n = self.nodes[r];
                     for i in 0..n {
                         let k = s * n + i;
-                        let rm = v.reaction[2 * i].hypot(v.reaction[2 * i + 1]);
-                        let f = if dt > 0.0 {
+                        // A node that never had a reaction or an impulse adds nothing
+                        // (its window would give exactly 0).
+                        let idle = v.reaction[2 * i] == 0.0
+                            && v.reaction[2 * i + 1] == 0.0
+                            && v.impulse[2 * i] == 0.0
+                            && v.impulse[2 * i + 1] == 0.0
+                            && self.windows[r][i].is_empty();
+                        let rm = if idle {
+                            0.0
+                        } else {
+                            v.reaction[2 * i].hypot(v.reaction[2 * i + 1])
+                        };
+                        let f = if dt > 0.0 && !idle {
                             self.windows[r][i].push(
                                 t - dt,
                                 t,
@@ -173,7 +198,7 @@ impl Observer for Trace {
                     frame.q[r].copy_from_slice(v.q);
                     frame.ic[r].copy_from_slice(&self.ic_now[r]);
                 }
-                let frame = frame.clone();
+                // Copied only when it is kept (not in every step).
                 if self.initial.is_none() {
                     self.initial = Some(frame.clone());
                 }
@@ -182,7 +207,7 @@ impl Observer for Trace {
                 }
                 if step_peak > self.peak_ic {
                     self.peak_ic = step_peak;
-                    self.peak = Some(frame);
+                    self.peak = Some(frame.clone());
                 }
             }
             _ => {}

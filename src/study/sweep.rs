@@ -595,7 +595,11 @@ fn run_case(
         sim.interrupt = Some(Box::new(move || stop()));
     }
     let mut collector = SummaryCollector::new();
-    let mut trace = Trace::new(&scenario);
+    let mut trace = if opts.plots {
+        Trace::new(&scenario)
+    } else {
+        Trace::counts_only(&scenario)
+    };
     let mut detector = crate::replay::detect::DetectObserver::new(&scenario, &Default::default());
     let start = Instant::now();
     let result = {

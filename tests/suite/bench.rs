@@ -25,9 +25,10 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
     let dir = bench(&["--quick"]);
     let csv = std::fs::read_to_string(dir.path().join("work-precision.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    // 4 cases × (2 fixed + 2 proximity + 2 adaptive + 2 adaptive+toi + 2 bdf2 +
-    // 2 bdf2+adaptive+toi) rungs.
-    assert_eq!(lines.len(), 1 + 4 * 12, "{csv}");
+    // The two grasps × (3 fixed + 3 proximity + 3 adaptive + 3 adaptive+toi + 3 bdf2 +
+    // 3 bdf2+adaptive+toi) rungs; the point mass and the cantilever have 2 rungs of each
+    // fixed-dt strategy.
+    assert_eq!(lines.len(), 1 + 2 * 18 + 2 * 15, "{csv}");
     assert!(lines[0].starts_with("case,strategy,parameter,value,steps"));
     for l in &lines[1..] {
         let f: Vec<&str> = l.split(',').collect();
@@ -42,7 +43,18 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
         .filter(|l| l.starts_with("seed-grasp-r5,fixed,"))
         .map(|l| l.split(',').nth(7).unwrap().parse().unwrap())
         .collect();
-    assert!(seed.len() == 2 && seed[1] < seed[0], "{seed:?}");
+    assert!(
+        seed.len() == 3 && seed[2] < seed[1] && seed[1] < seed[0],
+        "{seed:?}"
+    );
+    // The issue 13 comparison at 1 % impulse error, one line per grasp case (and the
+    // cantilever, whose impulse is zero, is left out).
+    let targets = std::fs::read_to_string(dir.path().join("work-precision-targets.txt")).unwrap();
+    let cases: Vec<&str> = targets
+        .lines()
+        .map(|l| l.split_whitespace().nth(1).unwrap())
+        .collect();
+    assert_eq!(cases, ["seed-grasp-r5", "two-prong-grasp"], "{targets}");
     for (f, min) in [
         ("work-precision.png", 10_000),
         ("work-precision.svg", 10_000),

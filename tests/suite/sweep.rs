@@ -551,3 +551,21 @@ fn bad_arguments_are_usage_errors() {
         assert!(err.contains(says), "{args:?}: {err}");
     }
 }
+
+/// A sweep that draws no figures keeps no time series (its trace only counts warnings and
+/// releases, and idle nodes skip the summary's windows): every column but the wall time is
+/// the same as with the figures.
+#[test]
+fn no_plots_gives_the_same_table_as_with_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let (with, without) = (dir.path().join("with"), dir.path().join("without"));
+    sweep(&with, &[]);
+    sweep(&without, &["--no-plots"]);
+    assert!(with.join("plots").exists() && !without.join("plots").exists());
+    let (a, b) = (
+        without_wall_time(&with.join("summary.csv")),
+        without_wall_time(&without.join("summary.csv")),
+    );
+    assert_eq!(a.len(), 5);
+    assert_eq!(a, b);
+}
