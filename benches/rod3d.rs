@@ -3,10 +3,19 @@
 //! steps after two warm-up steps, best of two runs, in CPU time of the thread (the machine is shared: wall
 //! time would count the other processes). Prints the time
 //! per step and per Newton iteration and the ratio per doubling (linear cost: 2.0).
+//! Then the bending/twisting kernel alone (hand-derived against dual numbers, per stencil) and
+//! the 3D step against the planar seed prong (`gripsim bench` scaling: seed grasp, N nodes per
+//! prong, dt = 1e-5 s, before contact) at the same nodes and dt.
 //!
 //!     cargo bench --bench rod3d
 
+use gripsim::bench::SEED_R5;
+use gripsim::events::NullObserver;
+use gripsim::rod3d::energy::{node_derivatives, EdgeFrame, NodeElastic};
+use gripsim::rod3d::kernel;
 use gripsim::rod3d::{Rod3, Rod3Spec, Section3, Sim3};
+use gripsim::{Scenario, Simulation};
+use std::hint::black_box;
 
 /// CPU time consumed by this thread (s).
 fn thread_cpu() -> f64 {
@@ -43,7 +52,130 @@ fn prong(nodes: usize) -> Sim3 {
     sim
 }
 
+/// CPU µs per call of the dual-number and the hand-derived stencil derivatives.
+fn kernels() -> (f64, f64) {
+    let e = [0.01, 0.002, 0.001];
+    let f = [0.009, 0.004, -0.002];
+    let norm = |a: [f64; 3]| {
+        let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        [a[0] / l, a[1] / l, a[2] / l]
+    };
+    let old = [
+        EdgeFrame {
+            t: norm([1.0, 0.1, 0.0]),
+            a1: norm([-0.1, 1.0, 0.0]),
+        },
+        EdgeFrame {
+            t: norm([1.0, 0.3, -0.1]),
+            a1: norm([-0.3, 1.0, 0.0]),
+        },
+    ];
+    let x = [
+        0.0,
+        0.0,
+        0.0,
+        0.1,
+        e[0],
+        e[1],
+        e[2],
+        0.2,
+        e[0] + f[0],
+        e[1] + f[1],
+        e[2] + f[2],
+    ];
+    let p = NodeElastic {
+        ei1: 1.0,
+        ei2: 2.0,
+        gj: 0.7,
+        kappa_bar: [0.1, -0.2],
+        twist_bar: 0.05,
+    };
+    let (mut g, mut h) = ([0.0; 11], [[0.0; 11]; 11]);
+    let reps = 20_000;
+    let mut best = [f64::INFINITY; 2];
+    for _ in 0..3 {
+        let t = thread_cpu();
+        for _ in 0..reps {
+            node_derivatives(black_box(&x), [&old[0], &old[1]], 0.0, &p, &mut g, &mut h);
+        }
+        best[0] = best[0].min((thread_cpu() - t) / reps as f64 * 1e6);
+        let t = thread_cpu();
+        for _ in 0..reps {
+            kernel::node_derivatives(black_box(&x), [&old[0], &old[1]], 0.0, &p, &mut g, &mut h);
+        }
+        best[1] = best[1].min((thread_cpu() - t) / reps as f64 * 1e6);
+    }
+    black_box(&h);
+    (best[0], best[1])
+}
+
+/// CPU µs per step and Newton iterations per step of the planar seed prong with `n` nodes.
+fn planar(n: usize, steps: usize) -> (f64, f64) {
+    let sets = vec![
+        format!("rod.0.nodes={n}"),
+        format!("rod.0.node_mass={:e}", 0.1 / n as f64),
+        format!("solve.t_end={:e}", steps as f64 * 1e-5),
+    ];
+    let sc = Scenario::from_str(SEED_R5, "seed-grasp-r5", &sets).expect("seed scenario");
+    let mut best = (f64::INFINITY, 0.0);
+    for _ in 0..2 {
+        let mut sim = Simulation::new(&sc);
+        let t = thread_cpu();
+        let st = sim.run(&mut NullObserver).expect("planar run");
+        let us = (thread_cpu() - t) * 1e6 / st.steps as f64;
+        if us < best.0 {
+            best = (us, st.newton_iterations as f64 / st.steps as f64);
+        }
+    }
+    best
+}
+
+/// CPU µs per step and Newton iterations per step of the 3D prong with `n` nodes.
+fn spatial(n: usize, steps: usize, dt: f64) -> (f64, f64) {
+    let mut best = (f64::INFINITY, 0.0);
+    for _ in 0..2 {
+        let mut sim = prong(n);
+        sim.step(dt).expect("warm-up step");
+        let it0 = sim.newton_iterations;
+        let t = thread_cpu();
+        for _ in 0..steps {
+            sim.step(dt).expect("step");
+        }
+        let us = (thread_cpu() - t) * 1e6 / steps as f64;
+        if us < best.0 {
+            best = (us, (sim.newton_iterations - it0) as f64 / steps as f64);
+        }
+    }
+    best
+}
+
+fn against_planar() {
+    let (dual, hand) = kernels();
+    println!(
+        "\nbending/twisting stencil derivatives: dual numbers {dual:.3} µs, hand-derived {hand:.3} µs ({:.1}× faster)",
+        dual / hand
+    );
+    println!("\n3D prong against the planar seed prong, dt = 1e-5 s, CPU µs:");
+    println!("| nodes | 3D µs/step | 3D it/step | planar µs/step | planar it/step | × per step | × per iteration | 3D µs/node/iteration |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for n in [10usize, 100, 1000, 10000] {
+        let steps = (400_000 / n).clamp(20, 400);
+        let (s3, i3) = spatial(n, steps, 1e-5);
+        let (s2, i2) = planar(n, steps);
+        println!(
+            "| {n} | {s3:.2} | {i3:.2} | {s2:.2} | {i2:.2} | {:.2} | {:.2} | {:.3} |",
+            s3 / s2,
+            (s3 / i3) / (s2 / i2),
+            s3 / i3 / n as f64
+        );
+    }
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "--planar") {
+        against_planar();
+        return;
+    }
     let dt = 1e-4;
     let mut last: Option<f64> = None;
     println!("| nodes | steps | CPU ms/step | Newton it/step | ms/iteration | ×/doubling (step) |");
@@ -90,4 +222,5 @@ fn main() {
         num / den,
         total.powf(1.0 / 6.0)
     );
+    against_planar();
 }

@@ -7,9 +7,11 @@
 
 pub mod dual;
 pub mod energy;
+pub mod kernel;
 pub mod rod;
 pub mod section;
 pub mod solver;
+pub mod symband;
 
 pub use rod::{Rod3, Rod3Spec};
 pub use section::Section3;

@@ -6,10 +6,10 @@
 //! r(q) = c M (q − qₙ − dt vₙ) + ∇E(q) − λ F, F = dead loads + M g on positions.
 //! Fixed DOFs are placed on their targets and carry an identity row.
 
-use super::energy::{
-    advance_frame, node_derivatives, node_energy, reference_twist, stretch, EdgeFrame,
-};
+use super::energy::{advance_frame, node_energy, reference_twist, stretch, EdgeFrame};
+use super::kernel;
 use super::rod::{angle, pos, Rod3};
+use super::symband::{BandSink, SymBand};
 use crate::solver::banded::BandLu;
 
 /// Why a 3D solve failed.
@@ -51,6 +51,9 @@ pub struct Sim3 {
     pub max_iterations: u32,
     pub time: f64,
     pub newton_iterations: u64,
+    /// Newton iterations whose Jacobian was not positive definite (solved by LU instead).
+    pub lu_solves: u64,
+    chol: SymBand,
     band: BandLu,
     grad: Vec<f64>,
     rhs: Vec<f64>,
@@ -73,6 +76,8 @@ impl Sim3 {
             max_iterations: 40,
             time: 0.0,
             newton_iterations: 0,
+            lu_solves: 0,
+            chol: SymBand::new(nd, 10),
             band: BandLu::new(nd, 10, 10),
             grad: vec![0.0; nd],
             rhs: vec![0.0; nd],
@@ -132,15 +137,15 @@ impl Sim3 {
         let nd = self.q.len();
         let mut it = 0u32;
         loop {
-            self.band.clear();
+            self.chol.clear();
             let (f, b, r) = (&self.frames, &self.ref_twist, &self.rod);
-            assemble(
+            assemble_into(
                 r,
                 f,
                 b,
                 &self.qn,
                 &mut self.grad,
-                Some(&mut self.band),
+                Some(&mut self.chol),
                 &self.fixed,
             );
             let mut res = 0.0f64;
@@ -154,7 +159,7 @@ impl Sim3 {
                 let rk = inertia + self.grad[k] - lambda * self.external(k);
                 res = res.max(rk.abs());
                 self.rhs[k] = -rk;
-                self.band.add(k, k, c * m);
+                self.chol.add(k, k, c * m);
             }
             if !res.is_finite() {
                 return Err(fail(res, it, "non-finite residual"));
@@ -165,10 +170,11 @@ impl Sim3 {
             if it >= self.max_iterations {
                 return Err(fail(res, it, "Newton did not converge"));
             }
-            if self.band.factor().is_err() {
+            if self.chol.factor().is_ok() {
+                self.chol.solve(&mut self.rhs);
+            } else if self.solve_lu(c).is_err() {
                 return Err(fail(res, it, "singular Jacobian"));
             }
-            self.band.solve(&mut self.rhs);
             let mut upd = 0.0f64;
             for k in 0..nd {
                 self.qn[k] += self.rhs[k];
@@ -180,6 +186,23 @@ impl Sim3 {
                 return Ok(it);
             }
         }
+    }
+
+    /// The Newton update by LU with pivoting when the Jacobian is not positive definite (the
+    /// Cholesky factor failed): reassemble into the general band, factor, solve `rhs`.
+    fn solve_lu(&mut self, c: f64) -> Result<(), usize> {
+        self.band.clear();
+        let (f, b, r) = (&self.frames, &self.ref_twist, &self.rod);
+        let mut g = std::mem::take(&mut self.grad);
+        assemble(r, f, b, &self.qn, &mut g, Some(&mut self.band), &self.fixed);
+        self.grad = g;
+        for k in (0..self.q.len()).filter(|&k| !self.fixed[k]) {
+            self.band.add(k, k, c * self.rod.mass[k]);
+        }
+        self.band.factor()?;
+        self.band.solve(&mut self.rhs);
+        self.lu_solves += 1;
+        Ok(())
     }
 
     /// One implicit Euler step of size dt; fixed DOFs end the step on `target`.
@@ -266,20 +289,42 @@ pub fn assemble(
     ref_twist: &[f64],
     q: &[f64],
     grad: &mut [f64],
-    mut band: Option<&mut BandLu>,
+    band: Option<&mut BandLu>,
+    fixed: &[bool],
+) -> f64 {
+    assemble_into(rod, frames, ref_twist, q, grad, band, fixed)
+}
+
+/// [`assemble`] into any band: the bending/twisting stencils by the hand-derived kernel
+/// (src/rod3d/kernel.rs), stencils without fixed DOFs added as one dense block.
+pub fn assemble_into<S: BandSink>(
+    rod: &Rod3,
+    frames: &[EdgeFrame],
+    ref_twist: &[f64],
+    q: &[f64],
+    grad: &mut [f64],
+    mut band: Option<&mut S>,
     fixed: &[bool],
 ) -> f64 {
     grad.fill(0.0);
     let free = |k: usize| fixed.is_empty() || !fixed[k];
     let mut energy = 0.0;
     let (mut g6, mut h6) = ([0.0; 6], [[0.0; 6]; 6]);
+    let (mut g7, mut h7) = ([0.0; 7], [[0.0; 7]; 7]);
     for i in 0..rod.n - 1 {
         let (a, b) = (pos(i), pos(i + 1));
         let x = [q[a], q[a + 1], q[a + 2], q[b], q[b + 1], q[b + 2]];
         let h = band.as_ref().map(|_| &mut h6);
         energy += stretch(&x, rod.ea, rod.rest_length[i], &mut g6, h);
-        let idx = [a, a + 1, a + 2, b, b + 1, b + 2];
-        scatter(&idx, &g6, &h6, grad, band.as_deref_mut(), &free);
+        // As a block over x_i, θ_i, x_{i+1} (zero row and column for the angle).
+        const AT: [usize; 6] = [0, 1, 2, 4, 5, 6];
+        for (r, &ar) in AT.iter().enumerate() {
+            g7[ar] = g6[r];
+            for (c, &ac) in AT.iter().enumerate() {
+                h7[ar][ac] = h6[r][c];
+            }
+        }
+        scatter(a, &g7, &h7, grad, band.as_deref_mut(), &free);
     }
     let (mut g11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
     for i in 1..rod.n - 1 {
@@ -287,9 +332,8 @@ pub fn assemble(
         let x: [f64; 11] = q[base..base + 11].try_into().unwrap();
         let old = [&frames[i - 1], &frames[i]];
         let p = &rod.elastic[i];
-        energy += node_derivatives(&x, old, ref_twist[i], p, &mut g11, &mut h11);
-        let idx: [usize; 11] = std::array::from_fn(|k| base + k);
-        scatter(&idx, &g11, &h11, grad, band.as_deref_mut(), &free);
+        energy += kernel::node_derivatives(&x, old, ref_twist[i], p, &mut g11, &mut h11);
+        scatter(base, &g11, &h11, grad, band.as_deref_mut(), &free);
     }
     if let Some(b) = band {
         for (k, f) in fixed.iter().enumerate() {
@@ -302,26 +346,27 @@ pub fn assemble(
     energy
 }
 
-fn scatter<const N: usize>(
-    idx: &[usize; N],
+/// Add the gradient and (on free rows and columns) Hessian of a stencil over the DOFs
+/// `base .. base + N`.
+fn scatter<const N: usize, S: BandSink>(
+    base: usize,
     g: &[f64; N],
     h: &[[f64; N]; N],
     grad: &mut [f64],
-    band: Option<&mut BandLu>,
+    band: Option<&mut S>,
     free: &impl Fn(usize) -> bool,
 ) {
     for a in 0..N {
-        grad[idx[a]] += g[a];
+        grad[base + a] += g[a];
     }
     if let Some(b) = band {
-        for a in 0..N {
-            if !free(idx[a]) {
-                continue;
-            }
-            for c in 0..N {
-                if free(idx[c]) {
-                    b.add(idx[a], idx[c], h[a][c]);
-                }
+        if (base..base + N).all(free) {
+            b.add_block(base, h);
+            return;
+        }
+        for a in (0..N).filter(|&a| free(base + a)) {
+            for c in (0..N).filter(|&c| free(base + c)) {
+                b.add(base + a, base + c, h[a][c]);
             }
         }
     }
