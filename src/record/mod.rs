@@ -11,10 +11,12 @@
 
 pub mod accepted;
 pub mod csv;
+pub mod csv3;
 pub mod grasp;
 pub mod mcap;
 pub mod proto;
 pub mod rerun;
+pub mod rerun3;
 pub mod summary;
 
 use crate::events::{Observer, RodStepView};

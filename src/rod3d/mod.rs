@@ -7,6 +7,7 @@
 
 pub mod dual;
 pub mod energy;
+pub mod events;
 pub mod kernel;
 pub mod rod;
 pub mod section;
