@@ -35,6 +35,8 @@ impl Rrd3 {
             .map_err(|e| format!("{}: {e}", partial.display()))?;
         rec.set_log_time_enabled(false);
         rec.set_log_tick_enabled(false);
+        rec.send_recording_name(name.to_string())
+            .map_err(|e| format!("{}: {e}", partial.display()))?;
         Ok(Rrd3 {
             rec: Some(rec),
             path: path.to_path_buf(),
