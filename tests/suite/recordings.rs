@@ -327,7 +327,11 @@ fn seed_grasp_recordings_agree_with_the_summary() {
             "ny",
             "gap",
             "dt",
-            "passes"
+            "passes",
+            "indentation",
+            "half_width",
+            "peak_pressure",
+            "bruise_half_width"
         ]
     );
     let mut csv_peak = vec![0.0f64; peak.len()];
@@ -673,11 +677,13 @@ fn a_diverged_run_exits_2_and_its_recordings_say_why() {
 
 /// The compliant contact's fields (issue 11: indentation, half-width, peak pressure, bruise
 /// threshold, bruise half-width) reach `/sim/step`, and Google's protobuf library (Python,
-/// from the schema in the file) reads the same numbers as gripsim's own decoder, bit for bit.
+/// from the schema in the file) reads the same numbers as gripsim's own decoder, bit for bit;
+/// the CSV has them on the node's row.
 #[test]
 fn contact_pressure_reaches_the_mcap() {
     let dir = tempfile::tempdir().unwrap();
     let mcap = dir.path().join("apple.mcap");
+    let csv = dir.path().join("apple.csv");
     run_ok(
         gripsim()
             .arg("run")
@@ -692,7 +698,9 @@ fn contact_pressure_reaches_the_mcap() {
                 "obstacle.0.material=apple",
                 "--mcap",
             ])
-            .arg(&mcap),
+            .arg(&mcap)
+            .arg("--csv")
+            .arg(&csv),
     );
     let (msgs, err) = read_mcap_rust(&mcap);
     assert_eq!(err, None);
@@ -743,4 +751,31 @@ fn contact_pressure_reaches_the_mcap() {
         }
     }
     assert!(sampled > 0, "a sampled step with a pressed contact");
+    // The CSV: the same numbers on the node's row (0 on rows without a pressed contact).
+    let mut rdr = csv::Reader::from_path(&csv).unwrap();
+    let h: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    let col = |k: &str| h.iter().position(|x| x == k).unwrap();
+    let mut rows_pressed = 0;
+    for rec in rdr.records() {
+        let rec = rec.unwrap();
+        let step: u64 = rec[col("step")].parse().unwrap();
+        let node: u64 = rec[col("node")].parse().unwrap();
+        let c = steps[&step]["contacts"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .find(|c| c["node"] == node && c["peak_pressure"].as_f64().unwrap() > 0.0);
+        for key in [
+            "indentation",
+            "half_width",
+            "peak_pressure",
+            "bruise_half_width",
+        ] {
+            let x: f64 = rec[col(key)].parse().unwrap();
+            let want = c.map_or(0.0, |c| c[key].as_f64().unwrap());
+            assert_eq!(x, want, "{key} at step {step} node {node}");
+        }
+        rows_pressed += c.is_some() as usize;
+    }
+    assert_eq!(rows_pressed, pressed, "a CSV row per pressed contact");
 }
