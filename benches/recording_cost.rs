@@ -4,6 +4,8 @@
 //!     cargo bench --bench recording_cost [-- REPEATS] [SCENARIO]
 //!
 //! SCENARIO is a name under scenarios/ (`two-prong-grasp`) or a path to a .toml file.
+//! `RECORDING_COST_ROWS=mcap` runs only the rows whose name contains `mcap` (and the row
+//! without sinks, the reference of the ratios), e.g. to profile one sink under `perf`.
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
 //! (default 7), the mean CPU time of the process per run (all threads, from /proc/self/stat;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
@@ -155,7 +157,13 @@ fn main() {
     println!("|---|---:|---:|---:|---:|---|---:|");
     let mut base = None;
     let mut cpu_base = None;
+    let only = std::env::var("RECORDING_COST_ROWS").ok();
     for case in cases {
+        if let Some(o) = &only {
+            if !case.name.contains(o.as_str()) && case.name != "no sink" {
+                continue;
+            }
+        }
         let mut times = Vec::new();
         let mut sizes = Vec::new();
         let cpu0 = cpu_time();

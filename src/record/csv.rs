@@ -76,6 +76,12 @@ struct Row<'a> {
     gap: Option<f64>,
     dt: f64,
     passes: u32,
+    /// The node's contact with a compliant fruit (0 otherwise): indentation (m), contact
+    /// half-width (m), peak pressure (Pa) and the half-width above the bruise threshold (m).
+    indentation: f64,
+    half_width: f64,
+    peak_pressure: f64,
+    bruise_half_width: f64,
 }
 
 /// Writes a CSV file.
@@ -124,6 +130,7 @@ impl CsvSink {
         dt: f64,
         passes: u32,
         rods: &[crate::events::RodStepView<'_>],
+        contacts: &[crate::events::ContactView],
     ) {
         if self.file.is_none() {
             return;
@@ -134,8 +141,12 @@ impl CsvSink {
             .from_writer(std::mem::take(&mut self.buf));
         self.header_written = true;
         let mut result = Ok(());
-        'rods: for (name, v) in self.rods.iter().zip(rods) {
+        'rods: for (r, (name, v)) in self.rods.iter().zip(rods).enumerate() {
             for i in 0..v.in_contact.len() {
+                let c = contacts
+                    .iter()
+                    .find(|c| c.rod == r && c.node == i && c.peak_pressure > 0.0);
+                let of = |f: fn(&crate::events::ContactView) -> f64| c.map_or(0.0, f);
                 result = w.serialize(Row {
                     step,
                     t,
@@ -156,6 +167,10 @@ impl CsvSink {
                     gap: Some(v.gap[i]).filter(|g| g.is_finite()),
                     dt,
                     passes,
+                    indentation: of(|c| c.indentation),
+                    half_width: of(|c| c.half_width),
+                    peak_pressure: of(|c| c.peak_pressure),
+                    bruise_half_width: of(|c| c.bruise_half_width),
                 });
                 if result.is_err() {
                     break 'rods;
@@ -227,8 +242,9 @@ impl Observer for CsvSink {
                 dt,
                 passes,
                 rods,
+                contacts,
                 ..
-            } => self.write_step(*step, *t, *dt, *passes, rods),
+            } => self.write_step(*step, *t, *dt, *passes, rods, contacts),
             Event::RunEnd { error, .. } => self.completed = error.is_none(),
             _ => {}
         }

@@ -124,6 +124,19 @@ pub struct Contact {
     pub utilisation: f64,
     #[prost(double, tag = "12")]
     pub mu_s: f64,
+    /// A compliant fruit's contact (0 at a rigid obstacle): indentation (m), contact
+    /// half-width (m), peak pressure (Pa), the fruit's bruise threshold (Pa) and the
+    /// half-width above it (m).
+    #[prost(double, tag = "13")]
+    pub indentation: f64,
+    #[prost(double, tag = "14")]
+    pub half_width: f64,
+    #[prost(double, tag = "15")]
+    pub peak_pressure: f64,
+    #[prost(double, tag = "16")]
+    pub bruise_pressure: f64,
+    #[prost(double, tag = "17")]
+    pub bruise_half_width: f64,
 }
 
 /// `gripsim.Iteration`: one Newton iteration of one rod.
@@ -231,6 +244,11 @@ pub const MESSAGES: [(&str, &[Field]); 5] = [
             ("stuck", 10, K::Bool, false),
             ("utilisation", 11, K::Double, false),
             ("mu_s", 12, K::Double, false),
+            ("indentation", 13, K::Double, false),
+            ("half_width", 14, K::Double, false),
+            ("peak_pressure", 15, K::Double, false),
+            ("bruise_pressure", 16, K::Double, false),
+            ("bruise_half_width", 17, K::Double, false),
         ],
     ),
     (
@@ -371,6 +389,11 @@ impl From<&ContactView> for Contact {
             stuck: c.stuck,
             utilisation: c.utilisation,
             mu_s: c.mu_s,
+            indentation: c.indentation,
+            half_width: c.half_width,
+            peak_pressure: c.peak_pressure,
+            bruise_pressure: c.bruise_pressure,
+            bruise_half_width: c.bruise_half_width,
         }
     }
 }
@@ -504,6 +527,9 @@ impl Step {
                         "normal_force": c.normal_force, "friction_force": c.friction_force,
                         "slip_velocity": c.slip_velocity, "stuck": c.stuck,
                         "utilisation": c.utilisation, "mu_s": c.mu_s,
+                        "indentation": c.indentation, "half_width": c.half_width,
+                        "peak_pressure": c.peak_pressure, "bruise_pressure": c.bruise_pressure,
+                        "bruise_half_width": c.bruise_half_width,
                     })
                 })
                 .collect();
@@ -626,6 +652,11 @@ mod tests {
             stuck: true,
             utilisation: 1.0,
             mu_s: 1.0,
+            indentation: 1.0,
+            half_width: 1.0,
+            peak_pressure: 1.0,
+            bruise_pressure: 1.0,
+            bruise_half_width: 1.0,
         };
         let step = Step {
             step: 1,

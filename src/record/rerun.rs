@@ -20,21 +20,23 @@
 //! | `scene/<rod>/predictor` | Points2D | predictor positions (orange rings), on steps with corrector passes |
 //! | `scene/<rod>/iterate` | LineStrips2D + `phase`, `pass`, `newton_iteration` | each Newton iterate (`--detail iteration`), orange = predictor, magenta = corrector |
 //! | `magnified/<rod>/…` | | (own 2D view) each step's departure from free flight magnified ×K: `iterate`, `iterate_nodes`, `surface` (the obstacle surface), `predictor`, `step`, `correction` |
-//! | `plots/reaction/<rod>/node_<i>` | Scalars | \|reaction\| (N), eq. 2 |
-//! | `plots/force_ic/<rod>/node_<i>` | Scalars | impulse-consistent force (N): contact impulse over the last 1 ms / 1 ms |
-//! | `plots/impulse/<rod>/node_<i>` | Scalars | \|impulse\| (N s) |
-//! | `plots/bending_stress/<rod>/node_<i>` | Scalars | bending stress (Pa) |
+//! | `plots/reaction/<rod>` | Scalars, one per node | \|reaction\| (N), eq. 2 |
+//! | `plots/force_ic/<rod>` | Scalars, one per node | impulse-consistent force (N): contact impulse over the last 1 ms / 1 ms |
+//! | `plots/impulse/<rod>` | Scalars, one per node | \|impulse\| (N s) |
+//! | `plots/bending_stress/<rod>` | Scalars, one per node | bending stress (Pa) |
 //! | `solver/<rod>/log10_residual`, `solver/<rod>/pass` | Scalars | per Newton iteration (`--detail iteration`) |
 //! | `solver/newton_iterations`, `solver/corrector_passes`, `solver/dt` | Scalars | per step |
 //! | `events` | TextLog | contacts added/released, dt changes, Newton failures, warnings, run end |
 //! | `events/bookmarks` | TextLog (level BOOKMARK) | first contact, each contact change, the peak forces, dt changes, Newton trouble |
 //!
-//! Every series has a static SeriesLines with its own colour and a short name. Whatever changes
+//! Every series has a static SeriesLines with its own colour and a short name (per node for
+//! the per-node plots: one entity per kind and rod, a row holds all its nodes' values). Whatever changes
 //! every step (the scalar series, node positions, centre lines, the magnified step) is buffered
 //! and sent as columns at every flush (every `flush_every` steps); a scalar series skips the
 //! inside of runs of equal values, node colours are sent only when they change, and what never
-//! changes (radii, line colours, draw orders) is static. The sparse entities (forces,
-//! predictor) are logged as rows on the steps that show them.
+//! changes (radii, line colours, draw orders) is static. The normals and reactions go out as
+//! columns too (a row per step in contact, and an empty one after); the sparse entities
+//! (predictor, magnified correction) are logged as rows on the steps that show them.
 
 use super::summary::Window;
 use super::{
@@ -77,6 +79,8 @@ pub struct RerunSink {
     /// The `iteration` timeline's next value.
     iteration: i64,
     per_step: Series,
+    /// Scratch: one series row.
+    row: Vec<f64>,
     /// Per rod: its scene rows of the steps since the last flush.
     scene: Vec<SceneColumns>,
     /// Per rod: log10 residual and pass of each of its Newton iterations.
@@ -182,31 +186,42 @@ impl Times {
     }
 }
 
-/// One buffered scalar series. A value equal to the last one sent is held back: a run of
-/// equal values is sent as its first and last points (the plot is the same, flat between
-/// them), so a force that stays 0 costs two points per flush instead of one per step.
+/// One buffered scalar series of `width` values per row (one entity, one line per value:
+/// per kind and rod, a row holds every node's value). A row equal to the last one buffered is
+/// held back: a run of equal rows is sent as its first and last rows (the plot is the same,
+/// flat between them), so a force that stays 0 costs two rows per flush instead of one per
+/// step.
 #[derive(Default)]
 struct Column {
     times: Times,
     values: Vec<f64>,
-    /// The last value buffered (bits), and the latest equal point not sent yet.
-    last: Option<u64>,
-    held: Option<(Now, f64)>,
+    width: usize,
+    /// The last row buffered, and the time of the latest equal row not sent yet.
+    last: Vec<f64>,
+    held: Option<Now>,
 }
 
 impl Column {
-    fn push(&mut self, now: Now, x: f64) {
-        if self.last == Some(x.to_bits()) {
-            self.held = Some((now, x));
+    fn push(&mut self, now: Now, xs: &[f64]) {
+        self.width = xs.len();
+        let same = |(a, b): (&f64, &f64)| a.to_bits() == b.to_bits();
+        if self.last.len() == xs.len() && self.last.iter().zip(xs).all(same) {
+            self.held = Some(now);
             return;
         }
-        if let Some((at, y)) = self.held.take() {
-            self.times.push(at);
-            self.values.push(y);
-        }
+        self.release();
         self.times.push(now);
-        self.values.push(x);
-        self.last = Some(x.to_bits());
+        self.values.extend_from_slice(xs);
+        self.last.clear();
+        self.last.extend_from_slice(xs);
+    }
+
+    /// Buffer the held end of a run of equal rows.
+    fn release(&mut self) {
+        if let Some(at) = self.held.take() {
+            self.times.push(at);
+            self.values.extend_from_slice(&self.last);
+        }
     }
 }
 
@@ -230,28 +245,37 @@ impl Series {
         self.now = (step as i64, t, iteration);
     }
 
-    fn push(&mut self, k: usize, x: f64) {
+    fn push(&mut self, k: usize, xs: &[f64]) {
         let now = self.now;
-        self.columns[k].push(now, x);
+        self.columns[k].push(now, xs);
     }
 
-    /// Send what is buffered, including the held end of a run of equal values (so the file
+    /// Send what is buffered, including the held end of a run of equal rows (so the file
     /// read up to this flush shows every series up to its last point).
     fn send(&mut self, rec: &RecordingStream) -> ::rerun::RecordingStreamResult<()> {
         for (path, c) in self.paths.iter().zip(&mut self.columns) {
-            if let Some((at, y)) = c.held.take() {
-                c.times.push(at);
-                c.values.push(y);
-            }
+            c.release();
             if c.times.is_empty() {
                 continue;
             }
-            let columns = Scalars::new(c.values.drain(..)).columns_of_unit_batches()?;
+            let rows = c.times.step.len();
+            let columns =
+                Scalars::new(c.values.drain(..)).columns(std::iter::repeat_n(c.width, rows))?;
             rec.send_columns(path.clone(), c.times.columns(), columns)?;
             c.times.clear();
         }
         Ok(())
     }
+}
+
+/// The normal and reaction arrows of one rod at one step.
+#[derive(Default)]
+struct ForceArrows {
+    n_orig: Vec<[f32; 2]>,
+    n_vec: Vec<[f32; 2]>,
+    r_orig: Vec<[f32; 2]>,
+    r_vec: Vec<[f32; 2]>,
+    labels: Vec<String>,
 }
 
 /// One rod's per-step scene rows, buffered until the next flush and sent as columns: node
@@ -267,6 +291,10 @@ struct SceneColumns {
     last_colors: Vec<Color>,
     mag_times: Times,
     mag: Vec<Vec<[f32; 2]>>,
+    /// The normals and reactions of the rows that show them (and the empty row after).
+    force_times: Times,
+    forces: ForceArrows,
+    force_counts: Vec<usize>,
 }
 
 impl SceneColumns {
@@ -281,11 +309,48 @@ impl SceneColumns {
         }
     }
 
+    fn push_forces(&mut self, now: Now, a: ForceArrows) {
+        self.force_times.push(now);
+        self.force_counts.push(a.n_orig.len());
+        let f = &mut self.forces;
+        f.n_orig.extend(a.n_orig);
+        f.n_vec.extend(a.n_vec);
+        f.r_orig.extend(a.r_orig);
+        f.r_vec.extend(a.r_vec);
+        f.labels.extend(a.labels);
+    }
+
+    fn send_forces(
+        &mut self,
+        rec: &RecordingStream,
+        e: &RodEntities,
+    ) -> ::rerun::RecordingStreamResult<()> {
+        if self.force_times.is_empty() {
+            return Ok(());
+        }
+        let f = std::mem::take(&mut self.forces);
+        let counts = std::mem::take(&mut self.force_counts);
+        let normals = Arrows2D::update_fields()
+            .with_origins(f.n_orig)
+            .with_vectors(f.n_vec)
+            .columns(counts.iter().copied())?;
+        rec.send_columns(e.normals.clone(), self.force_times.columns(), normals)?;
+        let reactions = Arrows2D::update_fields()
+            .with_origins(f.r_orig)
+            .with_vectors(f.r_vec)
+            .with_labels(f.labels)
+            .columns(counts.iter().copied())?;
+        rec.send_columns(e.reactions.clone(), self.force_times.columns(), reactions)?;
+        self.force_times.clear();
+        Ok(())
+    }
+
     fn send(
         &mut self,
         rec: &RecordingStream,
         e: &RodEntities,
     ) -> ::rerun::RecordingStreamResult<()> {
+        self.send_forces(rec, e)?;
         if !self.times.is_empty() {
             let n = self.nodes;
             let rows = self.times.step.len();
@@ -497,6 +562,7 @@ impl RerunSink {
             style: None,
             iteration: 0,
             per_step: Series::default(),
+            row: Vec::new(),
             scene: Vec::new(),
             per_iteration: Vec::new(),
             windows: Vec::new(),
@@ -563,14 +629,17 @@ impl RerunSink {
             self.scene.push(SceneColumns::default());
         }
         // Per-node series, each with its colour and name (static, so every time point has them).
-        let mut lines: Vec<(EntityPath, [u8; 3], String)> = Vec::new();
+        // One entity per kind and rod, a line per node (the row holds every node's value).
+        let mut lines: Vec<(EntityPath, Vec<[u8; 3]>, Vec<String>)> = Vec::new();
         for kind in ["reaction", "force_ic", "impulse", "bending_stress"] {
             for r in info.rods {
-                for i in 0..r.nodes {
-                    let p = path(&["plots", kind, &r.name, &format!("node_{i}")]);
-                    self.per_step.add(p.clone());
-                    lines.push((p, series_color(i), format!("node {i}")));
-                }
+                let p = path(&["plots", kind, &r.name]);
+                self.per_step.add(p.clone());
+                lines.push((
+                    p,
+                    (0..r.nodes).map(series_color).collect(),
+                    (0..r.nodes).map(|i| format!("node {i}")).collect(),
+                ));
             }
         }
         for (k, s) in ["newton_iterations", "corrector_passes", "dt"]
@@ -579,7 +648,7 @@ impl RerunSink {
         {
             let p = path(&["solver", s]);
             self.per_step.add(p.clone());
-            lines.push((p, series_color(k), s.replace('_', " ")));
+            lines.push((p, vec![series_color(k)], vec![s.replace('_', " ")]));
         }
         for (r, rod) in info.rods.iter().enumerate() {
             let mut series = Series::default();
@@ -588,8 +657,8 @@ impl RerunSink {
                 series.add(p.clone());
                 lines.push((
                     p,
-                    series_color(r),
-                    format!("{} {}", rod.name, s.replace('_', " ")),
+                    vec![series_color(r)],
+                    vec![format!("{} {}", rod.name, s.replace('_', " "))],
                 ));
             }
             self.per_iteration.push(series);
@@ -604,8 +673,8 @@ impl RerunSink {
                 let r = rec.log_static(
                     p,
                     &SeriesLines::new()
-                        .with_colors([rgb(c)])
-                        .with_names([name])
+                        .with_colors(c.into_iter().map(rgb))
+                        .with_names(name)
                         .with_widths([1.5]),
                 );
                 self.check(r);
@@ -698,14 +767,15 @@ impl RerunSink {
         let now = (step as i64, t.max(0.0), it);
         for (r, v) in rods.iter().enumerate() {
             // Nodes and centre line (every step) go out as columns at the next flush; the
-            // sparse entities (forces, predictor) are logged as rows when they change.
+            // normals and reactions as columns too; the predictor is logged as rows when shown.
             let e = &mut self.rods[r];
             let points: Vec<[f32; 2]> = v.q.chunks_exact(2).map(|c| f32x2([c[0], c[1]])).collect();
             let colors = e.node_colors(&style, v);
             self.scene[r].push(now, &points, colors);
-            let res = e
-                .draw_forces(&rec, &style, r, v, Look::Live)
-                .and_then(|_| e.draw_predictor(&rec, &style.rods[r], v, passes > 0));
+            if let Some(a) = e.force_arrows(&style, r, v, Look::Live) {
+                self.scene[r].push_forces(now, a);
+            }
+            let res = e.draw_predictor(&rec, &style.rods[r], v, passes > 0);
             self.check(res);
             let res = self.rods[r].draw_magnified(&rec, &style, r, v, passes > 0, step);
             match res {
@@ -724,6 +794,8 @@ impl RerunSink {
         let mut k = 0;
         for pick in 0..4 {
             for (r, v) in rods.iter().enumerate() {
+                let mut row = std::mem::take(&mut self.row);
+                row.clear();
                 for i in 0..v.in_contact.len() {
                     let x = match pick {
                         0 => node_norm(v.reaction, i),
@@ -746,13 +818,15 @@ impl RerunSink {
                     if pick == 0 {
                         note_peak(&mut self.marks.peak, x, step, t, it, r, i);
                     }
-                    self.per_step.push(k, x);
-                    k += 1;
+                    row.push(x);
                 }
+                self.per_step.push(k, &row);
+                self.row = row;
+                k += 1;
             }
         }
         for x in [iterations as f64, passes as f64, dt] {
-            self.per_step.push(k, x);
+            self.per_step.push(k, &[x]);
             k += 1;
         }
         if step.is_multiple_of(self.opts.flush_every) {
@@ -844,8 +918,8 @@ impl RerunSink {
         self.set_time(&rec, ev.step, ev.t, it);
         if let Some(s) = self.per_iteration.get_mut(ev.rod) {
             s.at(ev.step, ev.t, it);
-            s.push(0, ev.residual.max(1e-300).log10());
-            s.push(1, ev.pass as f64);
+            s.push(0, &[ev.residual.max(1e-300).log10()]);
+            s.push(1, &[ev.pass as f64]);
         }
         let Some(style) = self.style.clone() else {
             return;
@@ -1332,6 +1406,21 @@ impl RodEntities {
                 .with_radii([Radius::new_ui_points(1.5)])
                 .with_draw_order(DRAW_ROD),
         )?;
+        let rad = rs.node_radius;
+        rec.log_static(
+            self.normals.clone(),
+            &Arrows2D::update_fields()
+                .with_colors([rgb(NORMAL_COLOR)])
+                .with_radii([0.2 * rad as f32])
+                .with_draw_order(DRAW_NORMALS),
+        )?;
+        rec.log_static(
+            self.reactions.clone(),
+            &Arrows2D::update_fields()
+                .with_colors([rgb(REACTION_COLOR)])
+                .with_radii([0.45 * rad as f32])
+                .with_draw_order(DRAW_REACTIONS),
+        )?;
         rec.log_static(
             self.mag_step.clone(),
             &LineStrips2D::update_fields()
@@ -1424,37 +1513,10 @@ impl RodEntities {
         v: &RodStepView<'_>,
         look: Look,
     ) -> ::rerun::RecordingStreamResult<()> {
-        let rs = style.rods[r];
-        let n = v.in_contact.len();
-        let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
-        if contacts.is_empty() && !self.had_contacts {
+        let Some(a) = self.force_arrows(style, r, v, look) else {
             return Ok(());
-        }
-        self.had_contacts = !contacts.is_empty();
-        let rad = rs.node_radius;
-        let (mut n_orig, mut n_vec) = (Vec::new(), Vec::new());
-        let (mut r_orig, mut r_vec, mut labels) = (Vec::new(), Vec::new(), Vec::new());
-        for &i in &contacts {
-            let p = [v.q[2 * i], v.q[2 * i + 1]];
-            let nv = [v.normal[2 * i], v.normal[2 * i + 1]];
-            let tangent = [-nv[1], nv[0]];
-            let side = 2.2 * rad;
-            n_orig.push(f32x2([p[0] + side * tangent[0], p[1] + side * tangent[1]]));
-            n_vec.push(f32x2([rs.normal_length * nv[0], rs.normal_length * nv[1]]));
-            let f = node_norm(v.reaction, i);
-            let dir = if f > 0.0 {
-                [v.reaction[2 * i] / f, v.reaction[2 * i + 1] / f]
-            } else {
-                nv
-            };
-            let len = style.forces.length(f);
-            r_orig.push(f32x2([p[0] + rad * dir[0], p[1] + rad * dir[1]]));
-            r_vec.push(f32x2([len * dir[0], len * dir[1]]));
-            labels.push(match look {
-                Look::Live => format!("{} N", super::fmt_force(f)),
-                Look::Other => format!("B {} N", super::fmt_force(f)),
-            });
-        }
+        };
+        let rad = style.rods[r].node_radius;
         let (color, width, order) = match look {
             Look::Live => (REACTION_COLOR, 0.45 * rad, DRAW_REACTIONS),
             Look::Other => (OTHER_COLOR, 0.8 * rad, DRAW_OTHER_REACTIONS),
@@ -1462,8 +1524,8 @@ impl RodEntities {
         if look == Look::Live {
             rec.log(
                 self.normals.clone(),
-                &Arrows2D::from_vectors(n_vec)
-                    .with_origins(n_orig)
+                &Arrows2D::from_vectors(a.n_vec)
+                    .with_origins(a.n_orig)
                     .with_colors([rgb(NORMAL_COLOR)])
                     .with_radii([0.2 * rad as f32])
                     .with_draw_order(DRAW_NORMALS),
@@ -1471,13 +1533,58 @@ impl RodEntities {
         }
         rec.log(
             self.reactions.clone(),
-            &Arrows2D::from_vectors(r_vec)
-                .with_origins(r_orig)
-                .with_labels(labels)
+            &Arrows2D::from_vectors(a.r_vec)
+                .with_origins(a.r_orig)
+                .with_labels(a.labels)
                 .with_colors([rgb(color)])
                 .with_radii([width as f32])
                 .with_draw_order(order),
         )
+    }
+
+    /// The arrows of [`Self::draw_forces`]; `None` when there are none now and there were
+    /// none at the last call either (nothing to log).
+    fn force_arrows(
+        &mut self,
+        style: &SceneStyle,
+        r: usize,
+        v: &RodStepView<'_>,
+        look: Look,
+    ) -> Option<ForceArrows> {
+        let rs = style.rods[r];
+        let n = v.in_contact.len();
+        let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
+        if contacts.is_empty() && !self.had_contacts {
+            return None;
+        }
+        self.had_contacts = !contacts.is_empty();
+        let rad = rs.node_radius;
+        let mut a = ForceArrows::default();
+        for &i in &contacts {
+            let p = [v.q[2 * i], v.q[2 * i + 1]];
+            let nv = [v.normal[2 * i], v.normal[2 * i + 1]];
+            let tangent = [-nv[1], nv[0]];
+            let side = 2.2 * rad;
+            a.n_orig
+                .push(f32x2([p[0] + side * tangent[0], p[1] + side * tangent[1]]));
+            a.n_vec
+                .push(f32x2([rs.normal_length * nv[0], rs.normal_length * nv[1]]));
+            let f = node_norm(v.reaction, i);
+            let dir = if f > 0.0 {
+                [v.reaction[2 * i] / f, v.reaction[2 * i + 1] / f]
+            } else {
+                nv
+            };
+            let len = style.forces.length(f);
+            a.r_orig
+                .push(f32x2([p[0] + rad * dir[0], p[1] + rad * dir[1]]));
+            a.r_vec.push(f32x2([len * dir[0], len * dir[1]]));
+            a.labels.push(match look {
+                Look::Live => format!("{} N", super::fmt_force(f)),
+                Look::Other => format!("B {} N", super::fmt_force(f)),
+            });
+        }
+        Some(a)
     }
 
     /// The predictor's positions where a corrector pass moved the rod: orange rings around the
@@ -1936,12 +2043,15 @@ mod tests {
         let mut c = Column::default();
         let xs = [0.0, 0.0, 0.0, 0.0, 3.0, 3.0, 5.0, 0.0, 0.0, 0.0];
         for (k, x) in xs.iter().enumerate() {
-            c.push((k as i64, k as f64 * 0.1, k as i64), *x);
+            c.push((k as i64, k as f64 * 0.1, k as i64), &[*x]);
         }
         // Steps 0 and 3 (ends of the zeros), 4 and 5 (the threes), 6, 7 (then 8, 9 held).
         assert_eq!(c.times.step, [0, 3, 4, 5, 6, 7]);
         assert_eq!(c.values, [0.0, 0.0, 3.0, 3.0, 5.0, 0.0]);
-        assert_eq!(c.held, Some(((9, 0.9, 9), 0.0)));
+        assert_eq!(c.held, Some((9, 0.9, 9)));
+        c.release();
+        assert_eq!(c.times.step, [0, 3, 4, 5, 6, 7, 9]);
+        assert_eq!(c.values, [0.0, 0.0, 3.0, 3.0, 5.0, 0.0, 0.0]);
         // Linear interpolation between the sent points gives every value back.
         for (k, x) in xs.iter().enumerate().take(8) {
             let k = k as i64;
@@ -1955,5 +2065,20 @@ mod tests {
             };
             assert_eq!(y, *x, "step {k}");
         }
+    }
+
+    /// A row of several values (one per node) is held back only when all of them repeat.
+    #[test]
+    fn a_row_is_held_only_when_every_value_repeats() {
+        let mut c = Column::default();
+        let rows = [[0.0, 1.0], [0.0, 1.0], [0.0, 2.0], [0.0, 2.0], [0.0, 2.0]];
+        for (k, r) in rows.iter().enumerate() {
+            c.push((k as i64, k as f64, k as i64), r);
+        }
+        assert_eq!(c.times.step, [0, 1, 2]);
+        assert_eq!(c.values, [0.0, 1.0, 0.0, 1.0, 0.0, 2.0]);
+        c.release();
+        assert_eq!(c.times.step, [0, 1, 2, 4]);
+        assert_eq!(c.values[6..], [0.0, 2.0]);
     }
 }

@@ -344,9 +344,9 @@ impl TryFrom<proto::Step> for Step {
                 rod: pb_index(c.rod),
                 obstacle: c.obstacle as usize,
                 node: c.node as usize,
-                peak_pressure: 0.0,
-                bruise_pressure: 0.0,
-                bruise_half_width: 0.0,
+                peak_pressure: c.peak_pressure,
+                bruise_pressure: c.bruise_pressure,
+                bruise_half_width: c.bruise_half_width,
             })
             .collect();
         Ok(Step {

@@ -20,7 +20,9 @@ of format 2) with Google's `protobuf` library from the FileDescriptorSet the fil
                 by the protobuf library (protobuf)
   step_samples  the first /sim/step messages and every 250th after, as the protobuf (or
                 JSON) library decoded them: step, t, dt and per rod q, reaction_norm,
-                in_contact, gap (null for no obstacle)
+                in_contact, gap (null for no obstacle); contacts: node, normal force and the
+                compliant contact's indentation, half-width, peak pressure, bruise threshold
+                and bruise half-width
   error         null, or why reading stopped early (a file cut short by a crash)
 
 A file cut short (no summary, last chunk half written) is read up to its last complete
@@ -56,7 +58,31 @@ def step_sample(msg):
                 "gap": finite(gap),
             }
         )
-    return {"step": int(get(msg, "step")), "t": get(msg, "t"), "dt": get(msg, "dt"), "rods": rods}
+    # A file written before a field existed has no such field: None.
+    field = (lambda m, k: m.get(k)) if isinstance(msg, dict) else (lambda m, k: getattr(m, k, None))
+    contacts = [
+        {k: (int(field(c, k)) if k == "node" else field(c, k)) for k in CONTACT_FIELDS}
+        for c in (field(msg, "contacts") or [])
+    ]
+    return {
+        "step": int(get(msg, "step")),
+        "t": get(msg, "t"),
+        "dt": get(msg, "dt"),
+        "rods": rods,
+        "contacts": contacts,
+    }
+
+
+# What the report shows of each active contact of a sampled step.
+CONTACT_FIELDS = [
+    "node",
+    "normal_force",
+    "indentation",
+    "half_width",
+    "peak_pressure",
+    "bruise_pressure",
+    "bruise_half_width",
+]
 
 
 def main(path):

@@ -327,7 +327,11 @@ fn seed_grasp_recordings_agree_with_the_summary() {
             "ny",
             "gap",
             "dt",
-            "passes"
+            "passes",
+            "indentation",
+            "half_width",
+            "peak_pressure",
+            "bruise_half_width"
         ]
     );
     let mut csv_peak = vec![0.0f64; peak.len()];
@@ -669,4 +673,109 @@ fn a_diverged_run_exits_2_and_its_recordings_say_why() {
         last_row.starts_with(&format!("{},", step - 1)),
         "{last_row}"
     );
+}
+
+/// The compliant contact's fields (issue 11: indentation, half-width, peak pressure, bruise
+/// threshold, bruise half-width) reach `/sim/step`, and Google's protobuf library (Python,
+/// from the schema in the file) reads the same numbers as gripsim's own decoder, bit for bit;
+/// the CSV has them on the node's row.
+#[test]
+fn contact_pressure_reaches_the_mcap() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("apple.mcap");
+    let csv = dir.path().join("apple.csv");
+    run_ok(
+        gripsim()
+            .arg("run")
+            .arg(scenario("seed-grasp-r5"))
+            .args([
+                "-q",
+                "--set",
+                "contact.surface=face",
+                "--set",
+                "obstacle.0.center=[-0.055,-0.05]",
+                "--set",
+                "obstacle.0.material=apple",
+                "--mcap",
+            ])
+            .arg(&mcap)
+            .arg("--csv")
+            .arg(&csv),
+    );
+    let (msgs, err) = read_mcap_rust(&mcap);
+    assert_eq!(err, None);
+    let steps: BTreeMap<u64, &Value> = msgs
+        .iter()
+        .filter(|m| m.topic == "/sim/step")
+        .map(|m| (m.json["step"].as_u64().unwrap(), &m.json))
+        .collect();
+    // gripsim's decode: a pressed compliant contact has all five fields, consistently.
+    let mut pressed = 0;
+    for s in steps.values() {
+        for c in s["contacts"].as_array().into_iter().flatten() {
+            let f = |k: &str| c[k].as_f64().unwrap_or_else(|| panic!("{k} in {c}"));
+            if f("normal_force") > 0.0 {
+                pressed += 1;
+                assert!(f("indentation") > 0.0 && f("half_width") > 0.0, "{c}");
+                assert!(f("peak_pressure") > 0.0, "{c}");
+                assert_eq!(f("bruise_pressure"), 1e5, "the apple's threshold: {c}");
+                let above = f("peak_pressure") > f("bruise_pressure");
+                assert_eq!(f("bruise_half_width") > 0.0, above, "{c}");
+                assert!(f("bruise_half_width") <= f("half_width"), "{c}");
+            }
+        }
+    }
+    assert!(pressed > 100, "{pressed} pressed contacts");
+    // The independent reader.
+    let report = read_mcap_py(&mcap);
+    assert_eq!(report["error"], Value::Null, "{report}");
+    let mut sampled = 0;
+    for s in report["step_samples"].as_array().unwrap() {
+        let ours = steps[&s["step"].as_u64().unwrap()];
+        let theirs = s["contacts"].as_array().unwrap();
+        let ours_c = ours["contacts"].as_array().cloned().unwrap_or_default();
+        assert_eq!(theirs.len(), ours_c.len(), "contacts at step {}", s["step"]);
+        for (a, b) in theirs.iter().zip(&ours_c) {
+            for key in [
+                "node",
+                "normal_force",
+                "indentation",
+                "half_width",
+                "peak_pressure",
+                "bruise_pressure",
+                "bruise_half_width",
+            ] {
+                assert_eq!(a[key], b[key], "{key} at step {}", s["step"]);
+            }
+            sampled += (b["peak_pressure"].as_f64().unwrap() > 0.0) as usize;
+        }
+    }
+    assert!(sampled > 0, "a sampled step with a pressed contact");
+    // The CSV: the same numbers on the node's row (0 on rows without a pressed contact).
+    let mut rdr = csv::Reader::from_path(&csv).unwrap();
+    let h: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    let col = |k: &str| h.iter().position(|x| x == k).unwrap();
+    let mut rows_pressed = 0;
+    for rec in rdr.records() {
+        let rec = rec.unwrap();
+        let step: u64 = rec[col("step")].parse().unwrap();
+        let node: u64 = rec[col("node")].parse().unwrap();
+        let c = steps[&step]["contacts"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .find(|c| c["node"] == node && c["peak_pressure"].as_f64().unwrap() > 0.0);
+        for key in [
+            "indentation",
+            "half_width",
+            "peak_pressure",
+            "bruise_half_width",
+        ] {
+            let x: f64 = rec[col(key)].parse().unwrap();
+            let want = c.map_or(0.0, |c| c[key].as_f64().unwrap());
+            assert_eq!(x, want, "{key} at step {step} node {node}");
+        }
+        rows_pressed += c.is_some() as usize;
+    }
+    assert_eq!(rows_pressed, pressed, "a CSV row per pressed contact");
 }

@@ -233,27 +233,35 @@ fn two_prong_series_have_distinct_colours() {
     );
     let rep = read_rrd(&rrd);
     let series = rep["series"].as_object().unwrap();
-    // Group the series as the views show them: per kind and rod, and the per-rod solver series.
+    // Group the series as the views show them: per kind and rod (one entity, a line per
+    // node), and the per-rod solver series.
     let mut groups: BTreeMap<String, Vec<(String, u64)>> = BTreeMap::new();
     for (ent, s) in series {
         let parts: Vec<&str> = ent.trim_start_matches('/').split('/').collect();
         let group = match parts.as_slice() {
-            ["plots", kind, rod, _] => format!("{kind}/{rod}"),
+            ["plots", kind, rod] => format!("{kind}/{rod}"),
             ["solver", _, leaf] => format!("solver/{leaf}"),
             ["solver", _] => "solver/per_step".to_string(),
             _ => continue,
         };
-        let color = s["colors"][0].as_u64().expect("a colour");
-        assert!(
-            !s["names"][0].as_str().unwrap_or("").is_empty(),
-            "{ent} has a name"
-        );
-        groups.entry(group).or_default().push((ent.clone(), color));
+        let colors = s["colors"].as_array().expect("colours");
+        let names = s["names"].as_array().expect("names");
+        assert_eq!(colors.len(), names.len(), "{ent}: a name per colour");
+        for (k, (c, n)) in colors.iter().zip(names).enumerate() {
+            assert!(
+                !n.as_str().unwrap_or("").is_empty(),
+                "{ent} line {k} has a name"
+            );
+            groups
+                .entry(group.clone())
+                .or_default()
+                .push((format!("{ent}[{k}]"), c.as_u64().expect("a colour")));
+        }
     }
     for kind in ["reaction", "force_ic", "impulse", "bending_stress"] {
         for rod in ["left", "right"] {
             let g = &groups[&format!("{kind}/{rod}")];
-            assert_eq!(g.len(), 10, "{kind}/{rod}: one series per node");
+            assert_eq!(g.len(), 10, "{kind}/{rod}: one line per node");
         }
     }
     assert_eq!(
