@@ -13,6 +13,7 @@ pub mod energy;
 pub mod events;
 pub mod model;
 pub mod obstacle;
+pub mod obstacle3;
 pub mod record;
 pub mod replay;
 pub mod rod3d;
