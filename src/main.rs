@@ -277,6 +277,30 @@ fn main() -> ExitCode {
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
+        Command::Validate { scenario, sets }
+            if sets.is_empty()
+                && std::fs::read_to_string(&scenario)
+                    .is_ok_and(|t| gripsim::scenario::three::is_3d(&t)) =>
+        {
+            match gripsim::scenario::three::Scenario3::load(&scenario) {
+                Ok(sc) => {
+                    say!(
+                        "{}: ok ({:?}, 3D, {} finger(s) of {} node(s), {} obstacle(s), fruit: {})",
+                        scenario.display(),
+                        sc.name,
+                        sc.fingers,
+                        sc.prong.points.len(),
+                        sc.obstacles.len(),
+                        if sc.fruit.is_some() { "yes" } else { "no" }
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Command::Validate { scenario, sets } => match Scenario::load(&scenario, &sets) {
             Ok(sc) => {
                 let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
@@ -350,6 +374,9 @@ fn file_name(name: &str) -> String {
 }
 
 fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
+    if std::fs::read_to_string(path).is_ok_and(|t| gripsim::scenario::three::is_3d(&t)) {
+        return run3(path, &out, sets, quiet);
+    }
     let sc = match Scenario::load(path, sets) {
         Ok(s) => s,
         Err(e) => {
@@ -611,6 +638,61 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
         g.first_slip_time_s
             .map_or("never".to_string(), |t| format!("at t = {t:.6} s"))
     );
+}
+
+/// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV and summary only.
+fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
+    let unsupported = [
+        ("--set", !sets.is_empty()),
+        ("--rrd", out.rrd.is_some()),
+        ("--mcap", out.mcap.is_some()),
+        ("--check", out.check.is_some()),
+    ];
+    if let Some((flag, _)) = unsupported.iter().find(|(_, on)| *on) {
+        eprintln!(
+            "error: {}: {flag} is not available for 3D scenarios yet (use --csv and --summary)",
+            path.display()
+        );
+        return ExitCode::from(2);
+    }
+    let sc = match gripsim::scenario::three::Scenario3::load(path) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let start = std::time::Instant::now();
+    let s = match gripsim::rod3d::run3::run(&sc, out.csv.as_deref()) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: {}: {e}", path.display());
+            return ExitCode::from(1);
+        }
+    };
+    if let Some(p) = &out.summary {
+        let text = serde_json::to_string_pretty(&s).expect("summary serialises");
+        if let Err(e) = std::fs::write(p, text + "\n") {
+            eprintln!("error: cannot write the summary to {}: {e}", p.display());
+            return ExitCode::from(2);
+        }
+    }
+    if !quiet {
+        println!(
+            "{} (3D): {} steps to t = {:.4} s in {:.2} s; {} Newton iterations, {} contact passes",
+            s.name,
+            s.steps,
+            s.t_end,
+            start.elapsed().as_secs_f64(),
+            s.newton_iterations,
+            s.contact_passes
+        );
+        println!(
+            "finger forces {:?} N (max grip {:.4} N); fruit {:?} -> {:?}; max twist {:.3e} rad; worst penetration {:.2e} m",
+            s.finger_forces, s.max_grip_force, s.fruit_start, s.fruit_end, s.max_twist, s.worst_penetration
+        );
+    }
+    ExitCode::SUCCESS
 }
 
 fn print_summary(s: &gripsim::record::summary::Summary) {

@@ -11,6 +11,7 @@ pub mod material;
 pub mod obstacle;
 pub mod overrides;
 pub mod reader;
+pub mod three;
 
 use crate::contact::friction::FrictionTable;
 use crate::obstacle::Obstacle;

@@ -6,6 +6,7 @@ mod bad_input;
 mod bad_recordings;
 mod bench;
 mod common;
+mod contact3d;
 mod contact_geometry;
 mod faults;
 mod first_contact;

@@ -1,0 +1,229 @@
+//! Running a 3D scenario: the world built from [`Scenario3`], stepped while the hand's moves
+//! last (or to `t_end`), with an optional CSV of every node (x, y, z, the twist angle of the
+//! edge it starts, its contact and reaction) and of the fruit's pose, and a summary.
+
+use super::body3::Body3;
+use super::gripper::{radial, Gripper3};
+use super::rod::{angle, pos};
+use super::world::World3;
+use crate::obstacle3::{Obstacle3, Pose3, V3};
+use crate::scenario::three::Scenario3;
+use std::io::Write as _;
+
+/// What a 3D run did.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Summary3 {
+    pub name: String,
+    pub steps: u64,
+    pub t_end: f64,
+    pub newton_iterations: u64,
+    pub contact_passes: u64,
+    pub contacts_added: u64,
+    pub contacts_released: u64,
+    pub friction_switches: u64,
+    /// Summed normal reaction on each finger at the end (N).
+    pub finger_forces: Vec<f64>,
+    pub max_grip_force: f64,
+    /// Time the squeeze reached its force (s), if it did.
+    pub squeezed_at: Option<f64>,
+    pub fruit_start: Option<[f64; 3]>,
+    pub fruit_end: Option<[f64; 3]>,
+    /// Largest depth of a node below its thickness offset after any step (m; ≤ 0: none).
+    pub worst_penetration: f64,
+    /// Largest twist angle of any edge (rad).
+    pub max_twist: f64,
+}
+
+/// The world and the gripper of a scenario, at t = 0.
+pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
+    let mut w = World3::new(sc.gravity);
+    w.side = sc.side;
+    w.friction = sc.friction.clone();
+    w.force_tol = sc.force_tol;
+    w.max_iterations = sc.max_newton_iterations;
+    let mut g = radial(
+        &mut w,
+        &sc.prong,
+        sc.fingers,
+        sc.radius,
+        sc.centre,
+        sc.clamped_edges,
+    );
+    g.moves = sc.moves.clone();
+    g.sensor_tau = sc.sensor_tau;
+    if let Some(f) = &sc.fruit {
+        if f.free {
+            w.bodies
+                .push(Body3::new(&f.name, f.shape.clone(), f.density, f.centre)?);
+        } else {
+            w.obstacles.push(Obstacle3::new(
+                &f.name,
+                f.shape.clone(),
+                Pose3::at(f.centre),
+            ));
+        }
+    }
+    w.obstacles.extend(sc.obstacles.iter().cloned());
+    Ok((w, g))
+}
+
+/// Depth of the deepest node below its offset on any surface (m).
+pub fn worst_penetration(w: &World3) -> f64 {
+    let mut worst = f64::NEG_INFINITY;
+    for r in 0..w.rods.len() {
+        let q = &w.rods[r].q;
+        for i in 0..w.rods[r].rod.n {
+            let x = V3::new(q[pos(i)], q[pos(i) + 1], q[pos(i) + 2]);
+            for o in w
+                .obstacles
+                .iter()
+                .chain(w.bodies.iter().map(|b| &b.obstacle))
+            {
+                let p = o.query(&x);
+                let off = match w.contacts[r][i] {
+                    Some(c) => c.offset,
+                    None => w.offset(r, i, &p.normal),
+                };
+                worst = worst.max(off - p.distance);
+            }
+        }
+    }
+    worst
+}
+
+fn csv_rows(out: &mut impl std::io::Write, w: &World3, step: u64) -> std::io::Result<()> {
+    for (r, sim) in w.rods.iter().enumerate() {
+        for i in 0..sim.rod.n {
+            let q = &sim.q;
+            let twist = if i + 1 < sim.rod.n {
+                format!("{:e}", q[angle(i)])
+            } else {
+                String::new()
+            };
+            let (surface, re) = match w.contacts[r][i] {
+                Some(c) => (w.surface_name(c.surface).to_string(), w.reactions[r][i]),
+                None => (String::new(), V3::zeros()),
+            };
+            writeln!(
+                out,
+                "{step},{:e},{},{i},{:e},{:e},{:e},{twist},{surface},{:e},{:e},{:e}",
+                w.time,
+                w.rod_names[r],
+                q[pos(i)],
+                q[pos(i) + 1],
+                q[pos(i) + 2],
+                re.x,
+                re.y,
+                re.z
+            )?;
+        }
+    }
+    for b in &w.bodies {
+        let c = b.centre();
+        let angle = b.obstacle.pose.rotation.angle();
+        writeln!(
+            out,
+            "{step},{:e},{},0,{:e},{:e},{:e},{angle:e},,,,",
+            w.time, b.obstacle.name, c.x, c.y, c.z
+        )?;
+    }
+    Ok(())
+}
+
+/// The number of steps to run: to `t_end`, or until the moves end (at most 10⁷ steps).
+fn step_limit(sc: &Scenario3) -> u64 {
+    match sc.t_end {
+        Some(t) => (t / sc.dt).round().max(1.0) as u64,
+        None => 10_000_000,
+    }
+}
+
+/// Run `sc`, writing the CSV (if any) to `csv` (written as a .partial file, renamed at the
+/// end, removed on failure).
+pub fn run(sc: &Scenario3, csv: Option<&std::path::Path>) -> Result<Summary3, String> {
+    let (mut w, mut g) = build(sc)?;
+    let partial = csv.map(|p| p.with_extension("partial.csv"));
+    let mut file = match &partial {
+        Some(p) => {
+            let f = std::fs::File::create(p)
+                .map_err(|e| format!("{}: cannot create: {e}", p.display()))?;
+            let mut f = std::io::BufWriter::new(f);
+            writeln!(f, "step,t,object,node,x,y,z,twist,contact,rx,ry,rz")
+                .map_err(|e| e.to_string())?;
+            Some(f)
+        }
+        None => None,
+    };
+    let result = run_loop(sc, &mut w, &mut g, file.as_mut());
+    drop(file);
+    match (&result, &partial, csv) {
+        (Ok(_), Some(p), Some(c)) => {
+            std::fs::rename(p, c).map_err(|e| format!("{}: {e}", c.display()))?
+        }
+        (Err(_), Some(p), _) => {
+            let _ = std::fs::remove_file(p);
+        }
+        _ => {}
+    }
+    result
+}
+
+fn run_loop(
+    sc: &Scenario3,
+    w: &mut World3,
+    g: &mut Gripper3,
+    mut csv: Option<&mut std::io::BufWriter<std::fs::File>>,
+) -> Result<Summary3, String> {
+    let fruit_start = w.bodies.first().map(|b| b.centre().into());
+    let mut s = Summary3 {
+        name: sc.name.clone(),
+        steps: 0,
+        t_end: 0.0,
+        newton_iterations: 0,
+        contact_passes: 0,
+        contacts_added: 0,
+        contacts_released: 0,
+        friction_switches: 0,
+        finger_forces: Vec::new(),
+        max_grip_force: 0.0,
+        squeezed_at: None,
+        fruit_start,
+        fruit_end: None,
+        worst_penetration: f64::NEG_INFINITY,
+        max_twist: 0.0,
+    };
+    if let Some(f) = csv.as_deref_mut() {
+        csv_rows(f, w, 0).map_err(|e| e.to_string())?;
+    }
+    let limit = step_limit(sc);
+    while s.steps < limit && (sc.t_end.is_some() || !g.done()) {
+        let t1 = (s.steps + 1) as f64 * sc.dt;
+        g.drive(w, t1, sc.dt);
+        let rep = w
+            .step(sc.dt)
+            .map_err(|e| format!("step {} (t = {t1:e} s): {e}", s.steps + 1))?;
+        s.steps += 1;
+        s.newton_iterations += rep.newton_iterations as u64;
+        s.contact_passes += rep.passes as u64;
+        s.contacts_added += rep.added as u64;
+        s.contacts_released += rep.released as u64;
+        s.friction_switches += rep.switches as u64;
+        s.max_grip_force = s.max_grip_force.max(g.grip_force(w));
+        s.worst_penetration = s.worst_penetration.max(worst_penetration(w));
+        for sim in &w.rods {
+            for e in 0..sim.rod.n - 1 {
+                s.max_twist = s
+                    .max_twist
+                    .max((sim.q[angle(e)] - sim.rod.q0[angle(e)]).abs());
+            }
+        }
+        if let Some(f) = csv.as_deref_mut() {
+            csv_rows(f, w, s.steps).map_err(|e| e.to_string())?;
+        }
+    }
+    s.t_end = w.time;
+    s.finger_forces = g.finger_forces(w);
+    s.squeezed_at = g.squeezed_at;
+    s.fruit_end = w.bodies.first().map(|b| b.centre().into());
+    Ok(s)
+}

@@ -1,0 +1,327 @@
+//! A 3D world: rods (prongs), fixed obstacles and free bodies (fruit), stepped together by
+//! implicit Euler + Newton with the modified mass method for contact ([`super::contact3`]).
+//!
+//! One step, in the order it happens: carried contacts are re-linearised at the start of the
+//! step; the predictor solves with them; detection adds the nodes that ended inside a surface
+//! (deeper than their thickness offset) and the body points that ended below a fixed obstacle;
+//! releases (adhesive reactions) and stick/slip switches are decided from the converged
+//! reactions; every change re-solves (corrector passes) until the contact set settles. All rods
+//! and bodies are one Newton system ([`super::system`]), so a reaction on a node is the
+//! opposite of the force on the body and momentum is exchanged exactly.
+
+use super::body3::{lever_map, Body3, G3};
+use super::contact3::{decide, BodyContact3, Change3, Contact3, Grip3, Surface3};
+use super::energy::{advance_frame, material_frame, reference_twist};
+use super::rod::{angle, pos};
+use super::section::Section3;
+use super::solver::{assemble, Sim3, Solve3Error};
+use super::system::{add_row, eliminate, rotate_node, solve_bordered, RodBlock};
+use crate::contact::friction::FrictionTable;
+use crate::obstacle3::{Obstacle3, Proximity3, V3};
+use crate::solver::banded::BandLu;
+use nalgebra::{DMatrix, DVector, Matrix3, Vector6};
+
+/// Which surface of a prong touches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactSide3 {
+    /// The centreline is held on the surface (the seed's model).
+    Centreline,
+    /// The section's face: the centreline is held its support distance off the surface.
+    Face,
+}
+
+/// Counts of what happened in one step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepReport3 {
+    pub passes: u32,
+    pub newton_iterations: u32,
+    pub added: u32,
+    pub released: u32,
+    pub switches: u32,
+}
+
+struct Work3 {
+    band: BandLu,
+    grad: Vec<f64>,
+    rhs: Vec<f64>,
+    qn: Vec<f64>,
+    elim: Vec<bool>,
+    follow: Vec<Option<(usize, Vector6<f64>)>>,
+    border: Vec<Vec<f64>>,
+    rows: Vec<(usize, usize, f64)>,
+    released: Vec<bool>,
+}
+
+pub struct World3 {
+    pub rods: Vec<Sim3>,
+    pub rod_names: Vec<String>,
+    pub sections: Vec<Section3>,
+    pub obstacles: Vec<Obstacle3>,
+    pub bodies: Vec<Body3>,
+    pub gravity: V3,
+    pub friction: FrictionTable,
+    pub side: ContactSide3,
+    /// Per rod, per node.
+    pub contacts: Vec<Vec<Option<Contact3>>>,
+    /// Reaction on every contact node at the end of the last step (world, zero elsewhere).
+    pub reactions: Vec<Vec<V3>>,
+    pub body_contacts: Vec<BodyContact3>,
+    pub force_tol: f64,
+    pub max_iterations: u32,
+    pub time: f64,
+    pub steps: u64,
+    work: Vec<Work3>,
+}
+
+impl World3 {
+    pub fn new(gravity: [f64; 3]) -> World3 {
+        World3 {
+            rods: Vec::new(),
+            rod_names: Vec::new(),
+            sections: Vec::new(),
+            obstacles: Vec::new(),
+            bodies: Vec::new(),
+            gravity: V3::from(gravity),
+            friction: FrictionTable::default(),
+            side: ContactSide3::Face,
+            contacts: Vec::new(),
+            reactions: Vec::new(),
+            body_contacts: Vec::new(),
+            force_tol: 1e-10,
+            max_iterations: 40,
+            time: 0.0,
+            steps: 0,
+            work: Vec::new(),
+        }
+    }
+
+    /// Add a rod (its clamps and loads already set on `sim`). Returns its index.
+    pub fn add_rod(&mut self, name: &str, sim: Sim3, section: Section3) -> usize {
+        let n = sim.rod.n;
+        let nd = sim.rod.dofs();
+        self.work.push(Work3 {
+            band: BandLu::new(nd, 10, 10),
+            grad: vec![0.0; nd],
+            rhs: vec![0.0; nd],
+            qn: sim.q.clone(),
+            elim: vec![false; nd],
+            follow: vec![None; nd],
+            border: vec![Vec::new(); nd],
+            rows: Vec::new(),
+            released: vec![false; n],
+        });
+        self.rods.push(sim);
+        self.rod_names.push(name.to_string());
+        self.sections.push(section);
+        self.contacts.push(vec![None; n]);
+        self.reactions.push(vec![V3::zeros(); n]);
+        self.rods.len() - 1
+    }
+
+    /// The name of what a contact touches.
+    pub fn surface_name(&self, s: Surface3) -> &str {
+        match s {
+            Surface3::Obstacle(k) => &self.obstacles[k].name,
+            Surface3::Body(b) => &self.bodies[b].obstacle.name,
+        }
+    }
+
+    fn surface(&self, s: Surface3) -> &Obstacle3 {
+        match s {
+            Surface3::Obstacle(k) => &self.obstacles[k],
+            Surface3::Body(b) => &self.bodies[b].obstacle,
+        }
+    }
+
+    /// The thickness offset of node i of rod r towards a surface with outward normal n, from the
+    /// material frames at the start of the step.
+    pub fn offset(&self, r: usize, i: usize, n: &V3) -> f64 {
+        if self.side == ContactSide3::Centreline {
+            return 0.0;
+        }
+        let sim = &self.rods[r];
+        let edges: Vec<usize> = [i.checked_sub(1), (i + 1 < sim.rod.n).then_some(i)]
+            .into_iter()
+            .flatten()
+            .collect();
+        let mut sum = 0.0;
+        for &e in &edges {
+            sum += match self.sections[r] {
+                Section3::Circle { r } => r,
+                Section3::Rect { b, h } => {
+                    let (m1, m2) = material_frame(&sim.frames[e], sim.q[angle(e)]);
+                    0.5 * h * n.dot(&V3::from(m1)).abs() + 0.5 * b * n.dot(&V3::from(m2)).abs()
+                }
+            };
+        }
+        sum / edges.len() as f64
+    }
+
+    fn node(q: &[f64], i: usize) -> V3 {
+        V3::new(q[pos(i)], q[pos(i) + 1], q[pos(i) + 2])
+    }
+
+    /// Body displacement ΔX of a surface (zero for fixed obstacles).
+    fn body_dx(&self, s: Surface3) -> Vector6<f64> {
+        match s {
+            Surface3::Body(b) => self.bodies[b].dx,
+            Surface3::Obstacle(_) => Vector6::zeros(),
+        }
+    }
+
+    fn centre(&self, s: Surface3) -> V3 {
+        match s {
+            Surface3::Body(b) => self.bodies[b].centre(),
+            Surface3::Obstacle(_) => V3::zeros(),
+        }
+    }
+
+    /// A contact of rod r's node i holding it on `s` as seen from `prox` (at the current body
+    /// displacement), with the friction of the pair.
+    fn contact_at(&self, r: usize, i: usize, s: Surface3, prox: &Proximity3) -> Contact3 {
+        let n = prox.normal;
+        let offset = self.offset(r, i, &n);
+        let lever = match s {
+            Surface3::Body(_) => prox.closest - self.centre(s),
+            Surface3::Obstacle(_) => V3::zeros(),
+        };
+        let a = lever_map(&lever).transpose() * n;
+        let coulomb = self
+            .friction
+            .between(&self.rod_names[r], self.surface_name(s));
+        Contact3 {
+            surface: s,
+            normal: n,
+            target: n.dot(&prox.closest) + offset - a.dot(&self.body_dx(s)),
+            lever,
+            offset,
+            grip: Grip3::Slide { dir: V3::zeros() },
+            coulomb,
+            switches: 0,
+            locked: false,
+        }
+    }
+
+    /// Where node i must be: projected onto its constraint at the current body displacement.
+    fn project(c: &Contact3, x: &V3, dx: &Vector6<f64>) -> V3 {
+        let g = lever_map(&c.lever) * dx;
+        match c.grip {
+            Grip3::Stick { anchor } => anchor + g,
+            Grip3::Slide { .. } => x + c.normal * (c.target + c.normal.dot(&g) - c.normal.dot(x)),
+        }
+    }
+
+    /// Re-linearise every carried contact at the start of the step (ΔX = 0).
+    fn relinearise(&mut self) {
+        for r in 0..self.rods.len() {
+            for i in 0..self.rods[r].rod.n {
+                let Some(old) = self.contacts[r][i] else {
+                    continue;
+                };
+                let x = Self::node(&self.rods[r].q, i);
+                let prox = self.surface(old.surface).query(&x);
+                let mut c = self.contact_at(r, i, old.surface, &prox);
+                c.grip = match old.grip {
+                    Grip3::Stick { .. } => Grip3::Stick {
+                        anchor: x + c.normal * (c.target - c.normal.dot(&x)),
+                    },
+                    g => g,
+                };
+                if let Grip3::Slide { dir } = c.grip {
+                    let t = dir - c.normal * c.normal.dot(&dir);
+                    let dir = if t.norm() > 1e-3 {
+                        t.normalize()
+                    } else {
+                        V3::zeros()
+                    };
+                    c.grip = Grip3::Slide { dir };
+                }
+                self.contacts[r][i] = Some(c);
+            }
+        }
+        for bc in &mut self.body_contacts {
+            let body = &self.bodies[bc.body];
+            let p = body.centre() + bc.lever;
+            let prox = self.obstacles[bc.obstacle].query(&p);
+            bc.normal = prox.normal;
+            bc.gap = -prox.distance;
+            bc.switches = 0;
+            if bc.stuck.is_some() {
+                bc.stuck = Some(-prox.normal * prox.distance);
+            }
+        }
+    }
+
+    /// One implicit Euler step of size dt. Fixed DOFs end the step on their targets.
+    pub fn step(&mut self, dt: f64) -> Result<StepReport3, Solve3Error> {
+        let g = self.gravity;
+        for (sim, w) in self.rods.iter_mut().zip(&mut self.work) {
+            sim.gravity = [g.x, g.y, g.z];
+            for k in 0..sim.q.len() {
+                w.qn[k] = if sim.fixed[k] {
+                    sim.target[k]
+                } else {
+                    sim.q[k] + dt * sim.v[k]
+                };
+            }
+            w.released.fill(false);
+        }
+        // Carried contacts are re-linearised at the start pose (ΔX = 0), then the bodies take
+        // their predicted displacement as the first guess.
+        let mut guesses = Vec::with_capacity(self.bodies.len());
+        for b in &mut self.bodies {
+            b.begin(dt);
+            guesses.push(std::mem::replace(&mut b.dx, Vector6::zeros()));
+        }
+        self.relinearise();
+        for (b, g) in self.bodies.iter_mut().zip(guesses) {
+            b.dx = g;
+            b.place();
+        }
+        let mut report = StepReport3::default();
+        let max_passes = 3 * self.rods.iter().map(|s| s.rod.n as u32).sum::<u32>().max(4);
+        loop {
+            report.newton_iterations += self.newton(dt)?;
+            report.passes += 1;
+            let changed = self.update_contacts(dt, &mut report);
+            if changed == 0 {
+                break;
+            }
+            if report.passes > max_passes {
+                return Err(Solve3Error {
+                    residual: 0.0,
+                    iterations: report.newton_iterations,
+                    reason: "the contact set did not settle",
+                });
+            }
+        }
+        self.accept(dt);
+        Ok(report)
+    }
+
+    fn accept(&mut self, dt: f64) {
+        for (sim, w) in self.rods.iter_mut().zip(&self.work) {
+            for k in 0..sim.q.len() {
+                sim.v[k] = (w.qn[k] - sim.q[k]) / dt;
+            }
+            sim.q.copy_from_slice(&w.qn);
+            let n = sim.rod.n;
+            for i in 0..n - 1 {
+                sim.frames[i] = advance_frame(sim.rod.edge(&sim.q, i), &sim.frames[i]);
+            }
+            for i in 1..n - 1 {
+                let near = sim.ref_twist[i];
+                sim.ref_twist[i] = reference_twist(&sim.frames[i - 1], &sim.frames[i], near);
+            }
+            sim.time += dt;
+        }
+        for b in &mut self.bodies {
+            b.finish(dt);
+        }
+        self.time += dt;
+        self.steps += 1;
+    }
+}
+
+mod newton3;
+mod update3;

@@ -1,0 +1,316 @@
+//! Newton on every rod and body of the world at once, with the current contact sets.
+
+use super::*;
+
+/// The constraint rows of the bodies' own contacts: (J row, force column, right-hand side).
+type Kkt = Vec<(Vec<f64>, Vec<f64>, f64)>;
+
+impl World3 {
+    /// Largest force of the problem, the scale of the residual tolerance.
+    fn force_scale(&self) -> f64 {
+        let mut s: f64 = 0.0;
+        for sim in &self.rods {
+            let l = sim.rod.length;
+            s = s.max(sim.rod.ei1.max(sim.rod.ei2) / (l * l));
+            for k in 0..sim.q.len() {
+                s = s.max(sim.external(k).abs());
+            }
+        }
+        for b in &self.bodies {
+            s = s.max(b.mass * self.gravity.norm()).max(b.force.norm());
+        }
+        s
+    }
+
+    /// Put every contact node on its constraint and every body at its displacement.
+    fn place_guess(&mut self) {
+        for b in &mut self.bodies {
+            b.place();
+        }
+        for r in 0..self.rods.len() {
+            for i in 0..self.rods[r].rod.n {
+                if let Some(c) = self.contacts[r][i] {
+                    let x = Self::node(&self.work[r].qn, i);
+                    let p = Self::project(&c, &x, &self.body_dx(c.surface));
+                    self.work[r].qn[pos(i)..pos(i) + 3].copy_from_slice(p.as_slice());
+                }
+            }
+        }
+    }
+
+    /// What a prescribed local coordinate a of contact c follows: P with δu_a = P·δX.
+    fn follow(c: &Contact3, q: &Matrix3<f64>, a: usize) -> Option<(usize, Vector6<f64>)> {
+        let Surface3::Body(b) = c.surface else {
+            return None;
+        };
+        let g: G3 = lever_map(&c.lever);
+        Some((b, (q.row(a) * g).transpose()))
+    }
+
+    /// Assemble rod r in its contact bases with prescribed coordinates eliminated; add its
+    /// rows of the body equations to `s`, `fb`. Returns its largest free residual.
+    fn linearise_rod(
+        &mut self,
+        r: usize,
+        dt: f64,
+        s: &mut DMatrix<f64>,
+        fb: &mut DVector<f64>,
+    ) -> f64 {
+        let c = 1.0 / (dt * dt);
+        let nx = fb.len();
+        let sim = &self.rods[r];
+        let w = &mut self.work[r];
+        w.band.clear();
+        assemble(
+            &sim.rod,
+            &sim.frames,
+            &sim.ref_twist,
+            &w.qn,
+            &mut w.grad,
+            Some(&mut w.band),
+            &sim.fixed,
+        );
+        for k in 0..sim.q.len() {
+            w.elim[k] = sim.fixed[k];
+            w.follow[k] = None;
+            w.border[k].clear();
+            w.border[k].resize(nx, 0.0);
+            if sim.fixed[k] {
+                w.rhs[k] = 0.0;
+                continue;
+            }
+            let m = sim.rod.mass[k];
+            w.rhs[k] =
+                -(c * m * (w.qn[k] - sim.q[k] - dt * sim.v[k]) + w.grad[k] - sim.external(k));
+            w.band.add(k, k, c * m);
+        }
+        w.rows.clear();
+        let contacts = &self.contacts[r];
+        let mut bases = Vec::new();
+        for (i, ct) in contacts.iter().enumerate() {
+            let Some(ct) = ct else { continue };
+            let (k0, q) = (pos(i), ct.basis());
+            let rw = -V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
+            self.reactions[r][i] = rw;
+            rotate_node(&mut w.band, k0, &q);
+            let rl = -(q * rw);
+            w.rhs[k0..k0 + 3].copy_from_slice(rl.as_slice());
+            for a in 0..ct.held() {
+                w.elim[k0 + a] = true;
+                w.follow[k0 + a] = Self::follow(ct, &q, a);
+            }
+            bases.push((i, q));
+        }
+        for &(i, q) in &bases {
+            let ct = contacts[i].as_ref().unwrap();
+            let Surface3::Body(b) = ct.surface else {
+                continue;
+            };
+            let k0 = pos(i);
+            let wm = lever_map(&ct.lever).transpose() * q.transpose();
+            let rl = V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
+            let add = wm * rl;
+            for e in 0..6 {
+                fb[6 * b + e] += add[e];
+            }
+            for l in super::super::system::band_range(w.rhs.len(), k0) {
+                for a in 0..3 {
+                    let v = w.band.get(k0 + a, l);
+                    if v == 0.0 {
+                        continue;
+                    }
+                    if !w.elim[l] {
+                        for e in 0..6 {
+                            w.rows.push((6 * b + e, l, wm[(e, a)] * v));
+                        }
+                    } else if let Some((b2, p)) = w.follow[l] {
+                        for e in 0..6 {
+                            for f in 0..6 {
+                                s[(6 * b + e, 6 * b2 + f)] += wm[(e, a)] * v * p[f];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for &(i, _) in &bases {
+            let ct = contacts[i].as_ref().unwrap();
+            let mu = ct.kinetic();
+            if mu > 0.0 {
+                let k0 = pos(i);
+                add_row(&mut w.band, k0 + 1, k0, mu);
+                w.rhs[k0 + 1] += mu * w.rhs[k0];
+            }
+        }
+        for &(i, _) in &bases {
+            let ct = contacts[i].as_ref().unwrap();
+            for a in 0..ct.held() {
+                let j = pos(i) + a;
+                eliminate(&mut w.band, j, w.follow[j], &w.elim, &mut w.border);
+                w.rhs[j] = 0.0;
+            }
+        }
+        (0..w.rhs.len())
+            .filter(|&k| !w.elim[k])
+            .fold(0.0, |m, k| m.max(w.rhs[k].abs()))
+    }
+
+    /// The bodies' own equations (without contact forces) and their contacts' constraint rows;
+    /// also Σ Gᵀ f of their last forces (for the convergence test).
+    fn body_system(&self, dt: f64) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, Kkt) {
+        let nx = 6 * self.bodies.len();
+        let mut s = DMatrix::zeros(nx, nx);
+        let mut fb = DVector::zeros(nx);
+        for (b, body) in self.bodies.iter().enumerate() {
+            let (rb, jb) = body.residual(dt, &self.gravity);
+            s.view_mut((6 * b, 6 * b), (6, 6)).copy_from(&jb);
+            fb.rows_mut(6 * b, 6).copy_from(&-rb);
+        }
+        let mut forces = DVector::zeros(nx);
+        let mut kkt = Vec::new();
+        for bc in &self.body_contacts {
+            let g = lever_map(&bc.lever);
+            let f = g.transpose() * bc.force;
+            for e in 0..6 {
+                forces[6 * bc.body + e] += f[e];
+            }
+            let dx = self.bodies[bc.body].dx;
+            let row = |j: nalgebra::RowVector6<f64>| {
+                let mut v = vec![0.0; nx];
+                for e in 0..6 {
+                    v[6 * bc.body + e] = j[e];
+                }
+                v
+            };
+            match bc.stuck {
+                Some(mv) => {
+                    let now = g * dx;
+                    for a in 0..3 {
+                        let j = g.row(a).into_owned();
+                        kkt.push((row(j), row(-j), mv[a] - now[a]));
+                    }
+                }
+                None => {
+                    let j = bc.normal.transpose() * g;
+                    let fdir = bc.normal - bc.dir * bc.coulomb.mu_k;
+                    let col = -(fdir.transpose() * g);
+                    kkt.push((row(j), row(col), bc.gap - (j * dx)[0]));
+                }
+            }
+        }
+        (s, fb, forces, kkt)
+    }
+
+    /// Newton with the current contact sets. Returns the iterations.
+    pub(super) fn newton(&mut self, dt: f64) -> Result<u32, Solve3Error> {
+        self.place_guess();
+        let tol = self.force_tol * self.force_scale();
+        let floor = 1e-14 * self.rods.iter().map(|s| s.rod.length).fold(1e-3, f64::max);
+        let mut it = 0u32;
+        loop {
+            let (mut s, mut fb, forces, kkt) = self.body_system(dt);
+            let mut res: f64 = 0.0;
+            for r in 0..self.rods.len() {
+                res = res.max(self.linearise_rod(r, dt, &mut s, &mut fb));
+            }
+            // fb = −(r_b + Σ Gᵀ R_node); the bodies' own contacts add their last forces.
+            res = res.max((&fb + &forces).amax());
+            if !res.is_finite() {
+                return Err(fail(res, it, "non-finite residual"));
+            }
+            if res <= tol && (it > 0 || kkt.is_empty()) {
+                return Ok(it);
+            }
+            if it >= self.max_iterations {
+                return Err(fail(res, it, "Newton did not converge"));
+            }
+            let upd = self
+                .solve_and_update(&s, &fb, &kkt)
+                .map_err(|m| fail(res, it, m))?;
+            it += 1;
+            if upd <= floor && it > 1 {
+                return Ok(it);
+            }
+        }
+    }
+}
+
+impl World3 {
+    /// Solve the bordered system and apply the update. Returns the largest change.
+    fn solve_and_update(
+        &mut self,
+        s: &DMatrix<f64>,
+        fb: &DVector<f64>,
+        kkt: &Kkt,
+    ) -> Result<f64, &'static str> {
+        let mut blocks: Vec<RodBlock<'_>> = self
+            .work
+            .iter_mut()
+            .map(|w| RodBlock {
+                a: &mut w.band,
+                rhs: &mut w.rhs,
+                border: &w.border,
+                rows: &w.rows,
+            })
+            .collect();
+        let (dx, lam) = solve_bordered(&mut blocks, s, fb, kkt)?;
+        drop(blocks);
+        let mut upd: f64 = 0.0;
+        for r in 0..self.rods.len() {
+            let w = &mut self.work[r];
+            let n = self.rods[r].rod.n;
+            for k in 0..w.rhs.len() {
+                if k % 4 != 3 && self.contacts[r][k / 4].is_some() {
+                    continue;
+                }
+                let d = if w.elim[k] { 0.0 } else { w.rhs[k] };
+                w.qn[k] += d;
+                upd = upd.max(d.abs());
+            }
+            for i in 0..n {
+                let Some(c) = self.contacts[r][i] else {
+                    continue;
+                };
+                let (k0, q) = (pos(i), c.basis());
+                let mut du = V3::zeros();
+                for a in 0..3 {
+                    du[a] = if !w.elim[k0 + a] {
+                        w.rhs[k0 + a]
+                    } else if let Some((b, p)) = w.follow[k0 + a] {
+                        p.dot(&dx.fixed_rows::<6>(6 * b))
+                    } else {
+                        0.0
+                    };
+                }
+                let d = q.transpose() * du;
+                for a in 0..3 {
+                    w.qn[k0 + a] += d[a];
+                }
+                upd = upd.max(d.amax());
+            }
+        }
+        for (b, body) in self.bodies.iter_mut().enumerate() {
+            body.dx += dx.fixed_rows::<6>(6 * b);
+            body.place();
+        }
+        let mut k = 0;
+        for bc in &mut self.body_contacts {
+            if bc.stuck.is_some() {
+                bc.force = V3::new(lam[k], lam[k + 1], lam[k + 2]);
+                k += 3;
+            } else {
+                bc.force = (bc.normal - bc.dir * bc.coulomb.mu_k) * lam[k];
+                k += 1;
+            }
+        }
+        Ok(upd)
+    }
+}
+
+fn fail(residual: f64, iterations: u32, reason: &'static str) -> Solve3Error {
+    Solve3Error {
+        residual,
+        iterations,
+        reason,
+    }
+}

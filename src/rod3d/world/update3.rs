@@ -1,0 +1,176 @@
+//! After a converged pass: releases, stick/slip switches and new contacts, for rod nodes and
+//! for the bodies' own contacts with fixed obstacles.
+
+use super::*;
+
+impl World3 {
+    /// Decide the contact sets from the converged pass. Returns how many changed.
+    pub(super) fn update_contacts(&mut self, dt: f64, report: &mut StepReport3) -> u32 {
+        let mut changed = 0;
+        for r in 0..self.rods.len() {
+            for i in 0..self.rods[r].rod.n {
+                let fixed = &self.rods[r].fixed;
+                if fixed[pos(i)] || fixed[pos(i) + 1] || fixed[pos(i) + 2] {
+                    continue;
+                }
+                changed += match self.contacts[r][i] {
+                    Some(c) => self.decide_node(r, i, c, dt, report),
+                    None => self.detect_node(r, i, report),
+                };
+            }
+        }
+        changed + self.update_body_contacts(dt, report)
+    }
+
+    fn decide_node(
+        &mut self,
+        r: usize,
+        i: usize,
+        mut c: Contact3,
+        dt: f64,
+        report: &mut StepReport3,
+    ) -> u32 {
+        let x = Self::node(&self.work[r].qn, i);
+        let x0 = Self::node(&self.rods[r].q, i);
+        let moved = lever_map(&c.lever) * self.body_dx(c.surface);
+        let v_rel = (x - x0 - moved) / dt;
+        let v_rel = v_rel - c.normal * c.normal.dot(&v_rel);
+        match decide(&c, &self.reactions[r][i], &v_rel) {
+            None => return 0,
+            Some(Change3::Release) => {
+                self.contacts[r][i] = None;
+                self.work[r].released[i] = true;
+                report.released += 1;
+                return 1;
+            }
+            Some(Change3::ToSlide { dir }) => c.grip = Grip3::Slide { dir },
+            Some(Change3::ToStick) => {
+                c.grip = Grip3::Stick {
+                    anchor: x0 + c.normal * (c.target - c.normal.dot(&x0)),
+                }
+            }
+        }
+        c.switches += 1;
+        report.switches += 1;
+        self.contacts[r][i] = Some(c);
+        1
+    }
+
+    /// Every surface a node can touch: fixed obstacles, then bodies.
+    fn surfaces(&self) -> Vec<Surface3> {
+        (0..self.obstacles.len())
+            .map(Surface3::Obstacle)
+            .chain((0..self.bodies.len()).map(Surface3::Body))
+            .collect()
+    }
+
+    /// A node that ended deeper inside a surface than its offset gets a contact there (the
+    /// deepest one).
+    fn detect_node(&mut self, r: usize, i: usize, report: &mut StepReport3) -> u32 {
+        let x = Self::node(&self.work[r].qn, i);
+        let reach = match self.sections[r] {
+            Section3::Circle { r } => r,
+            Section3::Rect { b, h } => 0.5 * (b + h),
+        };
+        let eps = 1e-10 * self.rods[r].rod.length;
+        let mut best: Option<(f64, Surface3, Proximity3)> = None;
+        for s in self.surfaces() {
+            let o = self.surface(s);
+            if o.lower_bound(&x) >= reach {
+                continue;
+            }
+            let prox = o.query(&x);
+            let depth = prox.distance - self.offset(r, i, &prox.normal);
+            if depth < -eps && best.is_none_or(|b| depth < b.0) {
+                best = Some((depth, s, prox));
+            }
+        }
+        let Some((_, s, prox)) = best else { return 0 };
+        let mut c = self.contact_at(r, i, s, &prox);
+        c.locked = self.work[r].released[i];
+        c.initial_grip(&Self::node(&self.rods[r].q, i));
+        self.contacts[r][i] = Some(c);
+        report.added += 1;
+        1
+    }
+
+    /// Bodies on fixed obstacles: release pulling contacts, stick/slip, add support points that
+    /// went below a fixed obstacle.
+    fn update_body_contacts(&mut self, dt: f64, report: &mut StepReport3) -> u32 {
+        let mut changed = 0;
+        let mut keep = Vec::new();
+        for mut bc in std::mem::take(&mut self.body_contacts) {
+            let n = bc.normal;
+            let fn_ = n.dot(&bc.force);
+            if fn_ < 0.0 {
+                report.released += 1;
+                changed += 1;
+                continue;
+            }
+            let ft = bc.force - n * fn_;
+            let mu = bc.coulomb;
+            if bc.switches < crate::contact::friction::MAX_SWITCHES && mu.mu_s > 0.0 {
+                let slip = lever_map(&bc.lever) * self.bodies[bc.body].dx / dt;
+                if bc.stuck.is_some() && ft.norm() > mu.mu_s * fn_ {
+                    bc.stuck = None;
+                    bc.dir = -ft / ft.norm();
+                    bc.switches += 1;
+                    changed += 1;
+                    report.switches += 1;
+                } else if bc.stuck.is_none() && bc.dir.dot(&slip) < 0.0 {
+                    bc.stuck = Some(n * bc.gap);
+                    bc.switches += 1;
+                    changed += 1;
+                    report.switches += 1;
+                }
+            }
+            keep.push(bc);
+        }
+        self.body_contacts = keep;
+        changed + self.detect_body_contacts(report)
+    }
+
+    fn detect_body_contacts(&mut self, report: &mut StepReport3) -> u32 {
+        let mut changed = 0;
+        for b in 0..self.bodies.len() {
+            let body = &self.bodies[b];
+            let (c, rot) = (body.centre(), body.obstacle.pose.rotation);
+            let size = body.obstacle.shape.lower_bound(&V3::zeros()).abs();
+            for (k, o) in self.obstacles.iter().enumerate() {
+                let n = o.query(&c).normal;
+                for p in body.obstacle.shape.support_points(&(rot.inverse() * -n)) {
+                    let pw = c + rot * p;
+                    let prox = o.query(&pw);
+                    if prox.distance >= -1e-12 * size {
+                        continue;
+                    }
+                    let lever = pw - c;
+                    let dup = self.body_contacts.iter().any(|e| {
+                        e.body == b && e.obstacle == k && (e.lever - lever).norm() < 1e-6 * size
+                    });
+                    if dup {
+                        continue;
+                    }
+                    let g = lever_map(&lever);
+                    let gap = -prox.distance + prox.normal.dot(&(g * body.dx));
+                    let coulomb = self.friction.between(&body.obstacle.name, &o.name);
+                    self.body_contacts.push(BodyContact3 {
+                        body: b,
+                        obstacle: k,
+                        normal: prox.normal,
+                        lever,
+                        gap,
+                        stuck: (coulomb.mu_s > 0.0).then_some(prox.normal * gap),
+                        dir: V3::zeros(),
+                        coulomb,
+                        switches: 0,
+                        force: V3::zeros(),
+                    });
+                    report.added += 1;
+                    changed += 1;
+                }
+            }
+        }
+        changed
+    }
+}

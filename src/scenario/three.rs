@@ -1,0 +1,627 @@
+//! 3D scenarios (`dimension = 3`, issue 16): one prong definition made into a two-finger
+//! parallel or n-finger radial gripper, a fruit (sphere, ellipsoid, box or an OBJ mesh; free or
+//! fixed), fixed obstacles (a table plane, shapes), Coulomb friction, and the hand's program of
+//! moves. Vectors are `[x, y, z]`. The planar format is unchanged; a file without
+//! `dimension = 3` is a planar scenario. Every error names the file, the key and the value.
+//!
+//! ```toml
+//! name = "3d-two-finger-sphere"
+//! dimension = 3
+//! [solve]
+//! dt = 2e-4
+//! t_end = 0.2                      # optional: default, when the moves end
+//! gravity = [0.0, 0.0, -9.81]
+//! [prong]                          # in the finger frame: hanging along −z, closing along +x
+//! nodes = 10
+//! shape = { kind = "parabola", a = 0.8, length = 0.1 }   # x = −a (length − s)², z = −s
+//! # shape = { kind = "straight", length = 0.05 }  or  points = [[x, y, z], ...]
+//! E = 1e6
+//! nu = 0.5                         # or G = ...
+//! density = 5000.0
+//! section = { kind = "rect", b = 0.02, h = 0.01 }       # h along the closing direction
+//! clamped_edges = 1
+//! [gripper]
+//! kind = "parallel"                # or "radial" with fingers = n
+//! radius = 0.06                    # the finger-frame origins (prong tips) from the axis
+//! centre = [0.0, 0.0, 0.0]
+//! sensor_tau = 0.01                # grip force sensor time constant (s), default 0.01
+//! [contact]
+//! surface = "face"                 # or "centreline"
+//! [friction]
+//! mu_s = 0.5
+//! mu_k = 0.4
+//! [fruit]
+//! shape = { kind = "sphere", radius = 0.04 }   # ellipsoid semi_axes, box half, mesh file + scale
+//! centre = [0.0, 0.0, -0.09]
+//! density = 900.0
+//! free = true
+//! [[obstacle]]
+//! name = "table"
+//! shape = { kind = "plane" }
+//! at = [0.0, 0.0, -0.13]
+//! normal = [0.0, 0.0, 1.0]
+//! [[move]]
+//! kind = "squeeze"                 # close at speed until the grip force
+//! speed = 0.05
+//! force = 1.0
+//! max_travel = 0.03
+//! [[move]]
+//! kind = "lift"                    # also: hold, close, translate, rotate
+//! height = 0.02
+//! duration = 0.1
+//! ```
+
+use super::reader::{ScenarioError, TableReader};
+use crate::contact::friction::{Coulomb, FrictionTable};
+use crate::obstacle3::{Obstacle3, Pose3, Shape3, TriMesh};
+use crate::rod3d::gripper::Move3;
+use crate::rod3d::{ContactSide3, Rod3Spec, Section3};
+use toml::Value;
+
+const TOP: &[&str] = &[
+    "name",
+    "description",
+    "dimension",
+    "solve",
+    "prong",
+    "gripper",
+    "contact",
+    "friction",
+    "fruit",
+    "obstacle",
+    "move",
+];
+const SOLVE: &[&str] = &[
+    "dt",
+    "t_end",
+    "gravity",
+    "force_tol",
+    "max_newton_iterations",
+];
+const PRONG: &[&str] = &[
+    "nodes",
+    "shape",
+    "points",
+    "E",
+    "nu",
+    "G",
+    "density",
+    "section",
+    "clamped_edges",
+    "director",
+];
+const SHAPE: &[&str] = &[
+    "kind",
+    "a",
+    "length",
+    "radius",
+    "semi_axes",
+    "half",
+    "file",
+    "scale",
+];
+const SECTION: &[&str] = &["kind", "b", "h", "r"];
+const GRIPPER: &[&str] = &["kind", "fingers", "radius", "centre", "sensor_tau"];
+const FRUIT: &[&str] = &["name", "shape", "centre", "density", "free"];
+const OBSTACLE: &[&str] = &["name", "shape", "at", "normal"];
+const MOVE: &[&str] = &[
+    "kind",
+    "speed",
+    "force",
+    "max_travel",
+    "travel",
+    "duration",
+    "by",
+    "height",
+    "axis",
+    "angle",
+];
+
+/// The fruit: its shape about its centre, where it is, and whether it moves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fruit3 {
+    pub name: String,
+    pub shape: Shape3,
+    pub centre: [f64; 3],
+    pub density: f64,
+    pub free: bool,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario3 {
+    pub name: String,
+    pub description: String,
+    pub file: String,
+    pub dt: f64,
+    pub t_end: Option<f64>,
+    pub gravity: [f64; 3],
+    pub force_tol: f64,
+    pub max_newton_iterations: u32,
+    /// The prong in its finger frame.
+    pub prong: Rod3Spec,
+    pub clamped_edges: usize,
+    pub fingers: usize,
+    pub radius: f64,
+    pub centre: [f64; 3],
+    /// Time constant of the grip force sensor (s).
+    pub sensor_tau: f64,
+    pub side: ContactSide3,
+    pub friction: FrictionTable,
+    pub fruit: Option<Fruit3>,
+    pub obstacles: Vec<Obstacle3>,
+    pub moves: Vec<Move3>,
+}
+
+/// Whether a scenario text says `dimension = 3` (anything unreadable is left to the planar
+/// reader, whose errors are the established ones).
+pub fn is_3d(text: &str) -> bool {
+    text.parse::<toml::Table>()
+        .ok()
+        .and_then(|t| t.get("dimension").and_then(Value::as_integer))
+        == Some(3)
+}
+
+fn vec3(r: &TableReader<'_>, key: &'static str) -> Result<[f64; 3], ScenarioError> {
+    let v = r.required(key)?;
+    vec3_value(r, key, v)
+}
+
+fn vec3_value(r: &TableReader<'_>, key: &str, v: &Value) -> Result<[f64; 3], ScenarioError> {
+    match v {
+        Value::Array(a) if a.len() == 3 => {
+            let mut out = [0.0; 3];
+            for (k, x) in a.iter().enumerate() {
+                out[k] = r.num_value(key, x).map_err(|mut e| {
+                    e.value = super::reader::show(v);
+                    e
+                })?;
+            }
+            Ok(out)
+        }
+        other => Err(r.err_hint(
+            key,
+            Some(other),
+            "expected a 3D vector [x, y, z]",
+            "a 3D scenario's vectors have three components",
+        )),
+    }
+}
+
+fn opt_vec3(
+    r: &TableReader<'_>,
+    key: &'static str,
+    default: [f64; 3],
+) -> Result<[f64; 3], ScenarioError> {
+    match r.get(key) {
+        None => Ok(default),
+        Some(v) => vec3_value(r, key, v),
+    }
+}
+
+impl Scenario3 {
+    /// Parse a 3D scenario's text; `dir` is where relative mesh files are looked up.
+    pub fn from_str(
+        text: &str,
+        file: &str,
+        dir: &std::path::Path,
+    ) -> Result<Scenario3, ScenarioError> {
+        let root: toml::Table = text.parse().map_err(|e: toml::de::Error| ScenarioError {
+            file: file.to_string(),
+            key: String::new(),
+            value: String::new(),
+            message: format!(
+                "TOML syntax error: {}",
+                e.message().lines().next().unwrap_or("")
+            ),
+            hint: None,
+        })?;
+        let top = TableReader::new(file, String::new(), &root, TOP);
+        let dim = top.required("dimension")?;
+        if dim.as_integer() != Some(3) {
+            return Err(top.err("dimension", Some(dim), "a 3D scenario says dimension = 3"));
+        }
+        let name = top.str("name")?.to_string();
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+        {
+            return Err(top.err(
+                "name",
+                top.get("name"),
+                "may only hold letters, digits, '-', '_' and '.' (it names the output files)",
+            ));
+        }
+        let description = top.opt_str("description")?.unwrap_or("").to_string();
+        let solve = top.table("solve", SOLVE)?;
+        let dt = solve.positive("dt")?;
+        let t_end = solve.opt_positive("t_end")?;
+        let gravity = opt_vec3(&solve, "gravity", [0.0, 0.0, -9.81])?;
+        let force_tol = solve.opt_positive("force_tol")?.unwrap_or(1e-10);
+        let max_newton_iterations = solve.opt_usize("max_newton_iterations")?.unwrap_or(40) as u32;
+        solve.finish()?;
+        let (prong, clamped_edges) = parse_prong(&top.table("prong", PRONG)?)?;
+        let g = top.table("gripper", GRIPPER)?;
+        let fingers = match g.str("kind")? {
+            "parallel" => 2,
+            "radial" => {
+                let n = g.usize("fingers")?;
+                if n < 2 {
+                    return Err(g.err(
+                        "fingers",
+                        g.get("fingers"),
+                        "a radial gripper needs at least 2 fingers",
+                    ));
+                }
+                n
+            }
+            other => {
+                return Err(g.err_hint(
+                    "kind",
+                    g.get("kind"),
+                    format!("unknown gripper kind {other:?}"),
+                    "use \"parallel\" or \"radial\"",
+                ))
+            }
+        };
+        let radius = g.positive("radius")?;
+        let centre = opt_vec3(&g, "centre", [0.0; 3])?;
+        let sensor_tau = g.opt_positive("sensor_tau")?.unwrap_or(0.01);
+        g.finish()?;
+        let side = match top.opt_table("contact", &["surface"])? {
+            None => ContactSide3::Face,
+            Some(c) => {
+                let s = match c.opt_str("surface")? {
+                    None | Some("face") => ContactSide3::Face,
+                    Some("centreline" | "centerline") => ContactSide3::Centreline,
+                    Some(other) => {
+                        return Err(c.err_hint(
+                            "surface",
+                            c.get("surface"),
+                            format!("unknown contact surface {other:?}"),
+                            "use \"face\" or \"centreline\"",
+                        ))
+                    }
+                };
+                c.finish()?;
+                s
+            }
+        };
+        let friction = parse_friction(&top)?;
+        let fruit = match top.opt_table("fruit", FRUIT)? {
+            None => None,
+            Some(f) => Some(parse_fruit(&f, dir)?),
+        };
+        let obstacles = parse_obstacles(&top, dir)?;
+        let moves = parse_moves(&top)?;
+        top.finish()?;
+        Ok(Scenario3 {
+            name,
+            description,
+            file: file.to_string(),
+            dt,
+            t_end,
+            gravity,
+            force_tol,
+            max_newton_iterations,
+            prong,
+            clamped_edges,
+            fingers,
+            radius,
+            centre,
+            sensor_tau,
+            side,
+            friction,
+            fruit,
+            obstacles,
+            moves,
+        })
+    }
+
+    /// Read and parse a 3D scenario file.
+    pub fn load(path: &std::path::Path) -> Result<Scenario3, ScenarioError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+            file: file.clone(),
+            key: String::new(),
+            value: String::new(),
+            message: format!("cannot read the file: {e}"),
+            hint: None,
+        })?;
+        let dir = path.parent().unwrap_or(std::path::Path::new("."));
+        Self::from_str(&text, &file, dir)
+    }
+}
+
+fn parse_friction(top: &TableReader<'_>) -> Result<FrictionTable, ScenarioError> {
+    let Some(f) = top.opt_table("friction", &["mu_s", "mu_k"])? else {
+        return Ok(FrictionTable::default());
+    };
+    let mu_s = f.f64("mu_s")?;
+    let mu_k = f.f64_or("mu_k", mu_s)?;
+    if !(mu_s >= 0.0) {
+        return Err(f.err("mu_s", f.get("mu_s"), "must be ≥ 0"));
+    }
+    if !(0.0..=mu_s).contains(&mu_k) {
+        return Err(f.err("mu_k", f.get("mu_k"), "must lie between 0 and mu_s"));
+    }
+    f.finish()?;
+    Ok(FrictionTable {
+        default: Coulomb { mu_s, mu_k },
+        pairs: Vec::new(),
+    })
+}
+
+fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize), ScenarioError> {
+    let points = match p.array("points")? {
+        Some(a) => {
+            if p.has("shape") || p.has("nodes") {
+                return Err(p.err(
+                    "points",
+                    p.get("points"),
+                    "give either points or nodes + shape",
+                ));
+            }
+            let mut pts = Vec::new();
+            for v in a {
+                pts.push(vec3_value(p, "points", v)?);
+            }
+            if pts.len() < 3 {
+                return Err(p.err("points", p.get("points"), "a prong needs at least 3 nodes"));
+            }
+            pts
+        }
+        None => {
+            let n = p.usize("nodes")?;
+            if n < 3 {
+                return Err(p.err("nodes", p.get("nodes"), "a prong needs at least 3 nodes"));
+            }
+            let s = p.table("shape", SHAPE)?;
+            let length = s.positive("length")?;
+            let a = match s.str("kind")? {
+                "straight" => 0.0,
+                "parabola" => s.f64("a")?,
+                other => {
+                    return Err(s.err_hint(
+                        "kind",
+                        s.get("kind"),
+                        format!("unknown prong shape {other:?}"),
+                        "use \"straight\" or \"parabola\"",
+                    ))
+                }
+            };
+            s.finish()?;
+            (0..n)
+                .map(|i| {
+                    let z = length * i as f64 / (n - 1) as f64;
+                    [-a * (length - z) * (length - z), 0.0, -z]
+                })
+                .collect()
+        }
+    };
+    let e = p.positive("E")?;
+    let g = match (p.opt_positive("G")?, p.opt_f64("nu")?) {
+        (Some(_), Some(_)) => {
+            return Err(p.err("nu", p.get("nu"), "give either G or nu, not both"))
+        }
+        (Some(g), None) => g,
+        (None, nu) => {
+            let nu = nu.unwrap_or(0.5);
+            if !(-1.0 < nu && nu <= 0.5) {
+                return Err(p.err("nu", p.get("nu"), "Poisson's ratio must lie in (-1, 0.5]"));
+            }
+            e / (2.0 * (1.0 + nu))
+        }
+    };
+    let density = p.positive("density")?;
+    let sec = p.table("section", SECTION)?;
+    let section = match sec.str("kind")? {
+        "rect" => Section3::Rect {
+            b: sec.positive("b")?,
+            h: sec.positive("h")?,
+        },
+        "circle" => Section3::Circle {
+            r: sec.positive("r")?,
+        },
+        other => {
+            return Err(sec.err_hint(
+                "kind",
+                sec.get("kind"),
+                format!("unknown section {other:?}"),
+                "use \"rect\" or \"circle\"",
+            ))
+        }
+    };
+    sec.finish()?;
+    let clamped = p.opt_usize("clamped_edges")?.unwrap_or(1);
+    if clamped == 0 || clamped + 1 >= points.len() {
+        return Err(p.err(
+            "clamped_edges",
+            p.get("clamped_edges"),
+            format!(
+                "must lie between 1 and {} (the prong has {} nodes)",
+                points.len() - 2,
+                points.len()
+            ),
+        ));
+    }
+    let director = opt_vec3(p, "director", [1.0, 0.0, 0.0])?;
+    p.finish()?;
+    let spec = Rod3Spec {
+        points,
+        director,
+        rest_theta: Vec::new(),
+        section,
+        youngs_modulus: e,
+        shear_modulus: g,
+        density,
+    };
+    Ok((spec, clamped))
+}
+
+fn parse_shape(s: &TableReader<'_>, dir: &std::path::Path) -> Result<Shape3, ScenarioError> {
+    let shape = match s.str("kind")? {
+        "sphere" => Shape3::Sphere {
+            radius: s.positive("radius")?,
+        },
+        "ellipsoid" => {
+            let a = vec3(s, "semi_axes")?;
+            if a.iter().any(|x| !(*x > 0.0)) {
+                return Err(s.err(
+                    "semi_axes",
+                    s.get("semi_axes"),
+                    "every semi-axis must be > 0",
+                ));
+            }
+            Shape3::Ellipsoid { semi_axes: a }
+        }
+        "box" => {
+            let h = vec3(s, "half")?;
+            if h.iter().any(|x| !(*x > 0.0)) {
+                return Err(s.err("half", s.get("half"), "every half extent must be > 0"));
+            }
+            Shape3::Box { half: h }
+        }
+        "plane" => Shape3::Plane,
+        "mesh" => {
+            let f = s.str("file")?;
+            let scale = s.opt_positive("scale")?.unwrap_or(1.0);
+            let path = dir.join(f);
+            let text = std::fs::read_to_string(&path).map_err(|e| {
+                s.err(
+                    "file",
+                    s.get("file"),
+                    format!("cannot read {}: {e}", path.display()),
+                )
+            })?;
+            Shape3::Mesh(
+                TriMesh::from_obj(&text, scale).map_err(|m| s.err("file", s.get("file"), m))?,
+            )
+        }
+        other => {
+            return Err(s.err_hint(
+                "kind",
+                s.get("kind"),
+                format!("unknown shape {other:?}"),
+                "use sphere, ellipsoid, box, plane or mesh",
+            ))
+        }
+    };
+    s.finish()?;
+    Ok(shape)
+}
+
+fn parse_fruit(f: &TableReader<'_>, dir: &std::path::Path) -> Result<Fruit3, ScenarioError> {
+    let shape = parse_shape(&f.table("shape", SHAPE)?, dir)?;
+    if shape == Shape3::Plane {
+        return Err(f.err("shape", f.get("shape"), "a fruit cannot be a plane"));
+    }
+    let fruit = Fruit3 {
+        name: f.opt_str("name")?.unwrap_or("fruit").to_string(),
+        shape,
+        centre: vec3(f, "centre")?,
+        density: f.positive("density")?,
+        free: f.opt_bool("free")?.unwrap_or(true),
+    };
+    f.finish()?;
+    Ok(fruit)
+}
+
+fn parse_obstacles(
+    top: &TableReader<'_>,
+    dir: &std::path::Path,
+) -> Result<Vec<Obstacle3>, ScenarioError> {
+    let mut out = Vec::new();
+    for (k, v) in top
+        .array("obstacle")?
+        .map(|a| a.as_slice())
+        .unwrap_or(&[])
+        .iter()
+        .enumerate()
+    {
+        let o = top.table_value(&format!("obstacle.{k}"), v, OBSTACLE)?;
+        let shape = parse_shape(&o.table("shape", SHAPE)?, dir)?;
+        let at = vec3(&o, "at")?;
+        let pose = if shape == Shape3::Plane {
+            let n = opt_vec3(&o, "normal", [0.0, 0.0, 1.0])?;
+            if n.iter().map(|x| x * x).sum::<f64>() < 1e-24 {
+                return Err(o.err("normal", o.get("normal"), "must not be zero"));
+            }
+            Pose3::facing(at, n)
+        } else {
+            Pose3::at(at)
+        };
+        let name = o
+            .opt_str("name")?
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("obstacle{k}"));
+        o.finish()?;
+        out.push(Obstacle3::new(&name, shape, pose));
+    }
+    Ok(out)
+}
+
+fn parse_moves(top: &TableReader<'_>) -> Result<Vec<Move3>, ScenarioError> {
+    let mut out = Vec::new();
+    for (k, v) in top
+        .array("move")?
+        .map(|a| a.as_slice())
+        .unwrap_or(&[])
+        .iter()
+        .enumerate()
+    {
+        let m = top.table_value(&format!("move.{k}"), v, MOVE)?;
+        let mv = match m.str("kind")? {
+            "squeeze" => Move3::Squeeze {
+                speed: m.positive("speed")?,
+                force: m.positive("force")?,
+                max_travel: m.positive("max_travel")?,
+            },
+            "close" => Move3::Close {
+                travel: m.f64("travel")?,
+                duration: m.positive("duration")?,
+            },
+            "hold" => Move3::Hold {
+                duration: m.positive("duration")?,
+            },
+            "translate" => Move3::Translate {
+                by: vec3(&m, "by")?,
+                duration: m.positive("duration")?,
+            },
+            "lift" => Move3::Lift {
+                height: m.f64("height")?,
+                duration: m.positive("duration")?,
+            },
+            "rotate" => {
+                let axis = vec3(&m, "axis")?;
+                if axis.iter().map(|x| x * x).sum::<f64>() < 1e-24 {
+                    return Err(m.err("axis", m.get("axis"), "must not be zero"));
+                }
+                Move3::Rotate {
+                    axis,
+                    angle: m.f64("angle")?,
+                    duration: m.positive("duration")?,
+                }
+            }
+            other => {
+                return Err(m.err_hint(
+                    "kind",
+                    m.get("kind"),
+                    format!("unknown move {other:?}"),
+                    "use squeeze, close, hold, translate, lift or rotate",
+                ))
+            }
+        };
+        m.finish()?;
+        out.push(mv);
+    }
+    if out.is_empty() {
+        return Err(top.err_hint(
+            "move",
+            None,
+            "a 3D scenario needs at least one [[move]]",
+            "add e.g. [[move]] kind = \"squeeze\"",
+        ));
+    }
+    Ok(out)
+}
