@@ -810,6 +810,13 @@ fn list_scenarios(dir: &Path) -> ExitCode {
     };
     entries.sort();
     for p in entries {
+        if std::fs::read_to_string(&p).is_ok_and(|t| gripsim::scenario::three::is_3d(&t)) {
+            match gripsim::scenario::three::Scenario3::load(&p) {
+                Ok(sc) => say!("{:<44} {} (3D)", p.display(), sc.description.trim()),
+                Err(e) => say!("{:<44} INVALID: {e}", p.display()),
+            }
+            continue;
+        }
         match Scenario::load(&p, &[]) {
             Ok(sc) => {
                 let first = sc
