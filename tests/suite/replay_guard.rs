@@ -767,7 +767,13 @@ fn every_shipped_scenario_is_clean_at_its_dt() {
     assert!(names.len() >= 15, "{names:?}");
     let tmp = tempfile::tempdir().unwrap();
     let mut flagged = Vec::new();
-    for name in &names {
+    // The detector reads planar runs; 3D runs (dimension = 3) have no --check yet.
+    let planar = |name: &str| {
+        let text = std::fs::read_to_string(scenario(name)).unwrap();
+        let sc: toml::Value = toml::from_str(&text).unwrap();
+        sc.get("dimension").and_then(|d| d.as_integer()).unwrap_or(2) == 2
+    };
+    for name in names.iter().filter(|n| planar(n)) {
         let json = tmp.path().join(format!("{name}.json"));
         let out = gripsim()
             .arg("run")
