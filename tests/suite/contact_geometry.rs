@@ -343,44 +343,48 @@ fn pressure_summary(sets: &[&str]) -> gripsim::record::summary::PressureSummary 
     s.contact_pressure.expect("the prong touched the apple")
 }
 
-/// The compliant grasp's peak contact force converges at first order in Δt (backward Euler
-/// damps the contact oscillation by ≈ (π/4) ω Δt at the first peak), instead of growing like
-/// 1/Δt as eq. 2's rigid impact peak does (194 → 2783 N from 1e-5 to 1e-6 s).
+/// The compliant grasp's peak contact force converges as Δt → 0 instead of growing like 1/Δt
+/// as eq. 2's rigid impact peak does (194 → 2783 N from 1e-5 to 1e-6 s). What is left of its
+/// Δt dependence under backward Euler (1.07 % from 1e-5 to 1e-6 s) is the integrator's own
+/// first-order error — its numerical damping of the prong's motion — not the force's
+/// definition or an impact transient (the compliant law starts at F′(0) = 0, nothing is
+/// inelastic): the second-order integrator, which a compliant contact does not force back to
+/// first order, moves the same peak by 0.002 % over the same range, and backward Euler
+/// converges to its value at first order.
 #[test]
 fn the_compliant_grasps_peak_contact_force_converges_in_dt() {
-    let at = |dt: &str| {
+    let at = |dt: &str, integrator: &str| {
         let mut sets = THICK_ON_APPLE.to_vec();
         let dt = format!("solve.dt={dt}");
+        let integrator = format!("solve.integrator={integrator}");
         sets.push(&dt);
+        sets.push(&integrator);
         pressure_summary(&sets)
     };
-    let (c1, c2, f) = (at("1e-5"), at("2e-6"), at("1e-6"));
-    let change = |c: &gripsim::record::summary::PressureSummary| {
-        (c.peak_contact_force_n - f.peak_contact_force_n).abs() / f.peak_contact_force_n
-    };
+    let (e1, e2) = (at("1e-5", "backward_euler"), at("1e-6", "backward_euler"));
+    let (b1, b2) = (at("1e-5", "bdf2"), at("1e-6", "bdf2"));
+    let f = |c: &gripsim::record::summary::PressureSummary| c.peak_contact_force_n;
+    let change = |a: f64, b: f64| (a - b).abs() / b;
     println!(
-        "peak contact force {:.6} N (dt 1e-5), {:.6} N (2e-6), {:.6} N (1e-6): changes {:.3} % \
-         and {:.3} % against 1e-6; peak pressure {:.4e} / {:.4e} / {:.4e} Pa",
-        c1.peak_contact_force_n,
-        c2.peak_contact_force_n,
-        f.peak_contact_force_n,
-        100.0 * change(&c1),
-        100.0 * change(&c2),
-        c1.max_pressure_pa,
-        c2.max_pressure_pa,
-        f.max_pressure_pa
+        "peak contact force, backward Euler: {:.6} N (dt 1e-5), {:.6} N (1e-6): change {:.3} %; \
+         BDF2: {:.6} N, {:.6} N: change {:.4} %; peak pressure {:.4e} / {:.4e} Pa (BDF2)",
+        f(&e1),
+        f(&e2),
+        100.0 * change(f(&e1), f(&e2)),
+        f(&b1),
+        f(&b2),
+        100.0 * change(f(&b1), f(&b2)),
+        b1.max_pressure_pa,
+        b2.max_pressure_pa
     );
-    // First order: the 2e-6 run is (2 − 1)/(10 − 1) ≈ 0.11 as far from the 1e-6 run as the
-    // 1e-5 run is; allow 0.2. The 1e-5 → 1e-6 change itself is measured at 1.07 % (the issue
-    // asks for < 1 %: not met at Δt = 1e-5, met from 2e-6 on).
-    assert!(
-        change(&c2) < 0.2 * change(&c1),
-        "{} {}",
-        change(&c2),
-        change(&c1)
-    );
-    assert!(change(&c2) < 0.01);
-    assert_eq!(c1.bruised, f.bruised);
+    // The issue's bound, met by the second-order integrator with a wide margin.
+    assert!(change(f(&b1), f(&b2)) < 0.01 * 0.1);
+    // Backward Euler heads for the same value at first order: its error shrinks ≈ 10× from
+    // 1e-5 to 1e-6 s (measured 9.7×).
+    let (err1, err2) = (f(&e1) - f(&b2), f(&e2) - f(&b2));
+    assert!(err1 < 0.0 && err2 < 0.0, "damped: below the limit");
+    assert!((7.0..13.0).contains(&(err1 / err2)), "{}", err1 / err2);
+    assert_eq!(b1.bruised, b2.bruised);
 }
 
 #[test]
@@ -698,4 +702,57 @@ fn a_cantilever_pressed_on_a_rigid_circle_converges_with_edge_contact() {
         }
         last = e;
     }
+}
+
+/// The stiff seed prong (E = 1 GPa) squeezing a compliant apple (r = 5 cm), refined from 28 to
+/// 82 nodes with the same total mass and the clamp at the same place (docs/seed-study.md): with
+/// edge contact the peak contact force is a property of the grasp (one Hertz contact per
+/// contact region); with node contact it is split over however many nodes are inside.
+#[test]
+fn the_compliant_grasps_contact_force_converges_in_nodes_with_edge_contact() {
+    let text = std::fs::read_to_string(crate::common::scenario("seed-grasp-r5"))
+        .unwrap()
+        .replace("node_mass = 0.01", "mass = 0.1");
+    let peak = |nodes: usize, clamped: &str, points: &str| {
+        let sets: Vec<String> = [
+            "contact.surface=face",
+            "obstacle.0.center=[-0.055,-0.05]",
+            "obstacle.0.material=apple",
+            "rod.0.E=1e9",
+            "solve.integrator=bdf2",
+            "solve.t_end=0.08",
+            "rod.0.drive.stop_travel=0.025",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([
+            format!("rod.0.nodes={nodes}"),
+            format!("rod.0.clamped={clamped}"),
+            format!("contact.points={points}"),
+        ])
+        .collect();
+        let sc = Scenario::from_str(&text, "r5-mass.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&sc);
+        let mut col = gripsim::record::summary::SummaryCollector::new();
+        sim.run(&mut col).unwrap_or_else(|e| panic!("{e}"));
+        let c = col.finish(&sim.stats, 0.0).contact_pressure.unwrap();
+        (c.peak_contact_force_n, c.max_pressure_pa)
+    };
+    let (e28, e82) = (
+        peak(28, "[0,1,2]", "edges"),
+        peak(82, "[0,1,2,3,4,5]", "edges"),
+    );
+    let (n28, n82) = (
+        peak(28, "[0,1,2]", "nodes"),
+        peak(82, "[0,1,2,3,4,5]", "nodes"),
+    );
+    println!(
+        "peak contact force / pressure, 28 → 82 nodes: edges {:.3} → {:.3} N, {:.0} → {:.0} Pa; \
+         nodes {:.3} → {:.3} N, {:.0} → {:.0} Pa",
+        e28.0, e82.0, e28.1, e82.1, n28.0, n82.0, n28.1, n82.1
+    );
+    assert!((e28.0 - e82.0).abs() < 0.005 * e82.0);
+    assert!((e28.1 - e82.1).abs() < 0.005 * e82.1);
+    // The same refinement moves the node-only figure by more than ten times as much.
+    assert!((n28.0 - n82.0).abs() > 10.0 * (e28.0 - e82.0).abs());
 }
