@@ -176,7 +176,10 @@ impl Simulation {
         let s = self.rod_surfaces(r);
         let mut out = Vec::new();
         for i in 0..rod.n - 1 {
-            if rod.clamped[i] || rod.clamped[i + 1] {
+            // Two nodes held whole (stuck, or in corners) leave the segment no freedom for a
+            // row of its own.
+            let whole = |j: usize| self.work[r].contact[j].is_some_and(|c| c.holds_whole_node());
+            if rod.clamped[i] || rod.clamped[i + 1] || (whole(i) && whole(i + 1)) {
                 continue;
             }
             let a = [q[2 * i], q[2 * i + 1]];
@@ -242,6 +245,11 @@ impl Simulation {
                 continue;
             }
             let i = e.segment;
+            let whole = |j: usize| w.contact[j].is_some_and(|c| c.holds_whole_node());
+            if whole(i) && whole(i + 1) {
+                changed = true;
+                continue;
+            }
             let a = [q[2 * i], q[2 * i + 1]];
             let b = [q[2 * i + 2], q[2 * i + 3]];
             let (wt, prox) = edge::closest_on_segment(&s, e.obstacle, a, b);

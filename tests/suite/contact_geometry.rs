@@ -174,6 +174,18 @@ fn contact_surface_errors_name_the_key_and_value() {
         sc.contact.surface,
         gripsim::scenario::contact::ContactSurface::Face
     );
+    // Which points: nodes (the default) or edges.
+    use gripsim::scenario::contact::ContactPoints;
+    assert_eq!(sc.contact.points, ContactPoints::Nodes);
+    let text = drop_on_circle("centreline", rect, 1e-3, 0.0);
+    let sc = scenario(&text, &["contact.points=edges"]).unwrap();
+    assert_eq!(sc.contact.points, ContactPoints::Edges);
+    let e = scenario(&text, &["contact.points=edge"]).unwrap_err();
+    println!("{e}");
+    assert!(
+        e.contains("contact.points") && e.contains("\"edge\"") && e.contains("\"edges\"?"),
+        "{e}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
