@@ -178,6 +178,13 @@ pub struct ContactView {
     pub peak_pressure: f64,
     pub bruise_pressure: f64,
     pub bruise_half_width: f64,
+    /// An edge contact (`[contact] points = "edges"`): the segment (its first node; `node` is
+    /// the same) and the barycentric weight s of the contact point (1 − s) x_i + s x_{i+1},
+    /// whose normal force is shared (1 − s, s) by the two nodes. Null and 0 for a node's
+    /// contact.
+    #[serde(serialize_with = "index_or_null")]
+    pub segment: usize,
+    pub weight: f64,
 }
 
 fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Error> {

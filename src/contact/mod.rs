@@ -7,6 +7,7 @@
 //!   corner), on a fixed surface or relative to a moving body.
 //! - [`friction`]: Coulomb coefficients and the stick/slip decisions — friction is decided
 //!   there and nowhere else.
+//! - [`edge`]: a segment's interior point held on an obstacle (edge contact).
 //! - [`body`]: a free body's own contacts with fixed obstacles (a fruit on a table).
 //! - [`compliant`]: a fruit of elastic material: the Hertz line-contact law, solved implicitly.
 
@@ -14,6 +15,7 @@ pub mod body;
 pub mod compliant;
 pub mod constraint;
 pub mod detect;
+pub mod edge;
 pub mod friction;
 pub mod surfaces;
 

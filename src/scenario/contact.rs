@@ -4,15 +4,18 @@
 //! [contact]
 //! surface = "face"        # the prong's face: h/2 (or the section radius) off the centreline
 //! # surface = "centreline" # the seed's contact: the centreline is held on the obstacle
+//! points = "edges"        # every segment's closest point (between nodes too)
+//! # points = "nodes"       # only the nodes are tested (the seed's model)
 //! ```
 //!
 //! Absent, contact is at the centreline (the seed's model, which every shipped scenario
-//! written before `[contact]` existed was tuned on; the seed-grasp scenarios say so).
+//! written before `[contact]` existed was tuned on; the seed-grasp scenarios say so), and only
+//! nodes are tested (`points = "nodes"`, the seed's model, which every shipped scenario uses).
 
 use super::reader::{did_you_mean, TableReader};
 use super::ScenarioError;
 
-const CONTACT_KEYS: &[&str] = &["surface"];
+const CONTACT_KEYS: &[&str] = &["surface", "points"];
 
 /// Which surface of a prong is held on an obstacle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
@@ -26,10 +29,24 @@ pub enum ContactSurface {
     Face,
 }
 
+/// Which points of a prong are tested against the obstacles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ContactPoints {
+    /// The nodes only (the seed's model): a segment may cut into an obstacle between its
+    /// nodes, and an obstacle smaller than a segment can pass between them.
+    #[default]
+    Nodes,
+    /// The nodes and every segment's closest point (src/contact/edge.rs): a contact may lie
+    /// between nodes, its reaction shared by the two with the barycentric weights.
+    Edges,
+}
+
 /// `[contact]`.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct ContactSpec {
     pub surface: ContactSurface,
+    pub points: ContactPoints,
 }
 
 /// Read `[contact]` (absent: centreline contact).
@@ -53,6 +70,24 @@ pub fn parse(top: &TableReader) -> Result<ContactSpec, ScenarioError> {
                     "surface",
                     c.get("surface"),
                     format!("unknown contact surface {other:?}"),
+                    hint,
+                ));
+            }
+        };
+    }
+    if let Some(s) = c.opt_str("points")? {
+        spec.points = match s {
+            "nodes" => ContactPoints::Nodes,
+            "edges" => ContactPoints::Edges,
+            other => {
+                let hint = match did_you_mean(other, &["nodes", "edges"]) {
+                    Some(m) => format!("did you mean \"{m}\"?"),
+                    None => "use \"edges\" (segments too) or \"nodes\" (the seed's)".into(),
+                };
+                return Err(c.err_hint(
+                    "points",
+                    c.get("points"),
+                    format!("unknown contact points {other:?}"),
                     hint,
                 ));
             }

@@ -162,6 +162,7 @@ impl Simulation {
                 None => self.detect_new(ctx, r, i, pass, obs),
             };
         }
+        changed |= self.update_edges(r);
         changed
     }
 

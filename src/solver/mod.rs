@@ -5,6 +5,7 @@
 pub mod banded;
 mod contacts;
 pub mod coupled;
+mod edges;
 pub mod newton;
 mod outputs;
 mod stability;
@@ -923,6 +924,7 @@ fn rod_works(scenario: &Scenario, rods: &[Rod]) -> Vec<RodWork> {
             &scenario.obstacles,
             &scenario.materials,
         );
+        w.edge_mode = scenario.contact.points == crate::scenario::contact::ContactPoints::Edges;
     }
     work
 }

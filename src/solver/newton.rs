@@ -77,6 +77,22 @@ pub struct RodWork {
     /// Elastic energy of the last iterate, and at the start of the step (J).
     pub energy: f64,
     pub energy_start: f64,
+    /// Edge (segment) contacts (`[contact] points = "edges"`): KKT rows bordered onto the
+    /// band (src/solver/edges.rs), the set at the start of the step, their normal forces
+    /// (N, least-squares multipliers of the last residual), the bordered solves' scratch, the
+    /// (segment, obstacle) pairs released in this step, and per node whether an edge contact
+    /// holds it now or held it at the start of the step.
+    pub edges: Vec<crate::contact::edge::EdgeContact>,
+    pub edges_saved: Vec<crate::contact::edge::EdgeContact>,
+    pub edge_force: Vec<f64>,
+    pub edge_y: Vec<f64>,
+    pub edge_released: Vec<(usize, usize)>,
+    pub edge_nodes: Vec<bool>,
+    /// `[contact] points = "edges"`: a compliant fruit presses at the local minima of its
+    /// distance along the prong (a segment's interior point or a node), not at every node
+    /// inside it; `pressed_edges` are the segment interiors (segment, weight, contact).
+    pub edge_mode: bool,
+    pub pressed_edges: Vec<(usize, f64, Pressed)>,
 }
 
 /// Variable-step BDF2 on (q, u): q₁ = ĥ_q + β u₁, u₁ = ĥ_u + β a₁ with ω = dt/dt_prev,
@@ -114,7 +130,19 @@ impl RodWork {
     /// impulse bookkeeping are backward Euler's.
     #[inline(always)]
     pub fn second_order(&self, i: usize) -> bool {
-        self.bdf.on && self.bdf.hist[i] && smooth_contact(self.contact_saved[i], self.contact[i])
+        self.bdf.on
+            && self.bdf.hist[i]
+            && smooth_contact(self.contact_saved[i], self.contact[i])
+            && !self.edge_nodes[i]
+    }
+
+    /// Refresh `edge_nodes` after the edge contact set changed.
+    pub fn mark_edge_nodes(&mut self) {
+        self.edge_nodes.fill(false);
+        for e in self.edges.iter().chain(&self.edges_saved) {
+            self.edge_nodes[e.segment] = true;
+            self.edge_nodes[e.segment + 1] = true;
+        }
     }
 
     /// Set up the BDF2 coefficients of a step of size `dt` (`on`: the scenario asks for it).
@@ -279,6 +307,14 @@ impl RodWork {
             damped: false,
             energy: e0,
             energy_start: 0.0,
+            edges: Vec::new(),
+            edges_saved: Vec::new(),
+            edge_force: Vec::new(),
+            edge_y: Vec::new(),
+            edge_released: Vec::new(),
+            edge_nodes: vec![false; n],
+            edge_mode: false,
+            pressed_edges: Vec::new(),
             bdf: Bdf2 {
                 s: vec![0.0; 2 * n],
                 dq_prev: vec![0.0; 2 * n],
@@ -393,8 +429,12 @@ pub fn solve(
         // and again with it only when another update is needed (same numbers, half the
         // Hessians of a one-update step).
         let want_hessian = iterations == 0 && opt.max_iterations > 0;
-        let (res, worst) = residual(rod, w, opt, want_hessian, iterations)?;
-        if res <= ftol {
+        let (mut res, mut worst) = residual(rod, w, opt, want_hessian, iterations)?;
+        let mut violation = 0.0;
+        if !w.edges.is_empty() {
+            (res, worst, violation) = super::edges::residual(rod, w);
+        }
+        if res <= ftol && violation <= stol {
             return all_finite(w, res, iterations);
         }
         if iterations >= opt.max_iterations {
@@ -411,6 +451,9 @@ pub fn solve(
         jacobian(rod, w, opt);
         factor(w, res, iterations)?;
         w.band.solve(&mut w.rhs);
+        if !w.edges.is_empty() {
+            super::edges::border(w, res, iterations)?;
+        }
         iterations += 1;
         let upd = update(rod, w, None, &[], res, iterations)?;
         if let Some(cb) = on_iter.as_deref_mut() {
@@ -427,6 +470,9 @@ pub fn solve(
         if upd <= stol {
             // The update is at the round-off floor: accept, with the residual of the final iterate.
             finish_residual(rod, w, opt);
+            if !w.edges.is_empty() {
+                super::edges::refresh_forces(rod, w);
+            }
             return all_finite(w, res, iterations);
         }
     }
@@ -703,6 +749,10 @@ pub fn press_compliant(rod: &Rod, w: &mut RodWork, hessian: bool) {
     if w.compliant.is_empty() {
         return;
     }
+    if w.edge_mode {
+        super::edges::press_compliant_edges(rod, w, hessian);
+        return;
+    }
     for i in 0..rod.n {
         w.pressed[i] = None;
         let fi = w.free_index[i];
@@ -860,7 +910,7 @@ pub fn rows(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
 /// The part of (x, y) along the surface of a constrained node: S v with S = I − n nᵀ
 /// (nothing for a node held whole).
 #[inline(always)]
-fn tangential(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
+pub fn tangential(x: f64, y: f64, c: Option<Constraint>) -> (f64, f64) {
     match c {
         Some(c) if c.holds_whole_node() => (0.0, 0.0),
         Some(c) => {

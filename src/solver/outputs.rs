@@ -40,11 +40,26 @@ impl Simulation {
             } else {
                 o.drive_force[2 * i] = 0.0;
                 o.drive_force[2 * i + 1] = 0.0;
-                let (mut gx, mut gy) = if c.is_some() { (rx, ry) } else { (0.0, 0.0) };
+                let edge = w.edges.iter().find(|e| e.touches(i));
+                let (mut gx, mut gy) = if c.is_some() || edge.is_some() {
+                    (rx, ry)
+                } else {
+                    (0.0, 0.0)
+                };
                 // A compliant fruit's force is part of the node's contact force too.
                 if let Some(p) = pressed {
                     gx += p.force * p.normal[0];
                     gy += p.force * p.normal[1];
+                }
+                // Its share of a compliant contact between it and a neighbour (edge mode).
+                for (j, s, p) in w.pressed_edges.iter().filter(|_| !initial) {
+                    let share = match i.checked_sub(*j) {
+                        Some(0) => 1.0 - s,
+                        Some(1) => *s,
+                        _ => continue,
+                    };
+                    gx += share * p.force * p.normal[0];
+                    gy += share * p.force * p.normal[1];
                 }
                 o.reaction[2 * i] = gx;
                 o.reaction[2 * i + 1] = gy;
@@ -62,9 +77,18 @@ impl Simulation {
                 o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
             }
             // Held by a constraint, else pressed into a compliant fruit, else free.
+            let edge = w.edges.iter().find(|e| e.touches(i) && !initial);
             let held = match c {
                 Some(c) if !rod.clamped[i] => Some((c.normal, c.obstacle)),
-                _ => pressed.map(|p| (p.normal, p.obstacle)),
+                _ => edge
+                    .filter(|_| !rod.clamped[i])
+                    .map(|e| (e.normal, e.obstacle))
+                    .or(pressed.map(|p| (p.normal, p.obstacle)))
+                    .or(w
+                        .pressed_edges
+                        .iter()
+                        .find(|(j, _, _)| !initial && (*j == i || *j + 1 == i))
+                        .map(|(_, _, p)| (p.normal, p.obstacle))),
             };
             let n = held.map_or([0.0; 2], |h| h.0);
             o.normal[2 * i] = n[0];
@@ -180,8 +204,40 @@ impl Simulation {
                 }
             }
         }
+        for r in 0..self.rods.len() {
+            for j in 0..self.work[r].edges.len() {
+                let v = self.edge_contact_view(r, j);
+                self.contact_out.push(v);
+            }
+            for j in 0..self.work[r].pressed_edges.len() {
+                let (i, s, p) = self.work[r].pressed_edges[j];
+                if let Some(v) = self.pressed_view(r, i, s, &p) {
+                    self.contact_out.push(v);
+                }
+            }
+        }
         for bi in 0..self.bodies.len() {
             self.body_contact_views(bi, dt);
+        }
+    }
+
+    /// Edge contact j of rod r: its point on the face, normal and shared normal force.
+    fn edge_contact_view(&self, r: usize, j: usize) -> ContactView {
+        let w = &self.work[r];
+        let e = w.edges[j];
+        let p = e.point(&w.q);
+        let off = self.rod_offset[r];
+        ContactView {
+            rod: r,
+            node: e.segment,
+            obstacle: e.obstacle,
+            body: usize::MAX,
+            point: [p[0] - off * e.normal[0], p[1] - off * e.normal[1]],
+            normal: e.normal,
+            normal_force: w.edge_force.get(j).copied().unwrap_or(0.0),
+            segment: e.segment,
+            weight: e.weight,
+            ..RIGID
         }
     }
 
@@ -232,23 +288,36 @@ impl Simulation {
     /// Node (r, i)'s contact with a compliant fruit, if it presses into one: its force, the
     /// indentation, and the Hertz half-width and peak pressure of that force.
     fn compliant_contact_view(&self, r: usize, i: usize) -> Option<ContactView> {
+        let p = self.work[r].pressed[i]?;
+        self.pressed_view(r, i, 0.0, &p)
+    }
+
+    /// A compliant contact at weight s of segment i (node i itself at s = 0).
+    fn pressed_view(
+        &self,
+        r: usize,
+        i: usize,
+        s: f64,
+        p: &crate::contact::compliant::Pressed,
+    ) -> Option<ContactView> {
         let w = &self.work[r];
-        let p = w.pressed[i]?;
         let law = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?.law;
         let bruise = self.scenario.materials[p.obstacle]
             .as_ref()
             .map_or(0.0, |m| m.bruise_pressure);
         let off = self.rod_offset[r];
+        let x = if s == 0.0 {
+            [w.q[2 * i], w.q[2 * i + 1]]
+        } else {
+            crate::contact::edge::point(&w.q, i, s)
+        };
         Some(ContactView {
             rod: r,
             node: i,
             obstacle: p.obstacle,
             body: usize::MAX,
             // The face's point, pressed δ into the fruit's undeformed surface.
-            point: [
-                w.q[2 * i] - off * p.normal[0],
-                w.q[2 * i + 1] - off * p.normal[1],
-            ],
+            point: [x[0] - off * p.normal[0], x[1] - off * p.normal[1]],
             normal: p.normal,
             normal_force: p.force,
             indentation: p.indentation,
@@ -256,6 +325,8 @@ impl Simulation {
             peak_pressure: law.peak_pressure(p.force),
             bruise_pressure: bruise,
             bruise_half_width: law.width_above(p.force, bruise),
+            segment: if s == 0.0 { usize::MAX } else { i },
+            weight: s,
             ..RIGID
         })
     }
@@ -324,4 +395,6 @@ const RIGID: ContactView = ContactView {
     peak_pressure: 0.0,
     bruise_pressure: 0.0,
     bruise_half_width: 0.0,
+    segment: usize::MAX,
+    weight: 0.0,
 };

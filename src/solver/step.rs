@@ -112,6 +112,8 @@ impl Simulation {
             let rod = &self.rods[r];
             let w = &mut self.work[r];
             w.contact_saved.copy_from_slice(&w.contact);
+            w.edges_saved.clone_from(&w.edges);
+            w.edge_released.clear();
             w.step_dt = if ctx.dynamic { ctx.dt } else { 0.0 };
             w.begin_bdf2(ctx.bdf2, ctx.dt);
             // Prescribed displacement of driven nodes; initial guess for the rest.
@@ -171,6 +173,8 @@ impl Simulation {
                     self.work[r].contact[i] = Some(nc);
                 }
             }
+            self.relinearise_edges_at_start(r);
+            self.work[r].mark_edge_nodes();
         }
         for bi in 0..self.bodies.len() {
             self.relinearise_body_contacts(bi, ctx, true);
@@ -296,6 +300,12 @@ impl Simulation {
                 .any(|c| c.is_some_and(|c| c.body.is_some()));
             if m != self.is_member[r] {
                 self.is_member[r] = m;
+                // The coupled system has no edge rows: a rod joining a body group is held at
+                // its nodes only (docs/model.md).
+                if m {
+                    self.work[r].edges.clear();
+                    self.work[r].mark_edge_nodes();
+                }
                 self.group_dirty = true;
             }
             if m && self.dirty[r] {
@@ -356,6 +366,9 @@ impl Simulation {
         for w in &mut self.work {
             w.contact.copy_from_slice(&w.contact_saved);
             w.clear_release_marks();
+            w.edges.clone_from(&w.edges_saved);
+            w.edge_released.clear();
+            w.mark_edge_nodes();
         }
         for b in &mut self.bodies {
             b.contacts.clone_from(&b.contacts_saved);
@@ -407,7 +420,8 @@ impl Simulation {
                 w.bdf.second[i] = second;
                 w.bdf.hist[i] = ctx.bdf2
                     && !rod.clamped[i]
-                    && newton::smooth_contact(w.contact_saved[i], w.contact[i]);
+                    && newton::smooth_contact(w.contact_saved[i], w.contact[i])
+                    && !w.edge_nodes[i];
             }
             w.bdf.dt_prev = if ctx.bdf2 { ctx.dt } else { 0.0 };
             w.clear_release_marks();
@@ -415,7 +429,9 @@ impl Simulation {
         self.driven_velocities(ctx);
         self.accept_bodies(ctx);
         for r in 0..self.rods.len() {
-            max_pen = max_pen.max(self.penetration(r));
+            max_pen = max_pen
+                .max(self.penetration(r))
+                .max(self.segment_penetration(r));
         }
         self.stats.max_penetration = max_pen;
         self.stats.steps += 1;
@@ -462,7 +478,7 @@ impl Simulation {
                     t.kinetic_after += 0.5 * m * v1 * v1;
                     t.integrator += 0.5 * m * (v1 - u0) * (v1 - u0);
                     t.gravity -= w.fext[k] * dq;
-                    if w.contact[i].is_some() {
+                    if w.contact[i].is_some() || w.edge_nodes[i] {
                         t.contact += w.r[k] * dq;
                     }
                 }

@@ -174,6 +174,18 @@ fn contact_surface_errors_name_the_key_and_value() {
         sc.contact.surface,
         gripsim::scenario::contact::ContactSurface::Face
     );
+    // Which points: nodes (the default) or edges.
+    use gripsim::scenario::contact::ContactPoints;
+    assert_eq!(sc.contact.points, ContactPoints::Nodes);
+    let text = drop_on_circle("centreline", rect, 1e-3, 0.0);
+    let sc = scenario(&text, &["contact.points=edges"]).unwrap();
+    assert_eq!(sc.contact.points, ContactPoints::Edges);
+    let e = scenario(&text, &["contact.points=edge"]).unwrap_err();
+    println!("{e}");
+    assert!(
+        e.contains("contact.points") && e.contains("\"edge\"") && e.contains("\"edges\"?"),
+        "{e}"
+    );
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -343,44 +355,48 @@ fn pressure_summary(sets: &[&str]) -> gripsim::record::summary::PressureSummary 
     s.contact_pressure.expect("the prong touched the apple")
 }
 
-/// The compliant grasp's peak contact force converges at first order in Δt (backward Euler
-/// damps the contact oscillation by ≈ (π/4) ω Δt at the first peak), instead of growing like
-/// 1/Δt as eq. 2's rigid impact peak does (194 → 2783 N from 1e-5 to 1e-6 s).
+/// The compliant grasp's peak contact force converges as Δt → 0 instead of growing like 1/Δt
+/// as eq. 2's rigid impact peak does (194 → 2783 N from 1e-5 to 1e-6 s). What is left of its
+/// Δt dependence under backward Euler (1.07 % from 1e-5 to 1e-6 s) is the integrator's own
+/// first-order error — its numerical damping of the prong's motion — not the force's
+/// definition or an impact transient (the compliant law starts at F′(0) = 0, nothing is
+/// inelastic): the second-order integrator, which a compliant contact does not force back to
+/// first order, moves the same peak by 0.002 % over the same range, and backward Euler
+/// converges to its value at first order.
 #[test]
 fn the_compliant_grasps_peak_contact_force_converges_in_dt() {
-    let at = |dt: &str| {
+    let at = |dt: &str, integrator: &str| {
         let mut sets = THICK_ON_APPLE.to_vec();
         let dt = format!("solve.dt={dt}");
+        let integrator = format!("solve.integrator={integrator}");
         sets.push(&dt);
+        sets.push(&integrator);
         pressure_summary(&sets)
     };
-    let (c1, c2, f) = (at("1e-5"), at("2e-6"), at("1e-6"));
-    let change = |c: &gripsim::record::summary::PressureSummary| {
-        (c.peak_contact_force_n - f.peak_contact_force_n).abs() / f.peak_contact_force_n
-    };
+    let (e1, e2) = (at("1e-5", "backward_euler"), at("1e-6", "backward_euler"));
+    let (b1, b2) = (at("1e-5", "bdf2"), at("1e-6", "bdf2"));
+    let f = |c: &gripsim::record::summary::PressureSummary| c.peak_contact_force_n;
+    let change = |a: f64, b: f64| (a - b).abs() / b;
     println!(
-        "peak contact force {:.6} N (dt 1e-5), {:.6} N (2e-6), {:.6} N (1e-6): changes {:.3} % \
-         and {:.3} % against 1e-6; peak pressure {:.4e} / {:.4e} / {:.4e} Pa",
-        c1.peak_contact_force_n,
-        c2.peak_contact_force_n,
-        f.peak_contact_force_n,
-        100.0 * change(&c1),
-        100.0 * change(&c2),
-        c1.max_pressure_pa,
-        c2.max_pressure_pa,
-        f.max_pressure_pa
+        "peak contact force, backward Euler: {:.6} N (dt 1e-5), {:.6} N (1e-6): change {:.3} %; \
+         BDF2: {:.6} N, {:.6} N: change {:.4} %; peak pressure {:.4e} / {:.4e} Pa (BDF2)",
+        f(&e1),
+        f(&e2),
+        100.0 * change(f(&e1), f(&e2)),
+        f(&b1),
+        f(&b2),
+        100.0 * change(f(&b1), f(&b2)),
+        b1.max_pressure_pa,
+        b2.max_pressure_pa
     );
-    // First order: the 2e-6 run is (2 − 1)/(10 − 1) ≈ 0.11 as far from the 1e-6 run as the
-    // 1e-5 run is; allow 0.2. The 1e-5 → 1e-6 change itself is measured at 1.07 % (the issue
-    // asks for < 1 %: not met at Δt = 1e-5, met from 2e-6 on).
-    assert!(
-        change(&c2) < 0.2 * change(&c1),
-        "{} {}",
-        change(&c2),
-        change(&c1)
-    );
-    assert!(change(&c2) < 0.01);
-    assert_eq!(c1.bruised, f.bruised);
+    // The issue's bound, met by the second-order integrator with a wide margin.
+    assert!(change(f(&b1), f(&b2)) < 0.01 * 0.1);
+    // Backward Euler heads for the same value at first order: its error shrinks ≈ 10× from
+    // 1e-5 to 1e-6 s (measured 9.7×).
+    let (err1, err2) = (f(&e1) - f(&b2), f(&e2) - f(&b2));
+    assert!(err1 < 0.0 && err2 < 0.0, "damped: below the limit");
+    assert!((7.0..13.0).contains(&(err1 / err2)), "{}", err1 / err2);
+    assert_eq!(b1.bruised, b2.bruised);
 }
 
 #[test]
@@ -411,4 +427,344 @@ fn mass_is_the_whole_rods_and_stays_when_nodes_are_added() {
     )
     .unwrap_err();
     assert!(e.contains("both node_mass and mass are given"), "{e}");
+}
+
+/// A 10-node prong (9 mm segments) clamped at its left end and driven 1 cm down across a rigid
+/// disc of radius 2 mm that lies between two of its nodes (x = 63 mm, nodes at 60 and 70 mm),
+/// in 0.1 s, then held there for 0.1 s.
+fn swept_across_a_small_disc(points: &str) -> String {
+    format!(
+        r#"
+name = "swept-across-a-small-disc"
+[solve]
+t_end = 0.2
+dt = 1e-4
+gravity = [0.0, 0.0]
+[contact]
+points = "{points}"
+[[rod]]
+name = "prong"
+nodes = 10
+shape = {{ kind = "straight", start = [0.0, 0.0], end = [0.09, 0.0] }}
+E = 1e6
+section = {{ kind = "rect", b = 0.02, h = 0.01 }}
+density = 1000.0
+clamped = [0, 1]
+drive = {{ kind = "constant_velocity", velocity = [0.0, -0.1], stop_travel = 0.01 }}
+[[obstacle]]
+kind = "circle"
+center = [0.063, -0.004]
+radius = {DISC}
+"#
+    )
+}
+
+const DISC: f64 = 0.002;
+
+/// Per step: the smallest distance of any segment from the disc's centre, and the edge
+/// contacts reported (segment, weight, normal force).
+#[derive(Default)]
+struct Sweep {
+    closest: Vec<f64>,
+    edges: Vec<(u64, usize, f64, f64)>,
+    contacts: usize,
+    tip_y: f64,
+}
+
+fn segment_distance(q: &[f64], c: [f64; 2]) -> f64 {
+    let mut best = f64::INFINITY;
+    for i in 0..q.len() / 2 - 1 {
+        let (a, b) = ([q[2 * i], q[2 * i + 1]], [q[2 * i + 2], q[2 * i + 3]]);
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let s = (((c[0] - a[0]) * e[0] + (c[1] - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1]))
+            .clamp(0.0, 1.0);
+        best = best.min((a[0] + s * e[0] - c[0]).hypot(a[1] + s * e[1] - c[1]));
+    }
+    best
+}
+
+impl Observer for Sweep {
+    fn on_event(&mut self, e: &Event<'_>) {
+        if let Event::StepEnd {
+            step,
+            rods,
+            contacts,
+            ..
+        } = e
+        {
+            let q = &rods[0].q;
+            self.closest.push(segment_distance(q, [0.063, -0.004]));
+            self.tip_y = q[q.len() - 1];
+            self.contacts += contacts.len();
+            for c in contacts.iter().filter(|c| c.segment != usize::MAX) {
+                self.edges
+                    .push((*step, c.segment, c.weight, c.normal_force));
+            }
+        }
+    }
+}
+
+fn sweep(points: &str) -> Sweep {
+    let sc = scenario(&swept_across_a_small_disc(points), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut tr = Sweep::default();
+    sim.run(&mut tr).unwrap_or_else(|e| panic!("{e}"));
+    println!(
+        "{points}: max_penetration {:.3e} m (nodes and, with edges, segments)",
+        sim.stats.max_penetration
+    );
+    tr
+}
+
+#[test]
+fn a_prong_swept_across_a_disc_smaller_than_a_segment_collides_with_edge_contact() {
+    let nodes = sweep("nodes");
+    let edges = sweep("edges");
+    let min = |s: &Sweep| s.closest.iter().copied().fold(f64::INFINITY, f64::min);
+    println!(
+        "nodes only: {} contacts, closest segment {:.3e} m from the disc centre (R = {DISC}), \
+         tip y {:.4} m",
+        nodes.contacts,
+        min(&nodes),
+        nodes.tip_y
+    );
+    let (first, last) = (edges.edges[0], *edges.edges.last().unwrap());
+    println!(
+        "edges: {} edge contacts, closest segment {:.12} m from the centre; first at step {} \
+         (segment {}, weight {:.4}), last (segment {}, weight {:.4}, {:.5} N); tip y {:.4} m",
+        edges.edges.len(),
+        min(&edges),
+        first.0,
+        first.1,
+        first.2,
+        last.1,
+        last.2,
+        last.3,
+        edges.tip_y
+    );
+    // Node-only contact: the disc passes between nodes 6 and 7 and nothing is reported.
+    assert_eq!(nodes.contacts, 0);
+    assert!(min(&nodes) < 1e-4, "the segment crosses the disc's centre");
+    // Edge contact: the segment stops on the disc and stays on it (centreline contact: at R).
+    assert!(edges.edges.len() > 1000, "held for most of the run");
+    assert!(min(&edges) > DISC - 1e-9, "{}", min(&edges));
+    assert_eq!(first.1, 6);
+    assert!(
+        (first.2 - 0.3).abs() < 0.01,
+        "first touch at x = 63 mm: {}",
+        first.2
+    );
+    // Pressed, and it slides along the prong as the prong bends (the weight moves smoothly:
+    // by less than 1 % of the segment per step).
+    assert!(last.3 > 0.0);
+    for w in edges.edges.windows(2) {
+        if w[0].1 == w[1].1 && w[1].0 == w[0].0 + 1 {
+            assert!((w[1].2 - w[0].2).abs() < 0.01, "{w:?}");
+        }
+    }
+    assert!(edges.tip_y > nodes.tip_y + 1e-3);
+    assert!(nodes.contacts == 0 && last.1 == 6);
+}
+
+/// Static cantilever (clamp at the midpoint of its first edge, L = 0.1 m, EI = 1.6667e-3 N·m²,
+/// gravity off) bent up by a tip load P against a rigid circle above it whose lowest point is
+/// at (a, d). Returns (contact normal force, horizontal clamp force, vertical clamp force).
+fn cantilever_on_circle(nodes: usize, points: &str, a: f64) -> (f64, f64, f64) {
+    let dl = CL / (nodes as f64 - 1.5);
+    let text = format!(
+        r#"
+name = "cantilever-on-circle"
+[solve]
+mode = "static"
+gravity = [0.0, 0.0]
+[contact]
+points = "{points}"
+[[rod]]
+name = "beam"
+nodes = {nodes}
+shape = {{ kind = "straight", start = [{start:e}, 0.0], end = [{CL}, 0.0] }}
+E = 1e6
+section = {{ kind = "rect", b = 0.02, h = 0.01 }}
+density = 1000.0
+clamped = [0, 1]
+loads = [{{ node = {tip}, force = [0.0, {CP:e}] }}]
+[[obstacle]]
+kind = "circle"
+center = [{a:e}, {cy:e}]
+radius = {CR}
+"#,
+        start = -dl / 2.0,
+        tip = nodes - 1,
+        cy = CD + CR,
+    );
+    let sc = scenario(&text, &[]).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    #[derive(Default)]
+    struct Last {
+        normal: f64,
+        drive: [f64; 2],
+    }
+    impl Observer for Last {
+        fn on_event(&mut self, e: &Event<'_>) {
+            if let Event::StepEnd { rods, contacts, .. } = e {
+                self.normal = contacts.iter().map(|c| c.normal_force).sum();
+                self.drive = [0.0; 2];
+                for (k, f) in rods[0].drive_force.iter().enumerate() {
+                    self.drive[k % 2] += f;
+                }
+            }
+        }
+    }
+    let mut last = Last::default();
+    sim.run(&mut last).unwrap_or_else(|e| panic!("{e}"));
+    (last.normal, last.drive[0], last.drive[1])
+}
+
+const CL: f64 = 0.1;
+const CEI: f64 = 1e6 * 0.02 * 0.01 * 0.01 * 0.01 / 12.0;
+const CP: f64 = 1e-3;
+const CD: f64 = 1.5e-5;
+const CR: f64 = 0.005;
+
+/// The linear (Euler–Bernoulli) reference: tip load P up at L, the circle's push F_n along its
+/// normal at the tangent point x_c = a + R sin θ, where the beam's deflection is
+/// d + R (1 − cos θ) and θ its slope. Returns (F_n, horizontal clamp force −F_n sin θ,
+/// vertical clamp force F_n cos θ − P, θ). The neglected geometric nonlinearity is O(θ²) ≈ 6e-7.
+fn cantilever_reference(a: f64) -> (f64, f64, f64, f64) {
+    let (mut theta, mut f) = (0.0f64, 0.0);
+    for _ in 0..100 {
+        let xc = a + CR * theta.sin();
+        let want = CD + CR * (1.0 - theta.cos());
+        let vp = CP * xc * xc * (3.0 * CL - xc) / (6.0 * CEI);
+        f = (vp - want) * 3.0 * CEI / (xc * xc * xc);
+        theta = CP * (2.0 * CL * xc - xc * xc) / (2.0 * CEI) - f * xc * xc / (2.0 * CEI);
+    }
+    let fn_ = f / theta.cos();
+    (fn_, -fn_ * theta.sin(), fn_ * theta.cos() - CP, theta)
+}
+
+/// Errors of (contact force, clamp force vector, horizontal clamp force) against the
+/// reference, relative.
+fn cantilever_errors(nodes: usize, points: &str, a: f64) -> [f64; 3] {
+    let (f, hx, vy, _) = cantilever_reference(a);
+    let (fs, hs, vs) = cantilever_on_circle(nodes, points, a);
+    [
+        (fs - f).abs() / f,
+        (hs - hx).hypot(vs - vy) / hx.hypot(vy),
+        (hs - hx).abs() / hx.abs(),
+    ]
+}
+
+const NODE_COUNTS: [usize; 5] = [25, 50, 100, 200, 400];
+
+/// The references.md cantilever touching a convex obstacle, with the contact between nodes:
+/// contact force and clamp force within 0.5 % from 50 nodes, converging monotonically when
+/// the contact keeps its place in its segment.
+#[test]
+fn a_cantilever_pressed_on_a_rigid_circle_converges_with_edge_contact() {
+    // The circle at a = 61.3 mm: its contact falls at weight 0.91, 0.23, 0.34, 0.64, 0.24 of
+    // a segment at 25 … 400 nodes.
+    let a = 0.0613;
+    let (f, hx, vy, theta) = cantilever_reference(a);
+    println!(
+        "reference: contact force {f:.9e} N, clamp force ({hx:.6e}, {vy:.6e}) N, slope {theta:.3e}"
+    );
+    let kappa = CP * (CL - a) / CEI;
+    for nodes in NODE_COUNTS {
+        let n = cantilever_errors(nodes, "nodes", a);
+        let e = cantilever_errors(nodes, "edges", a);
+        println!(
+            "{nodes:4} nodes | nodes only: force {:8.4} %, clamp {:8.4} %, clamp x {:9.3} % | \
+             edges: force {:.6} %, clamp {:.6} %, clamp x {:.3} %",
+            100.0 * n[0],
+            100.0 * n[1],
+            100.0 * n[2],
+            100.0 * e[0],
+            100.0 * e[1],
+            100.0 * e[2]
+        );
+        if nodes >= 50 {
+            assert!(e[0] < 0.005 && e[1] < 0.005, "{nodes}: {e:?}");
+        }
+        // The horizontal part is the normal's direction, F_n sin θ with θ ≈ 7.5e-4: a
+        // polyline's slope inside a segment is its chord's, off the smooth tangent by up to
+        // κ Δl / 2 (κ = P (L − a)/EI at the contact), an O(Δl) error that depends on where in
+        // the segment the contact falls.
+        let bound = kappa * (CL / (nodes as f64 - 1.5)) / 2.0 / theta;
+        assert!(e[2] < bound, "{nodes}: {e:?} (bound {bound})");
+    }
+    // The same study with the contact at the same place in its segment (weight 0.3) at every
+    // node count: all three errors shrink monotonically.
+    let mut last = [f64::INFINITY; 3];
+    for nodes in NODE_COUNTS {
+        let dl = CL / (nodes as f64 - 1.5);
+        let k = ((0.0613 + dl / 2.0) / dl).floor();
+        let a0 = -dl / 2.0 + (k + 0.3) * dl;
+        let a = a0 - CR * cantilever_reference(a0).3.sin();
+        let e = cantilever_errors(nodes, "edges", a);
+        println!(
+            "{nodes:4} nodes, contact at weight 0.3 (a = {a:.6} m): force {:.6} %, clamp {:.6} %, \
+             clamp x {:.4} %",
+            100.0 * e[0],
+            100.0 * e[1],
+            100.0 * e[2]
+        );
+        for j in 0..3 {
+            assert!(e[j] < last[j], "{nodes}: {e:?} after {last:?}");
+        }
+        last = e;
+    }
+}
+
+/// The stiff seed prong (E = 1 GPa) squeezing a compliant apple (r = 5 cm), refined from 28 to
+/// 82 nodes with the same total mass and the clamp at the same place (docs/seed-study.md): with
+/// edge contact the peak contact force is a property of the grasp (one Hertz contact per
+/// contact region); with node contact it is split over however many nodes are inside.
+#[test]
+fn the_compliant_grasps_contact_force_converges_in_nodes_with_edge_contact() {
+    let text = std::fs::read_to_string(crate::common::scenario("seed-grasp-r5"))
+        .unwrap()
+        .replace("node_mass = 0.01", "mass = 0.1");
+    let peak = |nodes: usize, clamped: &str, points: &str| {
+        let sets: Vec<String> = [
+            "contact.surface=face",
+            "obstacle.0.center=[-0.055,-0.05]",
+            "obstacle.0.material=apple",
+            "rod.0.E=1e9",
+            "solve.integrator=bdf2",
+            "solve.t_end=0.08",
+            "rod.0.drive.stop_travel=0.025",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([
+            format!("rod.0.nodes={nodes}"),
+            format!("rod.0.clamped={clamped}"),
+            format!("contact.points={points}"),
+        ])
+        .collect();
+        let sc = Scenario::from_str(&text, "r5-mass.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&sc);
+        let mut col = gripsim::record::summary::SummaryCollector::new();
+        sim.run(&mut col).unwrap_or_else(|e| panic!("{e}"));
+        let c = col.finish(&sim.stats, 0.0).contact_pressure.unwrap();
+        (c.peak_contact_force_n, c.max_pressure_pa)
+    };
+    let (e28, e82) = (
+        peak(28, "[0,1,2]", "edges"),
+        peak(82, "[0,1,2,3,4,5]", "edges"),
+    );
+    let (n28, n82) = (
+        peak(28, "[0,1,2]", "nodes"),
+        peak(82, "[0,1,2,3,4,5]", "nodes"),
+    );
+    println!(
+        "peak contact force / pressure, 28 → 82 nodes: edges {:.3} → {:.3} N, {:.0} → {:.0} Pa; \
+         nodes {:.3} → {:.3} N, {:.0} → {:.0} Pa",
+        e28.0, e82.0, e28.1, e82.1, n28.0, n82.0, n28.1, n82.1
+    );
+    assert!((e28.0 - e82.0).abs() < 0.005 * e82.0);
+    assert!((e28.1 - e82.1).abs() < 0.005 * e82.1);
+    // The same refinement moves the node-only figure by more than ten times as much.
+    assert!((n28.0 - n82.0).abs() > 10.0 * (e28.0 - e82.0).abs());
 }

@@ -1,0 +1,397 @@
+//! Edge contacts in the rod's Newton system: each is one equation on two nodes, bordered onto
+//! the filtered banded system as a KKT multiplier.
+//!
+//! With A_j the row of edge contact j (weights (1 − s) n and s n on its segment's two nodes),
+//! L the row filter and P the column filter of the node contacts (src/solver/newton.rs), the
+//! step's equations are
+//!
+//! ```text
+//! K δ − Σ_j λ_j U_j = −L r,   U_j = L A_jᵀ      (the reactions λ_j A_jᵀ leave the balance)
+//! V_j · δ = −g_j,             V_j = A_j P       (the held point lands on its line)
+//! ```
+//!
+//! with K = L J P + s (I − P) the banded matrix the node contacts already give. By the Schur
+//! complement on the banded factor: δ₀ = K⁻¹(−L r), Y_j = K⁻¹ U_j (one banded solve per edge),
+//! (V Y) λ = −g − V δ₀, δ = δ₀ + Y λ. The residual test uses the part of L r that no
+//! multiplier explains: L r − U λ with λ the least-squares multipliers, which are also the
+//! edge contacts' normal forces (N, positive when pressing) reported after convergence.
+
+use super::coupled::dense_solve;
+use super::newton::{NewtonFailure, RodWork};
+use crate::model::Rod;
+
+/// Per node of edge contact j: its free index and the column u = L (w n) and row v = P (w n)
+/// parts there (None for a driven node).
+fn parts(w: &RodWork, j: usize) -> [Option<(usize, [f64; 2], [f64; 2])>; 2] {
+    let e = w.edges[j];
+    let ws = e.weights();
+    let mut out = [None, None];
+    for (a, slot) in out.iter_mut().enumerate() {
+        let i = e.segment + a;
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let f = [ws[a] * e.normal[0], ws[a] * e.normal[1]];
+        let c = w.contact[i];
+        let u = super::newton::rows(f[0], f[1], c);
+        let v = super::newton::tangential(f[0], f[1], c);
+        *slot = Some((fi, [u.0, u.1], [v.0, v.1]));
+    }
+    out
+}
+
+/// The filtered residual with the edge reactions taken out (least-squares multipliers into
+/// `w.edge_force`), its max-norm and worst node, and the largest constraint violation (m).
+/// Call after `newton::residual` (which leaves −L r in `w.rhs`).
+pub fn residual(rod: &Rod, w: &mut RodWork) -> (f64, usize, f64) {
+    let m = w.edges.len();
+    let mut a = vec![0.0; m * m];
+    let mut b = vec![0.0; m];
+    let all: Vec<_> = (0..m).map(|j| parts(w, j)).collect();
+    for j in 0..m {
+        for (fi, u, _) in all[j].iter().flatten() {
+            b[j] -= u[0] * w.rhs[2 * fi] + u[1] * w.rhs[2 * fi + 1];
+            for k in 0..m {
+                for (fk, uk, _) in all[k].iter().flatten() {
+                    if fk == fi {
+                        a[j * m + k] += u[0] * uk[0] + u[1] * uk[1];
+                    }
+                }
+            }
+        }
+    }
+    if !dense_solve(&mut a, &mut b, m) {
+        b.fill(0.0);
+    }
+    let mut lr: Vec<f64> = w.rhs.iter().map(|x| -x).collect();
+    for j in 0..m {
+        for (fi, u, _) in all[j].iter().flatten() {
+            lr[2 * fi] -= b[j] * u[0];
+            lr[2 * fi + 1] -= b[j] * u[1];
+        }
+    }
+    w.edge_force.clone_from(&b);
+    let (mut res, mut worst) = (0.0f64, 0usize);
+    for i in 0..rod.n {
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let v = lr[2 * fi].abs().max(lr[2 * fi + 1].abs());
+        if v > res {
+            res = v;
+            worst = i;
+        }
+    }
+    let gmax = w
+        .edges
+        .iter()
+        .map(|e| e.violation(&w.qn).abs())
+        .fold(0.0, f64::max);
+    (res, worst, gmax)
+}
+
+/// After `w.band.solve(&mut w.rhs)` (δ₀ in `w.rhs`): add the multipliers' part, δ = δ₀ + Y λ.
+pub fn border(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFailure> {
+    let m = w.edges.len();
+    let dim = w.rhs.len();
+    let all: Vec<_> = (0..m).map(|j| parts(w, j)).collect();
+    w.edge_y.resize(m * dim, 0.0);
+    for j in 0..m {
+        let y = &mut w.edge_y[j * dim..(j + 1) * dim];
+        y.fill(0.0);
+        for (fi, u, _) in all[j].iter().flatten() {
+            y[2 * fi] += u[0];
+            y[2 * fi + 1] += u[1];
+        }
+        w.band.solve(y);
+    }
+    let mut s = vec![0.0; m * m];
+    let mut rhs = vec![0.0; m];
+    for j in 0..m {
+        rhs[j] = -w.edges[j].violation(&w.qn);
+        for (fi, _, v) in all[j].iter().flatten() {
+            rhs[j] -= v[0] * w.rhs[2 * fi] + v[1] * w.rhs[2 * fi + 1];
+            for k in 0..m {
+                let y = &w.edge_y[k * dim..];
+                s[j * m + k] += v[0] * y[2 * fi] + v[1] * y[2 * fi + 1];
+            }
+        }
+    }
+    if !dense_solve(&mut s, &mut rhs, m) {
+        let e = w.edges[0];
+        return Err(NewtonFailure {
+            node: e.segment,
+            residual: res,
+            reason: "singular edge-contact rows",
+            iterations,
+        });
+    }
+    for j in 0..m {
+        for d in 0..dim {
+            w.rhs[d] += w.edge_y[j * dim + d] * rhs[j];
+        }
+    }
+    Ok(())
+}
+
+/// The edge contacts' forces of the final iterate (after `newton::finish_residual`, which
+/// leaves `w.rhs` stale): −L r into `w.rhs`, then the least-squares multipliers.
+pub fn refresh_forces(rod: &Rod, w: &mut RodWork) {
+    for i in 0..rod.n {
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        let (rx, ry) = super::newton::rows(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
+        w.rhs[2 * fi] = -rx;
+        w.rhs[2 * fi + 1] = -ry;
+    }
+    residual(rod, w);
+}
+
+use super::Simulation;
+use crate::contact::edge::{self, EdgeContact};
+use crate::scenario::contact::ContactPoints;
+
+impl Simulation {
+    /// Whether rod `r`'s segments are tested (`[contact] points = "edges"`; not while the rod
+    /// is solved with a free body, whose coupled system has no edge rows).
+    pub(super) fn edges_on(&self, r: usize) -> bool {
+        self.scenario.contact.points == ContactPoints::Edges
+            && !self.is_member[r]
+            && self.rods[r].n > 1
+    }
+
+    /// The segments of rod `r` (configuration `q`) that a fixed obstacle holds at an interior
+    /// point: (segment, obstacle, weight, proximity), skipping pairs in `held`.
+    fn edge_candidates(
+        &self,
+        r: usize,
+        q: &[f64],
+        held: &[EdgeContact],
+    ) -> Vec<(usize, usize, f64, crate::obstacle::Proximity)> {
+        let rod = &self.rods[r];
+        let s = self.rod_surfaces(r);
+        let mut out = Vec::new();
+        for i in 0..rod.n - 1 {
+            // Two nodes held whole (stuck, or in corners) leave the segment no freedom for a
+            // row of its own.
+            let whole = |j: usize| self.work[r].contact[j].is_some_and(|c| c.holds_whole_node());
+            if rod.clamped[i] || rod.clamped[i + 1] || (whole(i) && whole(i + 1)) {
+                continue;
+            }
+            let a = [q[2 * i], q[2 * i + 1]];
+            let b = [q[2 * i + 2], q[2 * i + 3]];
+            for k in 0..s.len() {
+                if self.body_of[k] != usize::MAX
+                    || held.iter().any(|e| e.segment == i && e.obstacle == k)
+                    || edge::lower_bound(&s, k, a, b) >= 0.0
+                {
+                    continue;
+                }
+                let (w, prox) = edge::closest_on_segment(&s, k, a, b);
+                if prox.distance < 0.0 && edge::interior(w) {
+                    out.push((i, k, w, prox));
+                }
+            }
+        }
+        out
+    }
+
+    /// Edge contacts carried into a step: re-linearised at the start positions (a point whose
+    /// closest point moved onto a node is left to the node).
+    pub(super) fn relinearise_edges_at_start(&mut self, r: usize) {
+        let w = &self.work[r];
+        if w.edges.is_empty() {
+            return;
+        }
+        let s = self.rod_surfaces(r);
+        let q = &w.q;
+        let mut out = Vec::with_capacity(w.edges.len());
+        for e in &w.edges {
+            let i = e.segment;
+            let a = [q[2 * i], q[2 * i + 1]];
+            let b = [q[2 * i + 2], q[2 * i + 3]];
+            let (wt, prox) = edge::closest_on_segment(&s, e.obstacle, a, b);
+            if edge::interior(wt) {
+                out.push(EdgeContact::at(e.obstacle, i, wt, &prox));
+            }
+        }
+        self.work[r].edges = out;
+    }
+
+    /// Rod `r`'s edge contacts after a pass: released when the multiplier pulls,
+    /// re-linearised where the pass left the segment inside, dropped when the deepest point
+    /// slid onto a node; new interior penetrations added. Returns whether the set changed.
+    pub(super) fn update_edges(&mut self, r: usize) -> bool {
+        if !self.edges_on(r) {
+            let had = !self.work[r].edges.is_empty();
+            self.work[r].edges.clear();
+            return had;
+        }
+        let relin_tol = 1e-10 * self.rods[r].length;
+        let s = self.rod_surfaces(r);
+        let w = &self.work[r];
+        let q = &w.qn;
+        let mut released = Vec::new();
+        let mut out = Vec::with_capacity(w.edges.len());
+        let mut changed = false;
+        for (j, e) in w.edges.iter().enumerate() {
+            if w.edge_force.get(j).copied().unwrap_or(0.0) < 0.0 && !e.locked {
+                released.push((e.segment, e.obstacle));
+                changed = true;
+                continue;
+            }
+            let i = e.segment;
+            let whole = |j: usize| w.contact[j].is_some_and(|c| c.holds_whole_node());
+            if whole(i) && whole(i + 1) {
+                changed = true;
+                continue;
+            }
+            let a = [q[2 * i], q[2 * i + 1]];
+            let b = [q[2 * i + 2], q[2 * i + 3]];
+            let (wt, prox) = edge::closest_on_segment(&s, e.obstacle, a, b);
+            if prox.distance >= -relin_tol {
+                out.push(*e);
+            } else if edge::interior(wt) {
+                let ne = EdgeContact {
+                    locked: e.locked,
+                    ..EdgeContact::at(e.obstacle, i, wt, &prox)
+                };
+                changed |= ne != *e;
+                out.push(ne);
+            } else {
+                changed = true;
+            }
+        }
+        let fresh = self.edge_candidates(r, &self.work[r].qn, &out);
+        let w = &mut self.work[r];
+        w.edge_released.extend(released);
+        for (i, k, wt, prox) in fresh {
+            out.push(EdgeContact {
+                locked: w.edge_released.contains(&(i, k)),
+                ..EdgeContact::at(k, i, wt, &prox)
+            });
+            changed = true;
+        }
+        w.edges = out;
+        w.edge_force.resize(w.edges.len(), 0.0);
+        w.mark_edge_nodes();
+        changed
+    }
+
+    /// The deepest point of rod `r`'s segments inside a rigid obstacle (m, ≥ 0) in edge
+    /// mode (0 otherwise): what the nodes' penetration misses between them.
+    pub(super) fn segment_penetration(&self, r: usize) -> f64 {
+        if self.scenario.contact.points != ContactPoints::Edges || self.rods[r].n < 2 {
+            return 0.0;
+        }
+        let s = self.rod_surfaces(r);
+        let q = &self.work[r].q;
+        let mut pen = 0.0f64;
+        for i in 0..self.rods[r].n - 1 {
+            if self.rods[r].clamped[i] || self.rods[r].clamped[i + 1] {
+                continue;
+            }
+            let a = [q[2 * i], q[2 * i + 1]];
+            let b = [q[2 * i + 2], q[2 * i + 3]];
+            for k in 0..s.len() {
+                if edge::lower_bound(&s, k, a, b) < 0.0 {
+                    pen = pen.max(-edge::closest_on_segment(&s, k, a, b).1.distance);
+                }
+            }
+        }
+        pen
+    }
+}
+
+/// A compliant fruit's force in edge mode: for each fruit, the prong presses at the local
+/// minima of its distance from the fruit's centre along the polyline — a segment's foot of the
+/// perpendicular when it lies inside the segment, else a node both of whose segments lead
+/// away — so a contact region is one Hertz line contact wherever the nodes fall (node mode
+/// gives every node inside the fruit a contact of its own, and their number grows with the
+/// nodes). The force F n at p = (1 − s) x_i + s x_{i+1} is shared (1 − s, s); its stiffness
+/// enters the band as w_a w_b K (the foot's motion along the segment is left out of the
+/// Jacobian: Newton stays exact in its residual, its rate may drop).
+pub fn press_compliant_edges(rod: &Rod, w: &mut RodWork, hessian: bool) {
+    w.pressed.iter_mut().for_each(|p| *p = None);
+    w.pressed_edges.clear();
+    let n = rod.n;
+    for ci in 0..w.compliant.len() {
+        let c = w.compliant[ci];
+        let q = &w.qn;
+        let foot = |i: usize| {
+            let e = [q[2 * i + 2] - q[2 * i], q[2 * i + 3] - q[2 * i + 1]];
+            let ee = e[0] * e[0] + e[1] * e[1];
+            if ee == 0.0 {
+                return 0.0;
+            }
+            (((c.center[0] - q[2 * i]) * e[0] + (c.center[1] - q[2 * i + 1]) * e[1]) / ee)
+                .clamp(0.0, 1.0)
+        };
+        let feet: Vec<f64> = (0..n - 1).map(foot).collect();
+        let mut hits: Vec<(usize, f64, crate::contact::compliant::Pressed)> = Vec::new();
+        for j in 0..n {
+            let left = j == 0 || feet[j - 1] >= 1.0;
+            let right = j + 1 == n || feet[j] <= 0.0;
+            if left && right && w.free_index[j] != usize::MAX {
+                if let Some(pr) = c.press([q[2 * j], q[2 * j + 1]]) {
+                    hits.push((j, 0.0, pr));
+                }
+            }
+            if j + 1 < n
+                && feet[j] > 0.0
+                && feet[j] < 1.0
+                && w.free_index[j] != usize::MAX
+                && w.free_index[j + 1] != usize::MAX
+            {
+                if let Some(pr) = c.press(edge::point(q, j, feet[j])) {
+                    hits.push((j, feet[j], pr));
+                }
+            }
+        }
+        for (i, s, pr) in hits {
+            apply_pressed(w, i, s, &pr, hessian);
+            if s == 0.0 {
+                if w.pressed[i].is_none_or(|o| pr.indentation > o.indentation) {
+                    w.pressed[i] = Some(pr);
+                }
+            } else {
+                w.pressed_edges.push((i, s, pr));
+            }
+        }
+    }
+}
+
+/// F n at weight s of segment i (node i alone at s = 0) into the balance, w_a w_b K into the
+/// band.
+fn apply_pressed(
+    w: &mut RodWork,
+    i: usize,
+    s: f64,
+    pr: &crate::contact::compliant::Pressed,
+    hessian: bool,
+) {
+    let ws = [1.0 - s, s];
+    let count = if s == 0.0 { 1 } else { 2 };
+    for a in 0..count {
+        let k = 2 * (i + a);
+        w.r[k] -= ws[a] * pr.force * pr.normal[0];
+        w.r[k + 1] -= ws[a] * pr.force * pr.normal[1];
+        if !hessian {
+            continue;
+        }
+        let fa = w.free_index[i + a];
+        for b in 0..count {
+            let fb = w.free_index[i + b];
+            for x in 0..2 {
+                for y in 0..2 {
+                    w.band
+                        .add(2 * fa + x, 2 * fb + y, ws[a] * ws[b] * pr.stiffness[x][y]);
+                }
+            }
+        }
+    }
+}
