@@ -278,9 +278,7 @@ fn main() -> ExitCode {
             run(&scenario, out, no_record, &sets, quiet)
         }
         Command::Validate { scenario, sets }
-            if sets.is_empty()
-                && std::fs::read_to_string(&scenario)
-                    .is_ok_and(|t| gripsim::scenario::three::is_3d(&t)) =>
+            if sets.is_empty() && gripsim::scenario::three::file_is_3d(&scenario) =>
         {
             match gripsim::scenario::three::Scenario3::load(&scenario) {
                 Ok(sc) => {
@@ -374,7 +372,7 @@ fn file_name(name: &str) -> String {
 }
 
 fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
-    if std::fs::read_to_string(path).is_ok_and(|t| gripsim::scenario::three::is_3d(&t)) {
+    if gripsim::scenario::three::file_is_3d(path) {
         return run3(path, &out, sets, quiet);
     }
     let sc = match Scenario::load(path, sets) {
@@ -810,7 +808,7 @@ fn list_scenarios(dir: &Path) -> ExitCode {
     };
     entries.sort();
     for p in entries {
-        if std::fs::read_to_string(&p).is_ok_and(|t| gripsim::scenario::three::is_3d(&t)) {
+        if gripsim::scenario::three::file_is_3d(&p) {
             match gripsim::scenario::three::Scenario3::load(&p) {
                 Ok(sc) => say!("{:<44} {} (3D)", p.display(), sc.description.trim()),
                 Err(e) => say!("{:<44} INVALID: {e}", p.display()),

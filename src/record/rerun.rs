@@ -1052,14 +1052,17 @@ fn close_stream(rec: RecordingStream) -> Result<(), String> {
     })
 }
 
-/// Most chunks whose index (the `.rrd` footer) is kept: about 4 kB of memory each, so at most
-/// ~32 MB. The SDK builds the footer in memory for the whole run (a dense table of every
+/// Most chunks whose index (the `.rrd` footer) is kept: a few kB of memory each (more for
+/// wide chunks: the per-node plots hold a column per node), so at most ~10 MB. Since the
+/// columnar logging a step detail run logs ~0.1 chunk per step and rod, so a footer is kept
+/// for ~20 000 steps of the seed grasp (8 192 before, when each step made ~1 chunk per
+/// entity). The SDK builds the footer in memory for the whole run (a dense table of every
 /// chunk by every column), which made a long run's memory grow like its file (442 MB at
 /// 300 000 steps of the seed grasp). A run that logs more chunks drops the index at that
 /// point, freeing it: its `.rrd` is the same stream without a footer (`rerun rrd
 /// stats/print` and the viewer read it; `rerun rrd verify` asks for the footer, which
 /// `rerun rrd optimize` adds).
-pub const FOOTER_CHUNKS: u64 = 8192;
+pub const FOOTER_CHUNKS: u64 = 2048;
 
 /// The `.rrd` file: the SDK's encoder writing straight to the file on the stream's own
 /// thread (no further queue), a write error kept and reported at the next flush, and the

@@ -154,6 +154,17 @@ pub struct Scenario3 {
 
 /// Whether a scenario text says `dimension = 3` (anything unreadable is left to the planar
 /// reader, whose errors are the established ones).
+/// Whether the file at `path` is a `dimension = 3` scenario: read through the same 16 MiB cap
+/// as every scenario (an endless or huge file is not 3D; `Scenario::load` then refuses it).
+pub fn file_is_3d(path: &std::path::Path) -> bool {
+    match super::read_capped(path) {
+        Ok(b) if b.len() as u64 <= super::MAX_SCENARIO_BYTES => {
+            std::str::from_utf8(&b).is_ok_and(is_3d)
+        }
+        _ => false,
+    }
+}
+
 pub fn is_3d(text: &str) -> bool {
     text.parse::<toml::Table>()
         .ok()
@@ -321,13 +332,22 @@ impl Scenario3 {
     /// Read and parse a 3D scenario file.
     pub fn load(path: &std::path::Path) -> Result<Scenario3, ScenarioError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| ScenarioError {
+        let err = |message: String| ScenarioError {
             file: file.clone(),
             key: String::new(),
             value: String::new(),
-            message: format!("cannot read the file: {e}"),
+            message,
             hint: None,
-        })?;
+        };
+        let bytes =
+            super::read_capped(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
+        if bytes.len() as u64 > super::MAX_SCENARIO_BYTES {
+            return Err(err(format!(
+                "larger than {} MiB: not a scenario file (reading stopped there)",
+                super::MAX_SCENARIO_BYTES >> 20
+            )));
+        }
+        let text = String::from_utf8(bytes).map_err(|e| err(format!("not UTF-8 text: {e}")))?;
         let dir = path.parent().unwrap_or(std::path::Path::new("."));
         Self::from_str(&text, &file, dir)
     }

@@ -771,7 +771,10 @@ fn every_shipped_scenario_is_clean_at_its_dt() {
     let planar = |name: &str| {
         let text = std::fs::read_to_string(scenario(name)).unwrap();
         let sc: toml::Value = toml::from_str(&text).unwrap();
-        sc.get("dimension").and_then(|d| d.as_integer()).unwrap_or(2) == 2
+        sc.get("dimension")
+            .and_then(|d| d.as_integer())
+            .unwrap_or(2)
+            == 2
     };
     for name in names.iter().filter(|n| planar(n)) {
         let json = tmp.path().join(format!("{name}.json"));
