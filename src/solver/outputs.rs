@@ -40,29 +40,9 @@ impl Simulation {
             } else {
                 o.drive_force[2 * i] = 0.0;
                 o.drive_force[2 * i + 1] = 0.0;
-                let edge = w.edges.iter().find(|e| e.touches(i));
-                let (mut gx, mut gy) = if c.is_some() || edge.is_some() {
-                    (rx, ry)
-                } else {
-                    (0.0, 0.0)
-                };
-                // A compliant fruit's force is part of the node's contact force too.
-                if let Some(p) = pressed {
-                    gx += p.force * p.normal[0];
-                    gy += p.force * p.normal[1];
-                }
-                // Its share of a compliant contact between it and a neighbour (edge mode).
-                for (j, s, p) in w.pressed_edges.iter().filter(|_| !initial) {
-                    let share = match i.checked_sub(*j) {
-                        Some(0) => 1.0 - s,
-                        Some(1) => *s,
-                        _ => continue,
-                    };
-                    gx += share * p.force * p.normal[0];
-                    gy += share * p.force * p.normal[1];
-                }
-                o.reaction[2 * i] = gx;
-                o.reaction[2 * i + 1] = gy;
+                let g = contact_force(w, i, c.is_some(), pressed, [rx, ry], initial);
+                o.reaction[2 * i] = g[0];
+                o.reaction[2 * i + 1] = g[1];
             }
             if w.bdf.second[i] && dt > 0.0 {
                 // BDF2's contact impulse: m (Δu_k − α Δu_{k−1}) = β (f + R) per step, so the
@@ -76,20 +56,7 @@ impl Simulation {
                 o.impulse[2 * i] = o.reaction[2 * i] * dt;
                 o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
             }
-            // Held by a constraint, else pressed into a compliant fruit, else free.
-            let edge = w.edges.iter().find(|e| e.touches(i) && !initial);
-            let held = match c {
-                Some(c) if !rod.clamped[i] => Some((c.normal, c.obstacle)),
-                _ => edge
-                    .filter(|_| !rod.clamped[i])
-                    .map(|e| (e.normal, e.obstacle))
-                    .or(pressed.map(|p| (p.normal, p.obstacle)))
-                    .or(w
-                        .pressed_edges
-                        .iter()
-                        .find(|(j, _, _)| !initial && (*j == i || *j + 1 == i))
-                        .map(|(_, _, p)| (p.normal, p.obstacle))),
-            };
+            let held = held_by(w, i, c, pressed, rod.clamped[i], initial);
             let n = held.map_or([0.0; 2], |h| h.0);
             o.normal[2 * i] = n[0];
             o.normal[2 * i + 1] = n[1];
@@ -398,3 +365,58 @@ const RIGID: ContactView = ContactView {
     segment: usize::MAX,
     weight: 0.0,
 };
+
+/// A free node's contact force at the end of a step: its eq. 2 reaction `r` when a constraint
+/// (its own or an edge's) holds it, plus a compliant fruit's force on it and its share of a
+/// compliant contact between it and a neighbour (edge mode).
+fn contact_force(
+    w: &super::newton::RodWork,
+    i: usize,
+    constrained: bool,
+    pressed: Option<crate::contact::compliant::Pressed>,
+    r: [f64; 2],
+    initial: bool,
+) -> [f64; 2] {
+    let edge = w.edges.iter().any(|e| e.touches(i));
+    let mut g = if constrained || edge { r } else { [0.0; 2] };
+    if let Some(p) = pressed {
+        g[0] += p.force * p.normal[0];
+        g[1] += p.force * p.normal[1];
+    }
+    for (j, s, p) in w.pressed_edges.iter().filter(|_| !initial) {
+        let share = match i.checked_sub(*j) {
+            Some(0) => 1.0 - s,
+            Some(1) => *s,
+            _ => continue,
+        };
+        g[0] += share * p.force * p.normal[0];
+        g[1] += share * p.force * p.normal[1];
+    }
+    g
+}
+
+/// What holds node `i` (normal, obstacle): a constraint, else an edge constraint (free nodes),
+/// else a compliant fruit it presses into (itself or by an edge), else nothing.
+fn held_by(
+    w: &super::newton::RodWork,
+    i: usize,
+    c: Option<crate::contact::Constraint>,
+    pressed: Option<crate::contact::compliant::Pressed>,
+    clamped: bool,
+    initial: bool,
+) -> Option<([f64; 2], usize)> {
+    if let Some(c) = c.filter(|_| !clamped) {
+        return Some((c.normal, c.obstacle));
+    }
+    let edge = w
+        .edges
+        .iter()
+        .find(|e| e.touches(i) && !initial && !clamped);
+    edge.map(|e| (e.normal, e.obstacle))
+        .or(pressed.map(|p| (p.normal, p.obstacle)))
+        .or(w
+            .pressed_edges
+            .iter()
+            .find(|(j, _, _)| !initial && (*j == i || *j + 1 == i))
+            .map(|(_, _, p)| (p.normal, p.obstacle)))
+}
