@@ -261,6 +261,12 @@ impl Sim3 {
     /// Take `qn` as the new state and advance the reference frames and twists onto it.
     fn accept(&mut self) {
         self.q.copy_from_slice(&self.qn);
+        self.advance_frames();
+    }
+
+    /// Carry the reference frames and twists onto the current `q` (time-parallel transport
+    /// from the previous step's frames).
+    pub(crate) fn advance_frames(&mut self) {
         let n = self.rod.n;
         for i in 0..n - 1 {
             self.frames[i] = advance_frame(self.rod.edge(&self.q, i), &self.frames[i]);

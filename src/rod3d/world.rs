@@ -11,7 +11,7 @@
 
 use super::body3::{lever_map, Body3, G3};
 use super::contact3::{decide, BodyContact3, Change3, Contact3, Grip3, Surface3};
-use super::energy::{advance_frame, material_frame, reference_twist};
+use super::energy::material_frame;
 use super::rod::{angle, pos};
 use super::section::Section3;
 use super::solver::{assemble, Sim3, Solve3Error};
@@ -305,14 +305,7 @@ impl World3 {
                 sim.v[k] = (w.qn[k] - sim.q[k]) / dt;
             }
             sim.q.copy_from_slice(&w.qn);
-            let n = sim.rod.n;
-            for i in 0..n - 1 {
-                sim.frames[i] = advance_frame(sim.rod.edge(&sim.q, i), &sim.frames[i]);
-            }
-            for i in 1..n - 1 {
-                let near = sim.ref_twist[i];
-                sim.ref_twist[i] = reference_twist(&sim.frames[i - 1], &sim.frames[i], near);
-            }
+            sim.advance_frames();
             sim.time += dt;
         }
         for b in &mut self.bodies {
