@@ -14,6 +14,7 @@ pub mod csv;
 pub mod csv3;
 pub mod grasp;
 pub mod mcap;
+pub mod pressure;
 pub mod proto;
 pub mod rerun;
 pub mod rerun3;

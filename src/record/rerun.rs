@@ -20,6 +20,8 @@
 //! | `scene/<rod>/predictor` | Points2D | predictor positions (orange rings), on steps with corrector passes |
 //! | `scene/<rod>/iterate` | LineStrips2D + `phase`, `pass`, `newton_iteration` | each Newton iterate (`--detail iteration`), orange = predictor, magenta = corrector |
 //! | `magnified/<rod>/…` | | (own 2D view) each step's departure from free flight magnified ×K: `iterate`, `iterate_nodes`, `surface` (the obstacle surface), `predictor`, `step`, `correction` |
+//! | `scene/pressure` | LineStrips2D | a compliant fruit's contacts, coloured by pressure along the face (src/record/pressure.rs) |
+//! | `zoom/contact/…` | | the most pressed contact at true scale in mm: fruit surface, face, indentation, pressure profile, threshold, scale bar |
 //! | `plots/reaction/<rod>` | Scalars, one per node | \|reaction\| (N), eq. 2 |
 //! | `plots/force_ic/<rod>` | Scalars, one per node | impulse-consistent force (N): contact impulse over the last 1 ms / 1 ms |
 //! | `plots/impulse/<rod>` | Scalars, one per node | \|impulse\| (N s) |
@@ -95,6 +97,9 @@ pub struct RerunSink {
     failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
     /// The file the stream writes to.
     file: RrdFile,
+    /// Whether the last step drew a compliant contact's pressure (then the next one without
+    /// clears it).
+    pressure_shown: bool,
 }
 
 /// Time points worth a bookmark, found while the run is logged and written at its end.
@@ -103,6 +108,8 @@ struct Bookmarks {
     first_contact: bool,
     /// (|R|, step, t, iteration, rod, node) of the largest eq. 2 reaction.
     peak: Option<(f64, u64, f64, i64, usize, usize)>,
+    /// The same for a compliant fruit's peak contact pressure (Pa).
+    peak_pressure: Option<(f64, u64, f64, i64, usize, usize)>,
     /// The same for the impulse-consistent force.
     peak_ic: Option<(f64, u64, f64, i64, usize, usize)>,
 }
@@ -403,6 +410,12 @@ pub fn blueprint(rods: &[String]) -> Blueprint {
 /// [`blueprint`] with `extra` views as the first tabs of the plot tabs (replay overlays add
 /// their difference plots there).
 pub fn blueprint_with(rods: &[String], extra: Vec<ContainerLike>) -> Blueprint {
+    layout(rods, extra, false)
+}
+
+/// [`blueprint_with`], with the contact zoom under the magnified view when the scene has a
+/// compliant fruit.
+fn layout(rods: &[String], extra: Vec<ContainerLike>, compliant: bool) -> Blueprint {
     let scene = Spatial2DView::new("Scene")
         .with_origin("/")
         .with_contents(["+ /scene/**"]);
@@ -480,10 +493,18 @@ pub fn blueprint_with(rods: &[String], extra: Vec<ContainerLike>) -> Blueprint {
         );
     }
     let events = TextLogView::new("Events and bookmarks").with_origin("/events");
+    let middle: ContainerLike = if compliant {
+        let zoom = Spatial2DView::new("Most pressed contact, to scale (mm)")
+            .with_origin("/")
+            .with_contents(["+ /zoom/**"]);
+        Vertical::new([magnified.into(), zoom.into()]).into()
+    } else {
+        magnified.into()
+    };
     Blueprint::new(
         Horizontal::new([
             scene.into(),
-            magnified.into(),
+            middle,
             Vertical::new([forces, Tabs::new(tabs).into(), events.into()])
                 .with_row_shares([0.4, 0.3, 0.3])
                 .into(),
@@ -510,7 +531,9 @@ impl RerunSink {
         scenario: &Scenario,
     ) -> Result<Self, RecordError> {
         let rods: Vec<String> = scenario.rods.iter().map(|r| r.name.clone()).collect();
-        Self::create_named(path, opts, &scenario.name, &scenario.text, blueprint(&rods))
+        let compliant = scenario.materials.iter().any(Option::is_some);
+        let layout = layout(&rods, Vec::new(), compliant);
+        Self::create_named(path, opts, &scenario.name, &scenario.text, layout)
     }
 
     /// Create `path` for a run of the scenario named `name` with TOML `text` (the recording id
@@ -572,6 +595,7 @@ impl RerunSink {
             error: None,
             failed: Default::default(),
             file,
+            pressure_shown: false,
         })
     }
 
@@ -909,6 +933,134 @@ impl RerunSink {
         self.check(r);
     }
 
+    /// A compliant fruit's contacts: the pressure as a colour along each contact on the prong's
+    /// face (`scene/pressure`), and the most pressed one zoomed in its own frame, to scale, in
+    /// millimetres (`zoom/contact/…`, src/record/pressure.rs). Cleared on the first step
+    /// without one.
+    fn draw_pressure(
+        &mut self,
+        step: u64,
+        t: f64,
+        rods: &[RodStepView<'_>],
+        contacts: &[ContactView],
+    ) {
+        use super::pressure as pr;
+        let Some(rec) = self.rec.clone() else {
+            return;
+        };
+        let Some(c) = pr::most_pressed(contacts).filter(|c| c.rod < rods.len()) else {
+            if std::mem::take(&mut self.pressure_shown) {
+                let r = rec
+                    .log("scene/pressure", &::rerun::Clear::flat())
+                    .and_then(|_| rec.log("zoom/contact", &::rerun::Clear::recursive()));
+                self.check(r);
+            }
+            return;
+        };
+        if !self.pressure_shown {
+            self.pressure_shown = true;
+            let r = rec.log_static("zoom", &Transform3D::from_scale((1.0, -1.0, 1.0)));
+            self.check(r);
+        }
+        let it = self.iteration - 1;
+        note_peak(
+            &mut self.marks.peak_pressure,
+            c.peak_pressure,
+            step,
+            t,
+            it,
+            c.rod,
+            c.node,
+        );
+        let (mut strips, mut colors) = (Vec::new(), Vec::new());
+        for (seg, col) in contacts
+            .iter()
+            .filter(|c| pr::is_pressed(c))
+            .flat_map(pr::patch)
+        {
+            strips.push(seg.map(f32x2).to_vec());
+            colors.push(rgb(col));
+        }
+        let fixed = (c.body == usize::MAX)
+            .then(|| self.obstacles.get(c.obstacle))
+            .flatten();
+        let z = pr::zoom(c, rods[c.rod].q, fixed);
+        let strip = |p: &[[f64; 2]]| p.iter().copied().map(f32x2).collect::<Vec<_>>();
+        let (prof, prof_colors): (Vec<_>, Vec<_>) = z
+            .profile
+            .iter()
+            .map(|(s, col)| (strip(s), rgb(*col)))
+            .unzip();
+        let label = pr::describe(c, &self.rod_name(c.rod));
+        let scale_label = format!("{} mm", z.scale.1);
+        let threshold = z.threshold.map(|l| vec![strip(&l)]).unwrap_or_default();
+        let ui = Radius::new_ui_points;
+        let r = rec
+            .log(
+                "scene/pressure",
+                &LineStrips2D::new(strips)
+                    .with_colors(colors)
+                    .with_radii([ui(4.0)])
+                    .with_draw_order(DRAW_OBSTACLES + 3.0),
+            )
+            .and_then(|_| {
+                rec.log(
+                    "zoom/contact/surfaces",
+                    &LineStrips2D::new([strip(&z.fruit), strip(&z.face), strip(&z.centerline)])
+                        .with_colors([rgb(OBSTACLE_COLOR), rgb(ROD_COLOR), rgb(DRIVEN_COLOR)])
+                        .with_radii([ui(2.0), ui(2.5), ui(1.0)])
+                        .with_labels(["undeformed fruit", "prong face", "centre line"]),
+                )
+            })
+            .and_then(|_| {
+                rec.log(
+                    "zoom/contact/pressure",
+                    &LineStrips2D::new(prof)
+                        .with_colors(prof_colors)
+                        .with_radii([ui(3.0)]),
+                )
+            })
+            .and_then(|_| {
+                rec.log(
+                    "zoom/contact/threshold",
+                    &LineStrips2D::new(threshold)
+                        .with_colors([rgb(pr::BRUISE_COLOR)])
+                        .with_radii([ui(1.0)])
+                        .with_labels(["bruise threshold"]),
+                )
+            })
+            .and_then(|_| {
+                rec.log(
+                    "zoom/contact/indentation",
+                    &Arrows2D::from_vectors([f32x2(z.indentation)])
+                        .with_origins([[0.0f32, 0.0]])
+                        .with_colors([rgb(REACTION_COLOR)])
+                        .with_labels([format!("δ = {}", pr::mm(c.indentation))])
+                        .with_show_labels(true),
+                )
+            })
+            .and_then(|_| {
+                rec.log(
+                    "zoom/contact/scale",
+                    &LineStrips2D::new([strip(&z.scale.0)])
+                        .with_colors([rgb(NORMAL_COLOR)])
+                        .with_radii([ui(1.5)])
+                        .with_labels([scale_label])
+                        .with_show_labels(true),
+                )
+            })
+            .and_then(|_| {
+                rec.log(
+                    "zoom/contact/label",
+                    &Points2D::new([[(-z.window) as f32, (0.35 * z.window) as f32]])
+                        .with_radii([ui(0.1)])
+                        .with_labels([label])
+                        .with_show_labels(true),
+                )
+            });
+        self.check(r);
+    }
+
     fn iteration(&mut self, ev: IterationEvent<'_>) {
         let Some(rec) = self.rec.clone() else {
             return;
@@ -973,6 +1125,18 @@ impl RerunSink {
 
     /// The bookmarks known only at the end: the peak forces, at their own time points.
     fn end_bookmarks(&mut self) {
+        if let Some((p, step, t, it, r, i)) = self.marks.peak_pressure {
+            let rod = self.rod_name(r);
+            self.bookmark(
+                step,
+                t,
+                it,
+                format!(
+                    "peak contact pressure {}: rod {rod:?} node {i} (t = {t:.6} s, step {step}, iteration {it})",
+                    super::pressure::pressure(p)
+                ),
+            );
+        }
         let peaks = [
             ("peak eq. 2 reaction", self.marks.peak),
             (
@@ -1978,6 +2142,7 @@ impl Observer for RerunSink {
                 contacts,
             } => {
                 self.step_end(step, t, dt, newton_iterations, passes, rods);
+                self.draw_pressure(step, t, rods, contacts);
                 if !bodies.is_empty() {
                     self.draw_bodies(bodies, contacts);
                 }

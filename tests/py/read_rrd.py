@@ -13,6 +13,10 @@ report on stdout of what a reviewer relies on when looking at the file:
   series        {entity: {colors: [u32 rgba], names: [..]}} of every static SeriesLines
   bookmarks     [{text, level, step, sim_time_ns, iteration}] of `events/bookmarks`
   legend        the labels of `scene/legend/scale`
+  zoom          [{step, vectors, labels}] of `zoom/contact/indentation` (the indentation arrow of
+                the most pressed contact, mm)
+  pressure      [{step, strips, colors}] of `scene/pressure` (the pressure along each compliant
+                contact: strips = number of pieces, colors = their u32 rgba)
 
 Columns are found by their component name (the part after the last ':'), so the report does
 not depend on how the SDK spells archetype prefixes.
@@ -43,7 +47,7 @@ def first(v):
 
 
 def main(path):
-    rep = {"iterates": {}, "reactions": {}, "series": {}, "bookmarks": [], "legend": []}
+    rep = {"iterates": {}, "reactions": {}, "series": {}, "bookmarks": [], "legend": [], "zoom": [], "pressure": []}
     for chunk in RrdReader(path).stream():
         ent = chunk.entity_path
         batch = chunk.to_record_batch()
@@ -98,6 +102,20 @@ def main(path):
                         "iteration": it[k],
                     }
                 )
+        elif ent == "/zoom/contact/indentation":
+            vectors = column(batch, "vectors")
+            labels = column(batch, "labels")
+            for k in range(n):
+                if vectors is None or vectors[k] is None:
+                    continue
+                rep["zoom"].append({"step": step[k], "vectors": vectors[k], "labels": labels[k] if labels else None})
+        elif ent == "/scene/pressure":
+            strips = column(batch, "strips")
+            colors = column(batch, "colors")
+            for k in range(n):
+                if strips is None or strips[k] is None:
+                    continue
+                rep["pressure"].append({"step": step[k], "strips": len(strips[k]), "colors": colors[k] if colors else None})
         elif ent == "/scene/legend/scale":
             labels = column(batch, "labels")
             if labels:
@@ -110,6 +128,8 @@ def main(path):
     # Rows of one entity may come in several chunks: order them on the iteration timeline.
     for rows in list(rep["iterates"].values()) + list(rep["reactions"].values()):
         rows.sort(key=lambda r: (r["iteration"] if r["iteration"] is not None else -1))
+    rep["zoom"].sort(key=lambda r: r["step"])
+    rep["pressure"].sort(key=lambda r: r["step"])
     rep["bookmarks"].sort(key=lambda r: (r["iteration"] if r["iteration"] is not None else -1))
     json.dump(rep, sys.stdout, default=str)
 

@@ -289,3 +289,105 @@ fn two_prong_series_have_distinct_colours() {
             .collect::<Vec<_>>()
     );
 }
+
+/// A compliant fruit's contacts in the `.rrd` (issue 11): the pressure as a colour along each
+/// pressed contact (`scene/pressure`, 16 pieces a contact, purple where it bruises) and the most
+/// pressed contact's indentation drawn to scale in the zoom (`zoom/contact/indentation`, mm),
+/// step for step the figures of the MCAP's contacts; the peak pressure is bookmarked.
+#[test]
+fn a_compliant_grasp_shows_pressure_along_the_contact_and_the_indentation_to_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (rrd, mcap, summary) = (d.join("a.rrd"), d.join("a.mcap"), d.join("a.json"));
+    run_ok(
+        gripsim()
+            .arg("run")
+            .arg(scenario("seed-grasp-e1gpa"))
+            .args([
+                "-q",
+                "--set",
+                "contact.surface=face",
+                "--set",
+                "obstacle.0.center=[-0.055,-0.05]",
+                "--set",
+                "obstacle.0.material=apple",
+                "--set",
+                "solve.dt=2e-4",
+                "--rrd",
+            ])
+            .arg(&rrd)
+            .arg("--mcap")
+            .arg(&mcap)
+            .arg("--summary")
+            .arg(&summary),
+    );
+    let rep = read_rrd(&rrd);
+    let summary: Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    // Per step: the pressed contacts of the MCAP, and the most pressed one's indentation.
+    let mut pressed: BTreeMap<u64, (usize, f64, bool)> = BTreeMap::new();
+    for (t, m) in mcap_messages(&mcap) {
+        if t != "/sim/step" {
+            continue;
+        }
+        let cs: Vec<&Value> = m["contacts"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|c| c["half_width"].as_f64().unwrap_or(0.0) > 0.0)
+            .collect();
+        if let Some(top) = cs.iter().max_by(|a, b| {
+            let p = |c: &Value| c["peak_pressure"].as_f64().unwrap();
+            p(a).total_cmp(&p(b))
+        }) {
+            let bruises = cs.iter().any(|c| {
+                c["peak_pressure"].as_f64().unwrap() > c["bruise_pressure"].as_f64().unwrap()
+            });
+            pressed.insert(
+                m["step"].as_u64().unwrap(),
+                (cs.len(), top["indentation"].as_f64().unwrap(), bruises),
+            );
+        }
+    }
+    assert!(pressed.len() > 50, "{} pressed steps", pressed.len());
+    let zoom = rep["zoom"].as_array().unwrap();
+    let colours = rep["pressure"].as_array().unwrap();
+    assert_eq!(zoom.len(), pressed.len());
+    assert_eq!(colours.len(), pressed.len());
+    const PURPLE: u64 = (150 << 24) | (60 << 16) | (200 << 8) | 255;
+    let mut purple_steps = 0;
+    for (z, p) in zoom.iter().zip(colours) {
+        let step = z["step"].as_u64().unwrap();
+        let (n, depth, bruises) = pressed[&step];
+        let v = f64s(&z["vectors"][0]);
+        assert!(
+            v[0] == 0.0 && (v[1] + 1e3 * depth).abs() <= 1e-6 * (1e3 * depth),
+            "{z} {depth}"
+        );
+        assert_eq!(p["step"].as_u64(), Some(step));
+        assert_eq!(p["strips"].as_u64(), Some(16 * n as u64), "{p}");
+        let purple = p["colors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c.as_u64() == Some(PURPLE));
+        assert_eq!(purple, bruises, "step {step}");
+        purple_steps += purple as usize;
+    }
+    assert!(purple_steps > 0, "the 1 GPa prong bruises the apple");
+    // The bookmark names the run's peak pressure, as the summary does.
+    let peak = summary["contact_pressure"]["max_pressure_pa"]
+        .as_f64()
+        .unwrap();
+    let mark = rep["bookmarks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|b| b["text"].as_str())
+        .find(|t| t.contains("peak contact pressure"))
+        .expect("a peak pressure bookmark");
+    assert!(
+        mark.contains(&format!("{:.1} kPa", peak / 1e3))
+            || mark.contains(&format!("{:.3} MPa", peak / 1e6)),
+        "{mark} vs {peak}"
+    );
+}
