@@ -194,6 +194,31 @@ pub fn zoom(c: &ContactView, q: &[f64], obstacle: Option<&Obstacle>) -> Zoom {
     }
 }
 
+impl Zoom {
+    /// Where the zoom's names go (each at an end of what it names, so they do not pile up in
+    /// the middle), and the contact's description above it all.
+    pub fn labels(&self, description: String) -> Vec<([f64; 2], String)> {
+        let mut out = Vec::new();
+        let mut name = |p: Option<&[f64; 2]>, text: &str| {
+            if let Some(p) = p {
+                out.push((*p, text.to_string()));
+            }
+        };
+        name(self.fruit.last(), "undeformed fruit");
+        name(self.face.last(), "prong face");
+        name(self.centerline.first(), "centre line");
+        name(self.threshold.as_ref().map(|l| &l[1]), "bruise threshold");
+        let top = self
+            .centerline
+            .iter()
+            .chain(&self.fruit)
+            .map(|p| p[1])
+            .fold(0.0f64, f64::max);
+        out.push(([0.0, top + 0.4 * self.window], description));
+        out
+    }
+}
+
 /// A 1, 2 or 5 × 10ᵏ length near a third of the window (mm).
 fn scale_length(w: f64) -> f64 {
     let target = w / 1.5;
@@ -261,7 +286,7 @@ pub fn pressure(p: f64) -> String {
 pub fn describe(c: &ContactView, rod: &str) -> String {
     let ratio = if c.bruise_pressure > 0.0 {
         format!(
-            " = {:.2} × the bruise threshold {}",
+            "\n= {:.2} × the bruise threshold {}",
             c.peak_pressure / c.bruise_pressure,
             pressure(c.bruise_pressure)
         )
@@ -269,7 +294,7 @@ pub fn describe(c: &ContactView, rod: &str) -> String {
         String::new()
     };
     format!(
-        "rod {rod:?} node {}: F {:.4} N, p₀ {}{ratio}\n2a {}, δ {} (drawn to scale)\ncolour: green low, red at the threshold, purple above",
+        "rod {rod:?} node {}\nF {:.4} N, p₀ {}{ratio}\n2a {}, δ {} (to scale)",
         c.node,
         c.normal_force,
         pressure(c.peak_pressure),

@@ -1008,8 +1008,7 @@ impl RerunSink {
                     "zoom/contact/surfaces",
                     &LineStrips2D::new([strip(&z.fruit), strip(&z.face), strip(&z.centerline)])
                         .with_colors([rgb(OBSTACLE_COLOR), rgb(ROD_COLOR), rgb(DRIVEN_COLOR)])
-                        .with_radii([ui(2.0), ui(2.5), ui(1.0)])
-                        .with_labels(["undeformed fruit", "prong face", "centre line"]),
+                        .with_radii([ui(2.0), ui(2.5), ui(1.0)]),
                 )
             })
             .and_then(|_| {
@@ -1025,8 +1024,7 @@ impl RerunSink {
                     "zoom/contact/threshold",
                     &LineStrips2D::new(threshold)
                         .with_colors([rgb(pr::BRUISE_COLOR)])
-                        .with_radii([ui(1.0)])
-                        .with_labels(["bruise threshold"]),
+                        .with_radii([ui(1.0)]),
                 )
             })
             .and_then(|_| {
@@ -1043,18 +1041,24 @@ impl RerunSink {
                 rec.log(
                     "zoom/contact/scale",
                     &LineStrips2D::new([strip(&z.scale.0)])
-                        .with_colors([rgb(NORMAL_COLOR)])
+                        .with_colors([rgb([80, 80, 80])])
                         .with_radii([ui(1.5)])
                         .with_labels([scale_label])
                         .with_show_labels(true),
                 )
             })
             .and_then(|_| {
+                let (pos, text): (Vec<_>, Vec<_>) = z
+                    .labels(label)
+                    .into_iter()
+                    .map(|(p, t)| (f32x2(p), t))
+                    .unzip();
                 rec.log(
-                    "zoom/contact/label",
-                    &Points2D::new([[(-z.window) as f32, (0.35 * z.window) as f32]])
+                    "zoom/contact/labels",
+                    &Points2D::new(pos)
+                        .with_colors([rgb([80, 80, 80])])
                         .with_radii([ui(0.1)])
-                        .with_labels([label])
+                        .with_labels(text)
                         .with_show_labels(true),
                 )
             });
