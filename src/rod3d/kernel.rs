@@ -63,7 +63,9 @@ fn unit(j: usize) -> V {
     u
 }
 
-fn edge(e: V, old: &EdgeFrame, theta: f64) -> Edge {
+/// The edge's frame at the iterate; with `jv` also ∂v/∂e (Hessians only).
+fn edge(e: V, old: &EdgeFrame, theta: f64, jv: bool) -> Edge {
+    let want_jv = jv;
     let l = dot(e, e).sqrt();
     let t = mul(1.0 / l, e);
     let a1 = transport(old.a1, old.t, t);
@@ -78,7 +80,7 @@ fn edge(e: V, old: &EdgeFrame, theta: f64) -> Edge {
     // ∂v/∂e = −[t⁰]× P/(ch l) − b (P t⁰)ᵀ/(ch² l) − b tᵀ/(ch l²), P = (I − t tᵀ)/l, where
     // column j of [t⁰]× P is (t⁰ × êⱼ + b tⱼ)/l.
     let mut jv = [[0.0; 3]; 3];
-    for (j, _) in t.iter().enumerate() {
+    for (j, _) in t.iter().enumerate().filter(|_| want_jv) {
         let x = cross(t0, unit(j));
         let pt0 = (t0[j] - (ch - 1.0) * t[j]) / l;
         for i in 0..3 {
@@ -285,7 +287,7 @@ fn strains(a: &Edge, b: &Edge) -> Strains {
 pub fn strain_gradients(x: &[f64; 11], old: [&EdgeFrame; 2]) -> [[f64; 11]; 3] {
     let e = [x[4] - x[0], x[5] - x[1], x[6] - x[2]];
     let f = [x[8] - x[4], x[9] - x[5], x[10] - x[6]];
-    let s = strains(&edge(e, old[0], x[3]), &edge(f, old[1], x[7]));
+    let s = strains(&edge(e, old[0], x[3], false), &edge(f, old[1], x[7], false));
     let mut out = [[0.0; 11]; 3];
     for (o, g) in out.iter_mut().zip([&s.g1, &s.g2, &s.gm]) {
         map_to_dofs(g, o);
@@ -304,8 +306,9 @@ pub fn local(
     g: &mut G8,
     h: Option<&mut H8>,
 ) -> f64 {
-    let a = edge(e, old[0], th[0]);
-    let b = edge(f, old[1], th[1]);
+    let want_h = h.is_some();
+    let a = edge(e, old[0], th[0], want_h);
+    let b = edge(f, old[1], th[1], want_h);
     let Strains {
         chi,
         kb,

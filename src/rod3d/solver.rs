@@ -411,7 +411,13 @@ pub fn damping_into<S: BandSink>(
             g[k] = -e[k] / (l * rest);
             g[4 + k] = e[k] / (l * rest);
         }
-        power += viscous(&g, a, q, q_prev, dt, tau * rod.ea * rest, &mut f7, &mut h7);
+        let jac = band.is_some();
+        f7.fill(0.0);
+        if jac {
+            h7.iter_mut().for_each(|r| r.fill(0.0));
+        }
+        let tau_k = tau * rod.ea * rest;
+        power += viscous(&g, a, q, q_prev, dt, tau_k, &mut f7, jac.then_some(&mut h7));
         scatter(a, &f7, &h7, grad, band.as_deref_mut(), &free);
     }
     let (mut f11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
@@ -420,27 +426,22 @@ pub fn damping_into<S: BandSink>(
         let x: [f64; 11] = q[base..base + 11].try_into().unwrap();
         let gs = kernel::strain_gradients(&x, [&frames[i - 1], &frames[i]]);
         let p = &rod.elastic[i];
+        let jac = band.is_some();
         f11.fill(0.0);
-        for row in h11.iter_mut() {
-            row.fill(0.0);
+        if jac {
+            h11.iter_mut().for_each(|r| r.fill(0.0));
         }
-        let (mut f, mut h) = ([0.0; 11], [[0.0; 11]; 11]);
         for (g, k) in gs.iter().zip([p.ei1, p.ei2, p.gj]) {
-            power += viscous(g, base, q, q_prev, dt, tau * k, &mut f, &mut h);
-            for a in 0..11 {
-                f11[a] += f[a];
-                for c in 0..11 {
-                    h11[a][c] += h[a][c];
-                }
-            }
+            let h = jac.then_some(&mut h11);
+            power += viscous(g, base, q, q_prev, dt, tau * k, &mut f11, h);
         }
         scatter(base, &f11, &h11, grad, band.as_deref_mut(), &free);
     }
     power
 }
 
-/// One element's viscous force `f` = τk ṡ g (ṡ = g·v over the DOFs `base ..`) and its
-/// Jacobian τk g gᵀ/dt into `h`. Returns the power τk ṡ².
+/// Add one element's viscous force τk ṡ g (ṡ = g·v over the DOFs `base ..`) to `f` and with
+/// `h` its Jacobian τk g gᵀ/dt. Returns the power τk ṡ².
 #[allow(clippy::too_many_arguments)]
 fn viscous<const N: usize>(
     g: &[f64; N],
@@ -450,15 +451,19 @@ fn viscous<const N: usize>(
     dt: f64,
     tau_k: f64,
     f: &mut [f64; N],
-    h: &mut [[f64; N]; N],
+    h: Option<&mut [[f64; N]; N]>,
 ) -> f64 {
     let rate: f64 = (0..N)
         .map(|a| g[a] * (q[base + a] - q_prev[base + a]) / dt)
         .sum();
     for a in 0..N {
-        f[a] = tau_k * rate * g[a];
-        for c in 0..N {
-            h[a][c] = tau_k * g[a] * g[c] / dt;
+        f[a] += tau_k * rate * g[a];
+    }
+    if let Some(h) = h {
+        for a in 0..N {
+            for c in 0..N {
+                h[a][c] += tau_k * g[a] * g[c] / dt;
+            }
         }
     }
     tau_k * rate * rate
