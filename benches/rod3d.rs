@@ -7,13 +7,18 @@
 //! the 3D step against the planar seed prong (`gripsim bench` scaling: seed grasp, N nodes per
 //! prong, dt = 1e-5 s, before contact) at the same nodes and dt.
 //!
-//!     cargo bench --bench rod3d
+//! Last, the shipped 3D two-finger grasp against the shipped planar two-prong grasp at the same
+//! nodes (10 per prong) and dt (1e-5 s): the ratio of their costs per step.
+//!
+//!     cargo bench --bench rod3d [-- --planar | --grasp]
 
 use gripsim::bench::SEED_R5;
 use gripsim::events::NullObserver;
 use gripsim::rod3d::energy::{node_derivatives, EdgeFrame, NodeElastic};
 use gripsim::rod3d::kernel;
+use gripsim::rod3d::run3;
 use gripsim::rod3d::{Rod3, Rod3Spec, Section3, Sim3};
+use gripsim::scenario::three::Scenario3;
 use gripsim::{Scenario, Simulation};
 use std::hint::black_box;
 
@@ -171,9 +176,85 @@ fn against_planar() {
     }
 }
 
+/// The shipped 3D two-finger grasp (scenarios/3d-two-finger-sphere.toml) run at `dt`, whole:
+/// CPU µs per step, steps, Newton iterations and contact passes per step. Best of `runs`.
+fn grasp3(dt: f64, damped: bool, runs: usize) -> (f64, u64, f64, f64) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/3d-two-finger-sphere.toml"
+    );
+    let mut sc = Scenario3::load(std::path::Path::new(path)).expect("3D grasp scenario");
+    sc.dt = dt;
+    if !damped {
+        sc.damping_time = 0.0;
+    }
+    let mut best = (f64::INFINITY, 0, 0.0, 0.0);
+    for _ in 0..runs {
+        let t = thread_cpu();
+        let s = run3::run(&sc, None).expect("3D grasp run");
+        let us = (thread_cpu() - t) * 1e6 / s.steps as f64;
+        if us < best.0 {
+            let n = s.steps as f64;
+            let (it, passes) = (s.newton_iterations as f64, s.contact_passes as f64);
+            best = (us, s.steps, it / n, passes / n);
+        }
+    }
+    best
+}
+
+/// The shipped planar two-prong grasp (scenarios/two-prong-grasp.toml), whole, unrecorded:
+/// CPU µs per step, steps, Newton iterations per step. Best of `runs`.
+fn grasp2(runs: usize) -> (f64, u64, f64) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/two-prong-grasp.toml"
+    );
+    let sc = Scenario::load(std::path::Path::new(path), &[]).expect("planar grasp scenario");
+    let mut best = (f64::INFINITY, 0, 0.0);
+    for _ in 0..runs {
+        let mut sim = Simulation::new(&sc);
+        let t = thread_cpu();
+        let st = sim.run(&mut NullObserver).expect("planar grasp run");
+        let us = (thread_cpu() - t) * 1e6 / st.steps as f64;
+        if us < best.0 {
+            best = (us, st.steps, st.newton_iterations as f64 / st.steps as f64);
+        }
+    }
+    best
+}
+
+/// Issue 16's "3D two-finger grasp within 5× the planar step cost at the planar scenario's
+/// resolution": both shipped grasps have 10-node prongs; the 3D one is run at the planar
+/// one's dt = 1e-5 s without material damping (the planar grasp has none), then as shipped
+/// (loss factor 0.3) and at its own dt = 1e-4 s for reference.
+fn grasp_ratio() {
+    let (us2, n2, it2) = grasp2(5);
+    println!(
+        "\nTwo-finger grasps, 10 nodes per prong, whole scenarios, CPU µs per step (best of runs):"
+    );
+    println!("| run | dt (s) | steps | µs/step | Newton it/step | passes/step | × planar |");
+    println!("|---|---|---|---|---|---|---|");
+    println!("| planar two-prong-grasp | 1e-5 | {n2} | {us2:.2} | {it2:.2} | | 1 |");
+    for (dt, damped, label) in [
+        (1e-5, false, "3d-two-finger-sphere, undamped"),
+        (1e-5, true, "3d-two-finger-sphere, as shipped"),
+        (1e-4, true, "3d-two-finger-sphere, as shipped"),
+    ] {
+        let (us3, n3, it3, p3) = grasp3(dt, damped, 2);
+        println!(
+            "| {label} | {dt:e} | {n3} | {us3:.2} | {it3:.2} | {p3:.3} | {:.2} |",
+            us3 / us2
+        );
+    }
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--planar") {
         against_planar();
+        return;
+    }
+    if std::env::args().any(|a| a == "--grasp") {
+        grasp_ratio();
         return;
     }
     let dt = 1e-4;
@@ -223,4 +304,5 @@ fn main() {
         total.powf(1.0 / 6.0)
     );
     against_planar();
+    grasp_ratio();
 }

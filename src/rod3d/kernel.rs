@@ -63,7 +63,9 @@ fn unit(j: usize) -> V {
     u
 }
 
-fn edge(e: V, old: &EdgeFrame, theta: f64) -> Edge {
+/// The edge's frame at the iterate; with `jv` also ∂v/∂e (Hessians only).
+fn edge(e: V, old: &EdgeFrame, theta: f64, jv: bool) -> Edge {
+    let want_jv = jv;
     let l = dot(e, e).sqrt();
     let t = mul(1.0 / l, e);
     let a1 = transport(old.a1, old.t, t);
@@ -78,7 +80,7 @@ fn edge(e: V, old: &EdgeFrame, theta: f64) -> Edge {
     // ∂v/∂e = −[t⁰]× P/(ch l) − b (P t⁰)ᵀ/(ch² l) − b tᵀ/(ch l²), P = (I − t tᵀ)/l, where
     // column j of [t⁰]× P is (t⁰ × êⱼ + b tⱼ)/l.
     let mut jv = [[0.0; 3]; 3];
-    for (j, _) in t.iter().enumerate() {
+    for (j, _) in t.iter().enumerate().filter(|_| want_jv) {
         let x = cross(t0, unit(j));
         let pt0 = (t0[j] - (ch - 1.0) * t[j]) / l;
         for i in 0..3 {
@@ -236,6 +238,63 @@ fn outer(g: &G8, s: f64, h: &mut H8) {
     }
 }
 
+/// The curvatures of a node and the gradients of its strains over the local variables.
+struct Strains {
+    chi: f64,
+    kb: V,
+    k1: f64,
+    k2: f64,
+    /// ∇χ, ∇κ₁, ∇κ₂, ∇m.
+    gc: G8,
+    g1: G8,
+    g2: G8,
+    gm: G8,
+}
+
+fn strains(a: &Edge, b: &Edge) -> Strains {
+    let chi = 1.0 + dot(a.t, b.t);
+    let kb = mul(2.0 / chi, cross(a.t, b.t));
+    let k1 = (dot(b.t, a.m1) - dot(a.t, b.m1)) / chi;
+    let k2 = (dot(b.t, a.m2) - dot(a.t, b.m2)) / chi;
+    let gc = chi_grad(a, b);
+    // ∇κᵢ = (∇Nᵢ − κᵢ ∇χ)/χ, Nᵢ = t_f·mᵢₑ − tₑ·mᵢ_f.
+    let (mut g1, mut g2) = ([0.0; 8], [0.0; 8]);
+    let nm1 = [-a.m1[0], -a.m1[1], -a.m1[2]];
+    let nb1 = [-b.m1[0], -b.m1[1], -b.m1[2]];
+    dot_grad(a, E, TE, a.m1, a.m2, b, F, 1.0, &mut g1);
+    dot_grad(b, F, TF, b.m1, b.m2, a, E, -1.0, &mut g1);
+    dot_grad(a, E, TE, a.m2, nm1, b, F, 1.0, &mut g2);
+    dot_grad(b, F, TF, b.m2, nb1, a, E, -1.0, &mut g2);
+    for k in 0..8 {
+        g1[k] = (g1[k] - k1 * gc[k]) / chi;
+        g2[k] = (g2[k] - k2 * gc[k]) / chi;
+    }
+    let gm = twist_grad(a, b, kb);
+    Strains {
+        chi,
+        kb,
+        k1,
+        k2,
+        gc,
+        g1,
+        g2,
+        gm,
+    }
+}
+
+/// The gradients of the strains κ₁, κ₂ and m of the stencil with DOFs `x` (x₀, θₑ, x₁, θ_f,
+/// x₂) over those DOFs: the strain rates of material damping are ∇s·v.
+pub fn strain_gradients(x: &[f64; 11], old: [&EdgeFrame; 2]) -> [[f64; 11]; 3] {
+    let e = [x[4] - x[0], x[5] - x[1], x[6] - x[2]];
+    let f = [x[8] - x[4], x[9] - x[5], x[10] - x[6]];
+    let s = strains(&edge(e, old[0], x[3], false), &edge(f, old[1], x[7], false));
+    let mut out = [[0.0; 11]; 3];
+    for (o, g) in out.iter_mut().zip([&s.g1, &s.g2, &s.gm]) {
+        map_to_dofs(g, o);
+    }
+    out
+}
+
 /// Energy, gradient and Hessian of one node over the local variables (e, f, θₑ, θ_f).
 pub fn local(
     e: V,
@@ -245,35 +304,34 @@ pub fn local(
     rt_old: f64,
     p: &NodeElastic,
     g: &mut G8,
-    h: &mut H8,
+    h: Option<&mut H8>,
 ) -> f64 {
-    let a = edge(e, old[0], th[0]);
-    let b = edge(f, old[1], th[1]);
-    let chi = 1.0 + dot(a.t, b.t);
-    let kb = mul(2.0 / chi, cross(a.t, b.t));
-    let k1 = (dot(b.t, a.m1) - dot(a.t, b.m1)) / chi;
-    let k2 = (dot(b.t, a.m2) - dot(a.t, b.m2)) / chi;
+    let want_h = h.is_some();
+    let a = edge(e, old[0], th[0], want_h);
+    let b = edge(f, old[1], th[1], want_h);
+    let Strains {
+        chi,
+        kb,
+        k1,
+        k2,
+        gc,
+        g1,
+        g2,
+        gm,
+    } = strains(&a, &b);
     let mref = signed_angle(transport(a.a1, a.t, b.t), b.a1, b.t, rt_old);
     let m = th[1] - th[0] + mref;
-    let gc = chi_grad(&a, &b);
-    // ∇κᵢ = (∇Nᵢ − κᵢ ∇χ)/χ, Nᵢ = t_f·mᵢₑ − tₑ·mᵢ_f.
-    let (mut g1, mut g2) = ([0.0; 8], [0.0; 8]);
-    let nm1 = [-a.m1[0], -a.m1[1], -a.m1[2]];
-    let nb1 = [-b.m1[0], -b.m1[1], -b.m1[2]];
-    dot_grad(&a, E, TE, a.m1, a.m2, &b, F, 1.0, &mut g1);
-    dot_grad(&b, F, TF, b.m1, b.m2, &a, E, -1.0, &mut g1);
-    dot_grad(&a, E, TE, a.m2, nm1, &b, F, 1.0, &mut g2);
-    dot_grad(&b, F, TF, b.m2, nb1, &a, E, -1.0, &mut g2);
-    for k in 0..8 {
-        g1[k] = (g1[k] - k1 * gc[k]) / chi;
-        g2[k] = (g2[k] - k2 * gc[k]) / chi;
-    }
-    let gm = twist_grad(&a, &b, kb);
     let (d1, d2, dm) = (k1 - p.kappa_bar[0], k2 - p.kappa_bar[1], m - p.twist_bar);
     let (w1, w2, wm) = (p.ei1 * d1, p.ei2 * d2, p.gj * dm);
     for k in 0..8 {
         g[k] = w1 * g1[k] + w2 * g2[k] + wm * gm[k];
-        h[k].fill(0.0);
+    }
+    let energy = 0.5 * (w1 * d1 + w2 * d2 + wm * dm);
+    let Some(h) = h else {
+        return energy;
+    };
+    for row in h.iter_mut() {
+        row.fill(0.0);
     }
     outer(&g1, p.ei1, h);
     outer(&g2, p.ei2, h);
@@ -294,7 +352,7 @@ pub fn local(
         }
     }
     twist_hess(&a, &b, kb, chi, wm, h);
-    0.5 * (w1 * d1 + w2 * d2 + wm * dm)
+    energy
 }
 
 /// Energy, gradient and Hessian (bending + twisting) of the stencil with DOFs `x`
@@ -310,23 +368,43 @@ pub fn node_derivatives(
     let e = [x[4] - x[0], x[5] - x[1], x[6] - x[2]];
     let f = [x[8] - x[4], x[9] - x[5], x[10] - x[6]];
     let (mut g, mut h) = ([0.0; 8], [[0.0; 8]; 8]);
-    let en = local(e, f, [x[3], x[7]], old, rt_old, p, &mut g, &mut h);
+    let en = local(e, f, [x[3], x[7]], old, rt_old, p, &mut g, Some(&mut h));
     to_dofs(&g, &h, grad, hess);
     en
+}
+
+/// Energy and gradient only (the residual of a convergence test): [`node_derivatives`]
+/// without the Hessian, the same numbers for the gradient.
+pub fn node_gradient(
+    x: &[f64; 11],
+    old: [&EdgeFrame; 2],
+    rt_old: f64,
+    p: &NodeElastic,
+    grad: &mut [f64; 11],
+) -> f64 {
+    let e = [x[4] - x[0], x[5] - x[1], x[6] - x[2]];
+    let f = [x[8] - x[4], x[9] - x[5], x[10] - x[6]];
+    let mut g = [0.0; 8];
+    let en = local(e, f, [x[3], x[7]], old, rt_old, p, &mut g, None);
+    map_to_dofs(&g, grad);
+    en
+}
+
+/// A local (e, f, θₑ, θ_f) gradient over the DOFs (x₀, θₑ, x₁, θ_f, x₂).
+fn map_to_dofs(r: &[f64; 8], out: &mut [f64; 11]) {
+    for k in 0..3 {
+        out[k] = -r[E + k];
+        out[4 + k] = r[E + k] - r[F + k];
+        out[8 + k] = r[F + k];
+    }
+    out[3] = r[TE];
+    out[7] = r[TF];
 }
 
 /// Map local (e, f, θₑ, θ_f) derivatives to the DOFs (x₀, θₑ, x₁, θ_f, x₂), e = x₁ − x₀,
 /// f = x₂ − x₁: rows first, then columns.
 pub fn to_dofs(g: &G8, h: &H8, grad: &mut [f64; 11], hess: &mut [[f64; 11]; 11]) {
-    fn map(r: &[f64; 8], out: &mut [f64; 11]) {
-        for k in 0..3 {
-            out[k] = -r[E + k];
-            out[4 + k] = r[E + k] - r[F + k];
-            out[8 + k] = r[F + k];
-        }
-        out[3] = r[TE];
-        out[7] = r[TF];
-    }
+    let map = map_to_dofs;
     map(g, grad);
     // Rows: r[i] = the local row map of column i.
     let mut rows = [[0.0; 11]; 8];

@@ -40,6 +40,7 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     w.side = sc.side;
     w.friction = sc.friction.clone();
     w.force_tol = sc.force_tol;
+    w.step_tol = sc.step_tol;
     w.max_iterations = sc.max_newton_iterations;
     let mut g = radial(
         &mut w,
@@ -49,6 +50,9 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
         sc.centre,
         sc.clamped_edges,
     );
+    for sim in &mut w.rods {
+        sim.damping_time = sc.damping_time;
+    }
     g.moves = sc.moves.clone();
     g.sensor_tau = sc.sensor_tau;
     if let Some(f) = &sc.fruit {

@@ -49,6 +49,8 @@ pub struct Sim3 {
     /// Residual tolerance relative to the force scale.
     pub force_tol: f64,
     pub max_iterations: u32,
+    /// Kelvin–Voigt retardation time τ = tan δ / (2π f) of the material (s; 0: undamped).
+    pub damping_time: f64,
     pub time: f64,
     pub newton_iterations: u64,
     /// Newton iterations whose Jacobian was not positive definite (solved by LU instead).
@@ -74,6 +76,7 @@ impl Sim3 {
             target: rod.q0.clone(),
             force_tol: 1e-10,
             max_iterations: 40,
+            damping_time: 0.0,
             time: 0.0,
             newton_iterations: 0,
             lu_solves: 0,
@@ -129,38 +132,51 @@ impl Sim3 {
         ext.max(self.rod.ei1.max(self.rod.ei2) / (l * l))
     }
 
+    /// The residual at `self.qn` into `self.rhs` (as −r, zero on fixed DOFs) and with `jac`
+    /// the Jacobian into `self.chol`. Returns the largest free residual.
+    fn residual(&mut self, c: f64, dt: f64, lambda: f64, jac: bool) -> f64 {
+        let (f, b, r) = (&self.frames, &self.ref_twist, &self.rod);
+        let band = if jac {
+            self.chol.clear();
+            Some(&mut self.chol)
+        } else {
+            None
+        };
+        assemble_into(r, f, b, &self.qn, &mut self.grad, band, &self.fixed);
+        if self.damping_time > 0.0 && dt > 0.0 {
+            let band = jac.then_some(&mut self.chol);
+            let (tau, g) = (self.damping_time, &mut self.grad);
+            damping_into(r, f, &self.qn, &self.q, dt, tau, g, band, &self.fixed);
+        }
+        let mut res = 0.0f64;
+        for k in 0..self.q.len() {
+            if self.fixed[k] {
+                self.rhs[k] = 0.0;
+                continue;
+            }
+            let m = self.rod.mass[k];
+            let inertia = c * m * (self.qn[k] - self.q[k] - dt * self.v[k]);
+            let rk = inertia + self.grad[k] - lambda * self.external(k);
+            res = res.max(rk.abs());
+            self.rhs[k] = -rk;
+            if jac {
+                self.chol.add(k, k, c * m);
+            }
+        }
+        res
+    }
+
     /// Newton on the residual with inertia coefficient c (0: static), load factor λ, starting
-    /// from `self.qn` (fixed DOFs already on their targets). Returns the iterations.
+    /// from `self.qn` (fixed DOFs already on their targets). Returns the iterations. The first
+    /// residual comes with its Jacobian; after an update the residual is evaluated alone and
+    /// the Jacobian only when another update is needed.
     fn newton(&mut self, c: f64, dt: f64, lambda: f64) -> Result<u32, Solve3Error> {
         let tol = self.force_tol * self.force_scale();
         let floor = 1e-14 * self.rod.length;
         let nd = self.q.len();
         let mut it = 0u32;
         loop {
-            self.chol.clear();
-            let (f, b, r) = (&self.frames, &self.ref_twist, &self.rod);
-            assemble_into(
-                r,
-                f,
-                b,
-                &self.qn,
-                &mut self.grad,
-                Some(&mut self.chol),
-                &self.fixed,
-            );
-            let mut res = 0.0f64;
-            for k in 0..nd {
-                if self.fixed[k] {
-                    self.rhs[k] = 0.0;
-                    continue;
-                }
-                let m = self.rod.mass[k];
-                let inertia = c * m * (self.qn[k] - self.q[k] - dt * self.v[k]);
-                let rk = inertia + self.grad[k] - lambda * self.external(k);
-                res = res.max(rk.abs());
-                self.rhs[k] = -rk;
-                self.chol.add(k, k, c * m);
-            }
+            let res = self.residual(c, dt, lambda, it == 0);
             if !res.is_finite() {
                 return Err(fail(res, it, "non-finite residual"));
             }
@@ -170,9 +186,12 @@ impl Sim3 {
             if it >= self.max_iterations {
                 return Err(fail(res, it, "Newton did not converge"));
             }
+            if it > 0 {
+                self.residual(c, dt, lambda, true);
+            }
             if self.chol.factor().is_ok() {
                 self.chol.solve(&mut self.rhs);
-            } else if self.solve_lu(c).is_err() {
+            } else if self.solve_lu(c, dt).is_err() {
                 return Err(fail(res, it, "singular Jacobian"));
             }
             let mut upd = 0.0f64;
@@ -190,11 +209,16 @@ impl Sim3 {
 
     /// The Newton update by LU with pivoting when the Jacobian is not positive definite (the
     /// Cholesky factor failed): reassemble into the general band, factor, solve `rhs`.
-    fn solve_lu(&mut self, c: f64) -> Result<(), usize> {
+    fn solve_lu(&mut self, c: f64, dt: f64) -> Result<(), usize> {
         self.band.clear();
         let (f, b, r) = (&self.frames, &self.ref_twist, &self.rod);
         let mut g = std::mem::take(&mut self.grad);
         assemble(r, f, b, &self.qn, &mut g, Some(&mut self.band), &self.fixed);
+        if self.damping_time > 0.0 && dt > 0.0 {
+            let tau = self.damping_time;
+            let band = Some(&mut self.band);
+            damping_into(r, f, &self.qn, &self.q, dt, tau, &mut g, band, &self.fixed);
+        }
         self.grad = g;
         for k in (0..self.q.len()).filter(|&k| !self.fixed[k]) {
             self.band.add(k, k, c * self.rod.mass[k]);
@@ -338,7 +362,11 @@ pub fn assemble_into<S: BandSink>(
         let x: [f64; 11] = q[base..base + 11].try_into().unwrap();
         let old = [&frames[i - 1], &frames[i]];
         let p = &rod.elastic[i];
-        energy += kernel::node_derivatives(&x, old, ref_twist[i], p, &mut g11, &mut h11);
+        if band.is_some() {
+            energy += kernel::node_derivatives(&x, old, ref_twist[i], p, &mut g11, &mut h11);
+        } else {
+            energy += kernel::node_gradient(&x, old, ref_twist[i], p, &mut g11);
+        }
         scatter(base, &g11, &h11, grad, band.as_deref_mut(), &free);
     }
     if let Some(b) = band {
@@ -350,6 +378,95 @@ pub fn assemble_into<S: BandSink>(
     }
     debug_assert!(angle(rod.n - 2) + 4 == q.len());
     energy
+}
+
+/// Kelvin–Voigt material damping with retardation time `tau`: adds the viscous force
+/// τ Σ k ṡ ∇s of every element to `grad` (stretch ε with k = EA l̄; the curvatures κ₁, κ₂ and
+/// the twist m of every interior node with EI₁/Δl, EI₂/Δl, GJ/Δl: the stiffnesses of
+/// E = ½ k (s − s̄)²), ṡ = ∇s·v with v = (q − q_prev)/dt, and with `band` its Jacobian
+/// τ k ∇s ∇sᵀ/dt on the free DOFs (symmetric, positive semi-definite; the change of ∇s is
+/// left out, as in the planar solver). Returns the dissipated power Σ τ k ṡ² ≥ 0.
+#[allow(clippy::too_many_arguments)]
+pub fn damping_into<S: BandSink>(
+    rod: &Rod3,
+    frames: &[EdgeFrame],
+    q: &[f64],
+    q_prev: &[f64],
+    dt: f64,
+    tau: f64,
+    grad: &mut [f64],
+    mut band: Option<&mut S>,
+    fixed: &[bool],
+) -> f64 {
+    let free = |k: usize| fixed.is_empty() || !fixed[k];
+    let mut power = 0.0;
+    let (mut f7, mut h7) = ([0.0; 7], [[0.0; 7]; 7]);
+    for i in 0..rod.n - 1 {
+        let (a, b) = (pos(i), pos(i + 1));
+        let e = [q[b] - q[a], q[b + 1] - q[a + 1], q[b + 2] - q[a + 2]];
+        let rest = rod.rest_length[i];
+        let l = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+        let mut g = [0.0; 7];
+        for k in 0..3 {
+            g[k] = -e[k] / (l * rest);
+            g[4 + k] = e[k] / (l * rest);
+        }
+        let jac = band.is_some();
+        f7.fill(0.0);
+        if jac {
+            h7.iter_mut().for_each(|r| r.fill(0.0));
+        }
+        let tau_k = tau * rod.ea * rest;
+        power += viscous(&g, a, q, q_prev, dt, tau_k, &mut f7, jac.then_some(&mut h7));
+        scatter(a, &f7, &h7, grad, band.as_deref_mut(), &free);
+    }
+    let (mut f11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
+    for i in 1..rod.n - 1 {
+        let base = pos(i - 1);
+        let x: [f64; 11] = q[base..base + 11].try_into().unwrap();
+        let gs = kernel::strain_gradients(&x, [&frames[i - 1], &frames[i]]);
+        let p = &rod.elastic[i];
+        let jac = band.is_some();
+        f11.fill(0.0);
+        if jac {
+            h11.iter_mut().for_each(|r| r.fill(0.0));
+        }
+        for (g, k) in gs.iter().zip([p.ei1, p.ei2, p.gj]) {
+            let h = jac.then_some(&mut h11);
+            power += viscous(g, base, q, q_prev, dt, tau * k, &mut f11, h);
+        }
+        scatter(base, &f11, &h11, grad, band.as_deref_mut(), &free);
+    }
+    power
+}
+
+/// Add one element's viscous force τk ṡ g (ṡ = g·v over the DOFs `base ..`) to `f` and with
+/// `h` its Jacobian τk g gᵀ/dt. Returns the power τk ṡ².
+#[allow(clippy::too_many_arguments)]
+fn viscous<const N: usize>(
+    g: &[f64; N],
+    base: usize,
+    q: &[f64],
+    q_prev: &[f64],
+    dt: f64,
+    tau_k: f64,
+    f: &mut [f64; N],
+    h: Option<&mut [[f64; N]; N]>,
+) -> f64 {
+    let rate: f64 = (0..N)
+        .map(|a| g[a] * (q[base + a] - q_prev[base + a]) / dt)
+        .sum();
+    for a in 0..N {
+        f[a] += tau_k * rate * g[a];
+    }
+    if let Some(h) = h {
+        for a in 0..N {
+            for c in 0..N {
+                h[a][c] += tau_k * g[a] * g[c] / dt;
+            }
+        }
+    }
+    tau_k * rate * rate
 }
 
 /// Add the gradient and (on free rows and columns) Hessian of a stencil over the DOFs

@@ -75,6 +75,18 @@ impl SymBand {
         self.a[self.at(i, j)]
     }
 
+    /// Load the lower band of `a` (before its factorisation), a symmetric matrix of the same
+    /// dimension and half-bandwidth at most `k`.
+    pub fn copy_lower(&mut self, a: &BandLu) {
+        debug_assert_eq!(a.dim(), self.n);
+        for i in 0..self.n {
+            for j in i.saturating_sub(self.k)..=i {
+                let at = self.at(i, j);
+                self.a[at] = a.get(i, j);
+            }
+        }
+    }
+
     /// Factorise A = L Lᵀ in place. Err(i) if the pivot of row i is not positive (A is not
     /// positive definite); the storage is then spoilt and must be reassembled.
     pub fn factor(&mut self) -> Result<(), usize> {

@@ -9,6 +9,7 @@
 //! δX = (S − Σ C_r A_r⁻¹ B_r)⁻¹ (f_b − Σ C_r A_r⁻¹ f_r), then y_r = A_r⁻¹ (f_r − B_r δX).
 //! A body's contacts with fixed obstacles add Lagrange multipliers to the small dense system.
 
+use super::symband::SymBand;
 use crate::solver::banded::BandLu;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector6};
 
@@ -87,10 +88,40 @@ pub fn eliminate(
 /// One rod's part of the bordered system, factored.
 pub struct RodBlock<'a> {
     pub a: &'a mut BandLu,
+    /// Storage for the Cholesky factor of `a`, used when `symmetric` (no kinetic friction
+    /// row) and `a` is positive definite; else `a` is factored by LU with pivoting.
+    pub chol: &'a mut SymBand,
+    pub symmetric: bool,
     pub rhs: &'a mut [f64],
     pub border: &'a [Vec<f64>],
+    /// Storage for Z = A⁻¹ B (one column per body unknown), kept between calls.
+    pub z: &'a mut Vec<Vec<f64>>,
     /// Rows of the body equations: (body row 0..6nb, column, value).
     pub rows: &'a [(usize, usize, f64)],
+}
+
+impl RodBlock<'_> {
+    /// Factor A: by banded Cholesky when it is symmetric and positive definite (about a
+    /// quarter of the work), else by LU.
+    fn factor(&mut self) -> Result<(), &'static str> {
+        if self.symmetric {
+            self.chol.copy_lower(self.a);
+            if self.chol.factor().is_ok() {
+                return Ok(());
+            }
+            self.symmetric = false;
+        }
+        self.a.factor().map_err(|_| "singular Jacobian")
+    }
+
+    /// Solve A x = b in place with the factor.
+    fn solve_in(&self, b: &mut [f64]) {
+        if self.symmetric {
+            self.chol.solve(b);
+        } else {
+            self.a.solve(b);
+        }
+    }
 }
 
 /// Solve the bordered system. `s` and `fb` are the bodies' block (with the D terms already in);
@@ -104,8 +135,10 @@ pub fn solve_bordered(
 ) -> Result<(DVector<f64>, DVector<f64>), &'static str> {
     let nx = fb.len();
     for r in rods.iter_mut() {
-        r.a.factor().map_err(|_| "singular Jacobian")?;
-        r.a.solve(r.rhs);
+        r.factor()?;
+        let rhs = std::mem::take(&mut r.rhs);
+        r.solve_in(rhs);
+        r.rhs = rhs;
     }
     if nx == 0 {
         return Ok((DVector::zeros(0), DVector::zeros(0)));
@@ -115,17 +148,20 @@ pub fn solve_bordered(
     let mut f = DVector::zeros(nx + nk);
     m.view_mut((0, 0), (nx, nx)).copy_from(s);
     f.rows_mut(0, nx).copy_from(fb);
-    let mut z: Vec<Vec<Vec<f64>>> = Vec::with_capacity(rods.len());
     for r in rods.iter_mut() {
         let n = r.rhs.len();
-        // Z = A⁻¹ B, column by column.
-        let mut zr = vec![vec![0.0; n]; nx];
+        // Z = A⁻¹ B, column by column (into storage kept from step to step).
+        let mut zr = std::mem::take(&mut *r.z);
+        zr.resize_with(nx, Vec::new);
         for (c, col) in zr.iter_mut().enumerate() {
+            col.resize(n, 0.0);
+            let mut any = false;
             for (l, row) in r.border.iter().enumerate() {
                 col[l] = row[c];
+                any |= row[c] != 0.0;
             }
-            if col.iter().any(|v| *v != 0.0) {
-                r.a.solve(col);
+            if any {
+                r.solve_in(col);
             }
         }
         for &(row, l, v) in r.rows {
@@ -134,7 +170,7 @@ pub fn solve_bordered(
                 m[(row, c)] -= v * col[l];
             }
         }
-        z.push(zr);
+        *r.z = zr;
     }
     for (i, (jrow, kcol, v)) in kkt.iter().enumerate() {
         for c in 0..nx {
@@ -145,8 +181,8 @@ pub fn solve_bordered(
     }
     let sol = m.lu().solve(&f).ok_or("singular body system")?;
     let dx = sol.rows(0, nx).into_owned();
-    for (r, zr) in rods.iter_mut().zip(&z) {
-        for (c, col) in zr.iter().enumerate() {
+    for r in rods.iter_mut() {
+        for (c, col) in r.z.iter().enumerate() {
             if dx[c] != 0.0 {
                 for (y, zc) in r.rhs.iter_mut().zip(col) {
                     *y -= zc * dx[c];

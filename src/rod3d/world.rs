@@ -15,6 +15,7 @@ use super::energy::material_frame;
 use super::rod::{angle, pos};
 use super::section::Section3;
 use super::solver::{assemble, Sim3, Solve3Error};
+use super::symband::SymBand;
 use super::system::{add_row, eliminate, rotate_node, solve_bordered, RodBlock};
 use crate::contact::friction::FrictionTable;
 use crate::obstacle3::{Obstacle3, Proximity3, V3};
@@ -42,6 +43,13 @@ pub struct StepReport3 {
 
 struct Work3 {
     band: BandLu,
+    /// The Cholesky factor of `band` when it is symmetric (no kinetic friction row).
+    chol: SymBand,
+    symmetric: bool,
+    /// The contact nodes of the rod and their local bases (rows n, t₁, t₂).
+    bases: Vec<(usize, Matrix3<f64>)>,
+    /// Z = A⁻¹ B of the bordered solve.
+    z: Vec<Vec<f64>>,
     grad: Vec<f64>,
     rhs: Vec<f64>,
     qn: Vec<f64>,
@@ -66,7 +74,11 @@ pub struct World3 {
     /// Reaction on every contact node at the end of the last step (world, zero elsewhere).
     pub reactions: Vec<Vec<V3>>,
     pub body_contacts: Vec<BodyContact3>,
+    /// Newton converges when every free residual is at most `force_tol` × the force scale
+    /// (the largest of EI/L², the loads and weights), or when an update is at most
+    /// `step_tol` × the rod length: the planar solver's criteria and defaults.
     pub force_tol: f64,
+    pub step_tol: f64,
     pub max_iterations: u32,
     pub time: f64,
     pub steps: u64,
@@ -87,7 +99,8 @@ impl World3 {
             contacts: Vec::new(),
             reactions: Vec::new(),
             body_contacts: Vec::new(),
-            force_tol: 1e-10,
+            force_tol: 1e-9,
+            step_tol: 1e-12,
             max_iterations: 40,
             time: 0.0,
             steps: 0,
@@ -101,6 +114,10 @@ impl World3 {
         let nd = sim.rod.dofs();
         self.work.push(Work3 {
             band: BandLu::new(nd, 10, 10),
+            chol: SymBand::new(nd, 10),
+            symmetric: true,
+            bases: Vec::new(),
+            z: Vec::new(),
             grad: vec![0.0; nd],
             rhs: vec![0.0; nd],
             qn: sim.q.clone(),
@@ -140,12 +157,9 @@ impl World3 {
             return 0.0;
         }
         let sim = &self.rods[r];
-        let edges: Vec<usize> = [i.checked_sub(1), (i + 1 < sim.rod.n).then_some(i)]
-            .into_iter()
-            .flatten()
-            .collect();
-        let mut sum = 0.0;
-        for &e in &edges {
+        let edges = [i.checked_sub(1), (i + 1 < sim.rod.n).then_some(i)];
+        let (mut sum, mut count) = (0.0, 0.0);
+        for e in edges.into_iter().flatten() {
             sum += match self.sections[r] {
                 Section3::Circle { r } => r,
                 Section3::Rect { b, h } => {
@@ -153,8 +167,9 @@ impl World3 {
                     0.5 * h * n.dot(&V3::from(m1)).abs() + 0.5 * b * n.dot(&V3::from(m2)).abs()
                 }
             };
+            count += 1.0;
         }
-        sum / edges.len() as f64
+        sum / count
     }
 
     fn node(q: &[f64], i: usize) -> V3 {

@@ -76,6 +76,7 @@ const SOLVE: &[&str] = &[
     "t_end",
     "gravity",
     "force_tol",
+    "step_tol",
     "max_newton_iterations",
 ];
 const PRONG: &[&str] = &[
@@ -89,6 +90,8 @@ const PRONG: &[&str] = &[
     "section",
     "clamped_edges",
     "director",
+    "loss_factor",
+    "loss_frequency",
 ];
 const SHAPE: &[&str] = &[
     "kind",
@@ -136,10 +139,14 @@ pub struct Scenario3 {
     pub t_end: Option<f64>,
     pub gravity: [f64; 3],
     pub force_tol: f64,
+    pub step_tol: f64,
     pub max_newton_iterations: u32,
     /// The prong in its finger frame.
     pub prong: Rod3Spec,
     pub clamped_edges: usize,
+    /// Kelvin–Voigt retardation time of the prong's material, `loss_factor` / (2π
+    /// `loss_frequency`) (s; 0: undamped).
+    pub damping_time: f64,
     pub fingers: usize,
     pub radius: f64,
     pub centre: [f64; 3],
@@ -248,56 +255,13 @@ impl Scenario3 {
         let dt = solve.positive("dt")?;
         let t_end = solve.opt_positive("t_end")?;
         let gravity = opt_vec3(&solve, "gravity", [0.0, 0.0, -9.81])?;
-        let force_tol = solve.opt_positive("force_tol")?.unwrap_or(1e-10);
+        let force_tol = solve.opt_positive("force_tol")?.unwrap_or(1e-9);
+        let step_tol = solve.opt_positive("step_tol")?.unwrap_or(1e-12);
         let max_newton_iterations = solve.opt_usize("max_newton_iterations")?.unwrap_or(40) as u32;
         solve.finish()?;
-        let (prong, clamped_edges) = parse_prong(&top.table("prong", PRONG)?)?;
-        let g = top.table("gripper", GRIPPER)?;
-        let fingers = match g.str("kind")? {
-            "parallel" => 2,
-            "radial" => {
-                let n = g.usize("fingers")?;
-                if n < 2 {
-                    return Err(g.err(
-                        "fingers",
-                        g.get("fingers"),
-                        "a radial gripper needs at least 2 fingers",
-                    ));
-                }
-                n
-            }
-            other => {
-                return Err(g.err_hint(
-                    "kind",
-                    g.get("kind"),
-                    format!("unknown gripper kind {other:?}"),
-                    "use \"parallel\" or \"radial\"",
-                ))
-            }
-        };
-        let radius = g.positive("radius")?;
-        let centre = opt_vec3(&g, "centre", [0.0; 3])?;
-        let sensor_tau = g.opt_positive("sensor_tau")?.unwrap_or(0.01);
-        g.finish()?;
-        let side = match top.opt_table("contact", &["surface"])? {
-            None => ContactSide3::Face,
-            Some(c) => {
-                let s = match c.opt_str("surface")? {
-                    None | Some("face") => ContactSide3::Face,
-                    Some("centreline" | "centerline") => ContactSide3::Centreline,
-                    Some(other) => {
-                        return Err(c.err_hint(
-                            "surface",
-                            c.get("surface"),
-                            format!("unknown contact surface {other:?}"),
-                            "use \"face\" or \"centreline\"",
-                        ))
-                    }
-                };
-                c.finish()?;
-                s
-            }
-        };
+        let (prong, clamped_edges, damping_time) = parse_prong(&top.table("prong", PRONG)?)?;
+        let (fingers, radius, centre, sensor_tau) = parse_gripper(&top)?;
+        let side = parse_contact(&top)?;
         let friction = parse_friction(&top)?;
         let fruit = match top.opt_table("fruit", FRUIT)? {
             None => None,
@@ -314,9 +278,11 @@ impl Scenario3 {
             t_end,
             gravity,
             force_tol,
+            step_tol,
             max_newton_iterations,
             prong,
             clamped_edges,
+            damping_time,
             fingers,
             radius,
             centre,
@@ -372,7 +338,64 @@ fn parse_friction(top: &TableReader<'_>) -> Result<FrictionTable, ScenarioError>
     })
 }
 
-fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize), ScenarioError> {
+/// The gripper: finger count, radius, centre and the grip sensor's time constant.
+fn parse_gripper(top: &TableReader<'_>) -> Result<(usize, f64, [f64; 3], f64), ScenarioError> {
+    let g = top.table("gripper", GRIPPER)?;
+    let fingers = match g.str("kind")? {
+        "parallel" => 2,
+        "radial" => {
+            let n = g.usize("fingers")?;
+            if n < 2 {
+                return Err(g.err(
+                    "fingers",
+                    g.get("fingers"),
+                    "a radial gripper needs at least 2 fingers",
+                ));
+            }
+            n
+        }
+        other => {
+            return Err(g.err_hint(
+                "kind",
+                g.get("kind"),
+                format!("unknown gripper kind {other:?}"),
+                "use \"parallel\" or \"radial\"",
+            ))
+        }
+    };
+    let radius = g.positive("radius")?;
+    let centre = opt_vec3(&g, "centre", [0.0; 3])?;
+    let sensor_tau = g.opt_positive("sensor_tau")?.unwrap_or(0.01);
+    g.finish()?;
+    Ok((fingers, radius, centre, sensor_tau))
+}
+
+/// `[contact] surface`: the face (default) or the centreline.
+fn parse_contact(top: &TableReader<'_>) -> Result<ContactSide3, ScenarioError> {
+    let side = match top.opt_table("contact", &["surface"])? {
+        None => ContactSide3::Face,
+        Some(c) => {
+            let s = match c.opt_str("surface")? {
+                None | Some("face") => ContactSide3::Face,
+                Some("centreline" | "centerline") => ContactSide3::Centreline,
+                Some(other) => {
+                    return Err(c.err_hint(
+                        "surface",
+                        c.get("surface"),
+                        format!("unknown contact surface {other:?}"),
+                        "use \"face\" or \"centreline\"",
+                    ))
+                }
+            };
+            c.finish()?;
+            s
+        }
+    };
+    Ok(side)
+}
+
+/// The prong's nodes in its finger frame: `points`, or `nodes` along a `shape`.
+fn prong_points(p: &TableReader<'_>) -> Result<Vec<[f64; 3]>, ScenarioError> {
     let points = match p.array("points")? {
         Some(a) => {
             if p.has("shape") || p.has("nodes") {
@@ -419,6 +442,11 @@ fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize), ScenarioError> 
                 .collect()
         }
     };
+    Ok(points)
+}
+
+/// Young's and shear moduli: `E`, and `G` or Poisson's ratio `nu` (default 0.5).
+fn prong_moduli(p: &TableReader<'_>) -> Result<(f64, f64), ScenarioError> {
     let e = p.positive("E")?;
     let g = match (p.opt_positive("G")?, p.opt_f64("nu")?) {
         (Some(_), Some(_)) => {
@@ -433,7 +461,10 @@ fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize), ScenarioError> 
             e / (2.0 * (1.0 + nu))
         }
     };
-    let density = p.positive("density")?;
+    Ok((e, g))
+}
+
+fn prong_section(p: &TableReader<'_>) -> Result<Section3, ScenarioError> {
     let sec = p.table("section", SECTION)?;
     let section = match sec.str("kind")? {
         "rect" => Section3::Rect {
@@ -453,6 +484,32 @@ fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize), ScenarioError> 
         }
     };
     sec.finish()?;
+    Ok(section)
+}
+
+/// Material damping as the planar prong's: a loss factor tan δ (default 0) at a frequency
+/// (Hz, default 10) gives the Kelvin–Voigt retardation time τ = tan δ / (2π f).
+fn prong_damping(p: &TableReader<'_>) -> Result<f64, ScenarioError> {
+    let loss_factor = p.opt_f64("loss_factor")?.unwrap_or(0.0);
+    if !(0.0..=10.0).contains(&loss_factor) {
+        return Err(p.err_hint(
+            "loss_factor",
+            p.get("loss_factor"),
+            "must be in [0, 10]",
+            "the loss factor tan δ of the material at loss_frequency (silicone rubbers ≈ 0.05–0.5)",
+        ));
+    }
+    let loss_frequency = p.opt_positive("loss_frequency")?.unwrap_or(10.0);
+    Ok(loss_factor / (2.0 * std::f64::consts::PI * loss_frequency))
+}
+
+/// The prong (finger frame), its clamped edges and its damping time.
+fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize, f64), ScenarioError> {
+    let points = prong_points(p)?;
+    let (e, g) = prong_moduli(p)?;
+    let density = p.positive("density")?;
+    let section = prong_section(p)?;
+    let damping_time = prong_damping(p)?;
     let clamped = p.opt_usize("clamped_edges")?.unwrap_or(1);
     if clamped == 0 || clamped + 1 >= points.len() {
         return Err(p.err(
@@ -476,7 +533,7 @@ fn parse_prong(p: &TableReader<'_>) -> Result<(Rod3Spec, usize), ScenarioError> 
         shear_modulus: g,
         density,
     };
-    Ok((spec, clamped))
+    Ok((spec, clamped, damping_time))
 }
 
 fn parse_shape(s: &TableReader<'_>, dir: &std::path::Path) -> Result<Shape3, ScenarioError> {

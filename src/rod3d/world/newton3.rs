@@ -1,6 +1,7 @@
 //! Newton on every rod and body of the world at once, with the current contact sets.
 
 use super::*;
+use crate::rod3d::solver::damping_into;
 
 /// The constraint rows of the bodies' own contacts: (J row, force column, right-hand side).
 type Kkt = Vec<(Vec<f64>, Vec<f64>, f64)>;
@@ -47,106 +48,42 @@ impl World3 {
         Some((b, (q.row(a) * g).transpose()))
     }
 
-    /// Assemble rod r in its contact bases with prescribed coordinates eliminated; add its
-    /// rows of the body equations to `s`, `fb`. Returns its largest free residual.
+    /// Rod r's residual in its contact bases with the prescribed coordinates eliminated, and
+    /// with `jac` its Jacobian (in `work[r].band`, the border and the body rows); adds its rows
+    /// of the body equations to `s` (`jac` only) and `fb`. Returns its largest free residual.
     fn linearise_rod(
         &mut self,
         r: usize,
         dt: f64,
         s: &mut DMatrix<f64>,
         fb: &mut DVector<f64>,
+        jac: bool,
     ) -> f64 {
-        let c = 1.0 / (dt * dt);
-        let nx = fb.len();
-        let sim = &self.rods[r];
         let w = &mut self.work[r];
-        w.band.clear();
-        assemble(
-            &sim.rod,
-            &sim.frames,
-            &sim.ref_twist,
-            &w.qn,
-            &mut w.grad,
-            Some(&mut w.band),
-            &sim.fixed,
-        );
-        for k in 0..sim.q.len() {
-            w.elim[k] = sim.fixed[k];
-            w.follow[k] = None;
-            w.border[k].clear();
-            w.border[k].resize(nx, 0.0);
-            if sim.fixed[k] {
-                w.rhs[k] = 0.0;
-                continue;
-            }
-            let m = sim.rod.mass[k];
-            w.rhs[k] =
-                -(c * m * (w.qn[k] - sim.q[k] - dt * sim.v[k]) + w.grad[k] - sim.external(k));
-            w.band.add(k, k, c * m);
-        }
-        w.rows.clear();
         let contacts = &self.contacts[r];
-        let mut bases = Vec::new();
-        for (i, ct) in contacts.iter().enumerate() {
-            let Some(ct) = ct else { continue };
-            let (k0, q) = (pos(i), ct.basis());
-            let rw = -V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
-            self.reactions[r][i] = rw;
-            rotate_node(&mut w.band, k0, &q);
-            let rl = -(q * rw);
-            w.rhs[k0..k0 + 3].copy_from_slice(rl.as_slice());
-            for a in 0..ct.held() {
-                w.elim[k0 + a] = true;
-                w.follow[k0 + a] = Self::follow(ct, &q, a);
-            }
-            bases.push((i, q));
-        }
-        for &(i, q) in &bases {
-            let ct = contacts[i].as_ref().unwrap();
-            let Surface3::Body(b) = ct.surface else {
-                continue;
-            };
-            let k0 = pos(i);
-            let wm = lever_map(&ct.lever).transpose() * q.transpose();
-            let rl = V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
-            let add = wm * rl;
-            for e in 0..6 {
-                fb[6 * b + e] += add[e];
-            }
-            for l in super::super::system::band_range(w.rhs.len(), k0) {
-                for a in 0..3 {
-                    let v = w.band.get(k0 + a, l);
-                    if v == 0.0 {
-                        continue;
-                    }
-                    if !w.elim[l] {
-                        for e in 0..6 {
-                            w.rows.push((6 * b + e, l, wm[(e, a)] * v));
-                        }
-                    } else if let Some((b2, p)) = w.follow[l] {
-                        for e in 0..6 {
-                            for f in 0..6 {
-                                s[(6 * b + e, 6 * b2 + f)] += wm[(e, a)] * v * p[f];
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        for &(i, _) in &bases {
+        inertia_and_elasticity(&self.rods[r], w, dt, fb.len(), jac);
+        contact_bases(w, contacts, &mut self.reactions[r], jac);
+        body_rows(w, contacts, s, fb, jac);
+        w.symmetric = true;
+        for &(i, _) in &w.bases {
             let ct = contacts[i].as_ref().unwrap();
             let mu = ct.kinetic();
             if mu > 0.0 {
+                // The kinetic row t₁·R + μ_k n·R = 0: the only unsymmetric rows.
                 let k0 = pos(i);
-                add_row(&mut w.band, k0 + 1, k0, mu);
+                if jac {
+                    add_row(&mut w.band, k0 + 1, k0, mu);
+                }
                 w.rhs[k0 + 1] += mu * w.rhs[k0];
+                w.symmetric = false;
             }
         }
-        for &(i, _) in &bases {
-            let ct = contacts[i].as_ref().unwrap();
-            for a in 0..ct.held() {
+        for &(i, _) in &w.bases {
+            for a in 0..contacts[i].as_ref().unwrap().held() {
                 let j = pos(i) + a;
-                eliminate(&mut w.band, j, w.follow[j], &w.elim, &mut w.border);
+                if jac {
+                    eliminate(&mut w.band, j, w.follow[j], &w.elim, &mut w.border);
+                }
                 w.rhs[j] = 0.0;
             }
         }
@@ -201,20 +138,32 @@ impl World3 {
         (s, fb, forces, kkt)
     }
 
-    /// Newton with the current contact sets. Returns the iterations.
+    /// Every rod's and body's residual (and with `jac` the bordered system): the bodies'
+    /// block, its right-hand side, the bodies' contact rows and the largest free residual.
+    fn linearise(&mut self, dt: f64, jac: bool) -> (DMatrix<f64>, DVector<f64>, Kkt, f64) {
+        let (mut s, mut fb, forces, kkt) = self.body_system(dt);
+        let mut res: f64 = 0.0;
+        for r in 0..self.rods.len() {
+            res = res.max(self.linearise_rod(r, dt, &mut s, &mut fb, jac));
+        }
+        // fb = −(r_b + Σ Gᵀ R_node); the bodies' own contacts add their last forces.
+        res = res.max((&fb + &forces).amax());
+        (s, fb, kkt, res)
+    }
+
+    /// Newton with the current contact sets. Returns the iterations. Converged when every
+    /// free residual is at most `force_tol` × the force scale, or when an update is at most
+    /// `step_tol` × the rod length (the round-off floor), as the planar solver. The first
+    /// residual comes with its Jacobian (nearly every pass needs an update); after an update
+    /// the residual is evaluated alone and the Jacobian only when another update is needed.
     pub(super) fn newton(&mut self, dt: f64) -> Result<u32, Solve3Error> {
         self.place_guess();
         let tol = self.force_tol * self.force_scale();
-        let floor = 1e-14 * self.rods.iter().map(|s| s.rod.length).fold(1e-3, f64::max);
+        let length = self.rods.iter().map(|s| s.rod.length).fold(1e-3, f64::max);
+        let floor = self.step_tol * length;
         let mut it = 0u32;
         loop {
-            let (mut s, mut fb, forces, kkt) = self.body_system(dt);
-            let mut res: f64 = 0.0;
-            for r in 0..self.rods.len() {
-                res = res.max(self.linearise_rod(r, dt, &mut s, &mut fb));
-            }
-            // fb = −(r_b + Σ Gᵀ R_node); the bodies' own contacts add their last forces.
-            res = res.max((&fb + &forces).amax());
+            let (mut s, mut fb, mut kkt, res) = self.linearise(dt, it == 0);
             if !res.is_finite() {
                 return Err(fail(res, it, "non-finite residual"));
             }
@@ -224,12 +173,136 @@ impl World3 {
             if it >= self.max_iterations {
                 return Err(fail(res, it, "Newton did not converge"));
             }
+            if it > 0 {
+                (s, fb, kkt, _) = self.linearise(dt, true);
+            }
             let upd = self
                 .solve_and_update(&s, &fb, &kkt)
                 .map_err(|m| fail(res, it, m))?;
             it += 1;
-            if upd <= floor && it > 1 {
+            if upd <= floor {
+                // At the round-off floor: accept, with the reactions of the final iterate.
+                self.linearise(dt, false);
                 return Ok(it);
+            }
+        }
+    }
+}
+
+/// The inertia and elastic part of rod r's residual (`w.rhs` = −r) and with `jac` its
+/// Jacobian c M + ∇²E (identity rows on fixed DOFs); resets the prescribed set to the
+/// fixed DOFs.
+fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, nx: usize, jac: bool) {
+    let c = 1.0 / (dt * dt);
+    let band = if jac {
+        w.band.clear();
+        Some(&mut w.band)
+    } else {
+        None
+    };
+    let (rod, f, b) = (&sim.rod, &sim.frames, &sim.ref_twist);
+    assemble(rod, f, b, &w.qn, &mut w.grad, band, &sim.fixed);
+    if sim.damping_time > 0.0 {
+        let band = jac.then_some(&mut w.band);
+        let tau = sim.damping_time;
+        damping_into(
+            rod,
+            f,
+            &w.qn,
+            &sim.q,
+            dt,
+            tau,
+            &mut w.grad,
+            band,
+            &sim.fixed,
+        );
+    }
+    for k in 0..sim.q.len() {
+        w.elim[k] = sim.fixed[k];
+        w.follow[k] = None;
+        if jac {
+            w.border[k].clear();
+            w.border[k].resize(nx, 0.0);
+        }
+        if sim.fixed[k] {
+            w.rhs[k] = 0.0;
+            continue;
+        }
+        let m = sim.rod.mass[k];
+        w.rhs[k] = -(c * m * (w.qn[k] - sim.q[k] - dt * sim.v[k]) + w.grad[k] - sim.external(k));
+        if jac {
+            w.band.add(k, k, c * m);
+        }
+    }
+}
+
+/// Rotate every contact node's rows (and with `jac` its Jacobian block) into its contact
+/// basis, record its reaction (world) and mark its held coordinates; `w.bases` lists them.
+fn contact_bases(w: &mut Work3, contacts: &[Option<Contact3>], reactions: &mut [V3], jac: bool) {
+    w.bases.clear();
+    for (i, ct) in contacts.iter().enumerate() {
+        let Some(ct) = ct else { continue };
+        let (k0, q) = (pos(i), ct.basis());
+        let rw = -V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
+        reactions[i] = rw;
+        if jac {
+            rotate_node(&mut w.band, k0, &q);
+        }
+        let rl = -(q * rw);
+        w.rhs[k0..k0 + 3].copy_from_slice(rl.as_slice());
+        for a in 0..ct.held() {
+            w.elim[k0 + a] = true;
+            w.follow[k0 + a] = World3::follow(ct, &q, a);
+        }
+        w.bases.push((i, q));
+    }
+}
+
+/// The reaction of every node touching a body, Gᵀ Qᵀ (local residual), into the body's
+/// right-hand side; with `jac` its rows of the body equations (`w.rows`, and `s` for the
+/// columns that follow a body).
+fn body_rows(
+    w: &mut Work3,
+    contacts: &[Option<Contact3>],
+    s: &mut DMatrix<f64>,
+    fb: &mut DVector<f64>,
+    jac: bool,
+) {
+    if jac {
+        w.rows.clear();
+    }
+    for &(i, q) in &w.bases {
+        let ct = contacts[i].as_ref().unwrap();
+        let Surface3::Body(b) = ct.surface else {
+            continue;
+        };
+        let k0 = pos(i);
+        let wm = lever_map(&ct.lever).transpose() * q.transpose();
+        let rl = V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
+        let add = wm * rl;
+        for e in 0..6 {
+            fb[6 * b + e] += add[e];
+        }
+        if !jac {
+            continue;
+        }
+        for l in super::super::system::band_range(w.rhs.len(), k0) {
+            for a in 0..3 {
+                let v = w.band.get(k0 + a, l);
+                if v == 0.0 {
+                    continue;
+                }
+                if !w.elim[l] {
+                    for e in 0..6 {
+                        w.rows.push((6 * b + e, l, wm[(e, a)] * v));
+                    }
+                } else if let Some((b2, p)) = w.follow[l] {
+                    for e in 0..6 {
+                        for f in 0..6 {
+                            s[(6 * b + e, 6 * b2 + f)] += wm[(e, a)] * v * p[f];
+                        }
+                    }
+                }
             }
         }
     }
@@ -248,8 +321,11 @@ impl World3 {
             .iter_mut()
             .map(|w| RodBlock {
                 a: &mut w.band,
+                chol: &mut w.chol,
+                symmetric: w.symmetric,
                 rhs: &mut w.rhs,
                 border: &w.border,
+                z: &mut w.z,
                 rows: &w.rows,
             })
             .collect();

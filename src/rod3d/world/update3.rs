@@ -57,11 +57,10 @@ impl World3 {
     }
 
     /// Every surface a node can touch: fixed obstacles, then bodies.
-    fn surfaces(&self) -> Vec<Surface3> {
+    fn surfaces(&self) -> impl Iterator<Item = Surface3> {
         (0..self.obstacles.len())
             .map(Surface3::Obstacle)
             .chain((0..self.bodies.len()).map(Surface3::Body))
-            .collect()
     }
 
     /// A node that ended deeper inside a surface than its offset gets a contact there (the
