@@ -58,7 +58,7 @@ enum Command {
         /// Write a Rerun recording to this file.
         #[arg(long, value_name = "FILE.rrd")]
         rrd: Option<PathBuf>,
-        /// Write an MCAP recording (JSON messages, Foxglove scene) to this file.
+        /// Write an MCAP recording (protobuf steps and Foxglove scene, JSON events) to this file.
         #[arg(long, value_name = "FILE.mcap")]
         mcap: Option<PathBuf>,
         /// Write one CSV row per step, rod and node to this file.

@@ -1,6 +1,6 @@
-//! The MCAP sink: the archival record of a run. The high-rate channels are protobuf (their
-//! schema, a `FileDescriptorSet`, is in the file: see [`super::proto`]), the rest JSON messages
-//! with JSON schemas, for a human to read.
+//! The MCAP sink: the archival record of a run. The high-rate channels and the scene are
+//! protobuf (their schema, a `FileDescriptorSet`, is in the file: see [`super::proto`] and
+//! [`super::foxglove`]), the rest JSON messages with JSON schemas, for a human to read.
 //!
 //! Channels (each documented field by field in docs/recording-format.md, and by the schemas
 //! in `src/record/schemas/` and [`super::proto`], which the file carries):
@@ -12,8 +12,8 @@
 //! | `/sim/iteration` | `gripsim.Iteration` (protobuf) | one per Newton iteration (`--detail iteration`) |
 //! | `/sim/contact` | `gripsim.Contact` | one per constraint added or released |
 //! | `/sim/event` | `gripsim.Event` | dt changes, Newton failures, warnings, run end |
-//! | `/scene` | `foxglove.SceneUpdate` | one per step: the rods and free bodies for Foxglove's 3D panel |
-//! | `/scene/static` | `foxglove.SceneUpdate` | one, before the first step: obstacles and legend |
+//! | `/scene` | `foxglove.SceneUpdate` (protobuf) | one per step: the rods and free bodies for Foxglove's 3D panel |
+//! | `/scene/static` | `foxglove.SceneUpdate` (protobuf) | one, before the first step: obstacles and legend |
 //!
 //! The file is chunked and zstd-compressed with message indexes and a summary (the `mcap`
 //! writer's defaults). Log times are simulated time in ns (static runs: step number in s),
@@ -39,12 +39,15 @@ use std::path::Path;
 
 /// Version of the recording format; bumped when a field changes meaning or is removed.
 /// Format 2: `/sim/step` and `/sim/iteration` are protobuf (format 1: JSON; still read).
-pub const FORMAT_VERSION: u32 = 2;
+/// Format 3: `/scene` and `/scene/static` are protobuf; a rod's `q_predictor` in `/sim/step` is
+/// empty on steps without a corrector pass (it equals `q` then).
+pub const FORMAT_VERSION: u32 = 3;
 
 /// The `library` string in the MCAP header.
 pub const LIBRARY: &str = concat!("gripsim ", env!("CARGO_PKG_VERSION"));
 
-/// Every channel: topic, schema name, schema text.
+/// Every channel: topic, schema name, schema text (JSON schema; empty for the protobuf
+/// channels, whose schema is a `FileDescriptorSet`: [`super::proto`], [`super::foxglove`]).
 pub const CHANNELS: [(&str, &str, &str); 7] = [
     (
         "/sim/meta",
@@ -71,18 +74,10 @@ pub const CHANNELS: [(&str, &str, &str); 7] = [
         "gripsim.Event",
         include_str!("schemas/gripsim.Event.json"),
     ),
-    // The published schema of foxglove.SceneUpdate (@foxglove/schemas 2.1.0, MIT).
-    (
-        "/scene",
-        "foxglove.SceneUpdate",
-        include_str!("schemas/foxglove.SceneUpdate.json"),
-    ),
+    // Foxglove's published foxglove.SceneUpdate, as protobuf (format 3; JSON before).
+    ("/scene", super::foxglove::SCHEMA, ""),
     // What never moves (obstacle outlines, the legend): one message before the first step.
-    (
-        "/scene/static",
-        "foxglove.SceneUpdate",
-        include_str!("schemas/foxglove.SceneUpdate.json"),
-    ),
+    ("/scene/static", super::foxglove::SCHEMA, ""),
 ];
 
 const META: usize = 0;
@@ -94,7 +89,7 @@ const SCENE: usize = 5;
 const SCENE_STATIC: usize = 6;
 
 /// The channels written as protobuf (the others are JSON).
-pub const PROTOBUF: [usize; 2] = [STEP, ITERATION];
+pub const PROTOBUF: [usize; 4] = [STEP, ITERATION, SCENE, SCENE_STATIC];
 
 type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 
@@ -115,12 +110,11 @@ pub struct McapSink {
     bodies: Vec<BodySpec>,
     view: ViewOptions,
     style: Option<SceneStyle>,
-    /// The obstacles' and the legend's scene entities as JSON (the same in every `/scene`
-    /// message).
-    obstacle_entity: String,
-    /// Per free body (by obstacle index): its outline in its own frame as a JSON array of
-    /// points, made at its first step.
-    body_points: BTreeMap<usize, String>,
+    /// Per free body (by obstacle index): its outline in its own frame, made at its first
+    /// step.
+    body_points: BTreeMap<usize, Vec<super::foxglove::Vector3>>,
+    /// The `/scene` message, its buffers reused from step to step.
+    scene: super::foxglove::SceneUpdate,
     /// Simulated time of the current step's start: the log time of its Newton iterations and
     /// contact changes.
     step_start: f64,
@@ -147,11 +141,15 @@ impl McapSink {
             .map_err(err)?;
         let mut channels = [0u16; 7];
         let descriptors = super::proto::file_descriptor_set();
+        let scene_descriptors = super::foxglove::file_descriptor_set();
         for (k, (topic, schema, text)) in CHANNELS.iter().enumerate() {
             let (sid, encoding) = if PROTOBUF.contains(&k) {
-                let sid = w
-                    .add_schema(schema, "protobuf", &descriptors)
-                    .map_err(err)?;
+                let set = if k == SCENE || k == SCENE_STATIC {
+                    &scene_descriptors
+                } else {
+                    &descriptors
+                };
+                let sid = w.add_schema(schema, "protobuf", set).map_err(err)?;
                 (sid, "protobuf")
             } else {
                 let sid = w
@@ -181,8 +179,8 @@ impl McapSink {
             bodies: Vec::new(),
             view: ViewOptions::default(),
             style: None,
-            obstacle_entity: String::new(),
             body_points: BTreeMap::new(),
+            scene: Default::default(),
             step_start: 0.0,
             completed: false,
             end: BTreeMap::new(),
@@ -299,17 +297,17 @@ impl McapSink {
                 self.view.survey.as_ref(),
                 self.view.arrows,
             );
-            self.obstacle_entity = obstacle_entity(&self.obstacles, &self.bodies, &style);
-            self.style = Some(style);
             // The obstacles and the legend, once: Foxglove keeps an entity until it is
             // replaced, and after a seek it reads the last message of each topic, which for
             // this topic is this one.
             let time = self.time(ev.step, ev.t);
+            let msg = super::foxglove::SceneUpdate {
+                deletions: Vec::new(),
+                entities: static_entities(&self.obstacles, &self.bodies, &style, time),
+            };
+            self.style = Some(style);
             self.buf.clear();
-            self.buf
-                .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
-            self.buf.extend_from_slice(self.obstacle_entity.as_bytes());
-            self.buf.extend_from_slice(b"]}");
+            prost::Message::encode(&msg, &mut self.buf).expect("a Vec grows as needed");
             self.write_buf(SCENE_STATIC, time);
         }
         let time = self.time(ev.step, ev.t);
@@ -341,47 +339,27 @@ impl McapSink {
         let Some(style) = self.style.as_ref() else {
             return;
         };
-        let stamp = Stamp::of(time);
-        self.buf.clear();
-        self.buf
-            .extend_from_slice(b"{\"deletions\":[],\"entities\":[");
+        let msg = &mut self.scene;
+        msg.entities.clear();
         for (r, v) in rods.iter().enumerate() {
-            let entity = rod_entity(&self.rods[r], style, r, v, stamp);
-            if r > 0 {
-                self.buf.push(b',');
-            }
-            if let Err(e) = serde_json::to_writer(&mut self.buf, &entity) {
-                return self.fail(e);
-            }
+            msg.entities
+                .push(rod_entity(&self.rods[r], style, r, v, time));
         }
         for b in bodies {
-            // The outline in the body's frame is the same every step (its JSON is made once);
-            // the line's pose places it.
-            if !self.body_points.contains_key(&b.obstacle) {
-                let text = body_points_json(&self.obstacles[b.obstacle], &self.bodies, b, style);
-                self.body_points.insert(b.obstacle, text);
-            }
-            let mut e = Entity::new(format!("body/{}", b.name), stamp);
-            let mut line = Line::strip(std::iter::empty(), 2.0, Color::rgb(BODY_COLOR));
-            line.pose = Pose::at(b.position[0], b.position[1], b.angle);
+            // The outline in the body's frame is the same every step (made once); the line's
+            // pose places it.
+            let points = self.body_points.entry(b.obstacle).or_insert_with(|| {
+                body_points(&self.obstacles[b.obstacle], &self.bodies, b, style)
+            });
+            let mut e = entity(format!("body/{}", b.name), time);
+            let mut line = strip(std::iter::empty(), 2.0, rgb(BODY_COLOR));
+            line.pose = Some(pose(b.position[0], b.position[1], b.angle));
+            line.points.clone_from(points);
             e.lines.push(line);
-            let text = match serde_json::to_string(&e) {
-                Ok(t) => t,
-                Err(err) => return self.fail(err),
-            };
-            let Some((head, tail)) = text.split_once("\"points\":[]") else {
-                return self.fail("a body entity without its points");
-            };
-            if self.buf.last() != Some(&b'[') {
-                self.buf.push(b',');
-            }
-            self.buf.extend_from_slice(head.as_bytes());
-            self.buf.extend_from_slice(b"\"points\":");
-            self.buf
-                .extend_from_slice(self.body_points[&b.obstacle].as_bytes());
-            self.buf.extend_from_slice(tail.as_bytes());
+            msg.entities.push(e);
         }
-        self.buf.extend_from_slice(b"]}");
+        self.buf.clear();
+        prost::Message::encode(&*msg, &mut self.buf).expect("a Vec grows as needed");
         self.write_buf(SCENE, time);
     }
 
@@ -707,221 +685,140 @@ struct EventMsg<'a> {
 }
 
 // ---- foxglove.SceneUpdate ------------------------------------------------------------------
-// Field names and required fields follow the published JSON schema. The scene is the xy plane
-// (z = 0) in frame "world". Its numbers are f32 (what the 3D panel draws with): half the text
-// of f64, and the exact values are in /sim/step.
+// Protobuf with Foxglove's published field names and numbers (super::foxglove). The scene is
+// the xy plane (z = 0) in frame "world". Its numbers are rounded to f32 (what the 3D panel
+// draws with; zstd then finds the zeroed low mantissa bits): the exact values are in /sim/step.
+// Fields at their proto3 default (z = 0, an empty deletion list) are not on the wire.
+
+use super::foxglove as fx;
 
 const FRAME: &str = "world";
 
-#[derive(Serialize, Clone, Copy)]
-struct Stamp {
-    sec: u64,
-    nsec: u32,
+/// `x` rounded to f32.
+fn r32(x: f64) -> f64 {
+    x as f32 as f64
 }
 
-impl Stamp {
-    fn of(ns: u64) -> Self {
-        Self {
-            sec: ns / 1_000_000_000,
-            nsec: (ns % 1_000_000_000) as u32,
-        }
+fn stamp(ns: u64) -> fx::Timestamp {
+    fx::Timestamp {
+        seconds: (ns / 1_000_000_000) as i64,
+        nanos: (ns % 1_000_000_000) as i32,
     }
 }
 
-#[derive(Serialize)]
-struct Vec3 {
-    x: f32,
-    y: f32,
-    z: f32,
-}
-
-impl Vec3 {
-    fn xy(x: f64, y: f64) -> Self {
-        Self {
-            x: x as f32,
-            y: y as f32,
-            z: 0.0,
-        }
+fn xy(x: f64, y: f64) -> fx::Vector3 {
+    fx::Vector3 {
+        x: r32(x),
+        y: r32(y),
+        z: 0.0,
     }
 }
 
-#[derive(Serialize)]
-struct Quat {
-    x: f32,
-    y: f32,
-    z: f32,
-    w: f32,
-}
-
-#[derive(Serialize)]
-struct Pose {
-    position: Vec3,
-    orientation: Quat,
-}
-
-impl Pose {
-    /// At (x, y), turned by `angle` about z (identity points along +x).
-    fn at(x: f64, y: f64, angle: f64) -> Self {
-        let (s, c) = (0.5 * angle).sin_cos();
-        Self {
-            position: Vec3::xy(x, y),
-            orientation: Quat {
-                x: 0.0,
-                y: 0.0,
-                z: s as f32,
-                w: c as f32,
-            },
-        }
+/// At (x, y), turned by `angle` about z (identity points along +x).
+fn pose(x: f64, y: f64, angle: f64) -> fx::Pose {
+    let (s, c) = (0.5 * angle).sin_cos();
+    fx::Pose {
+        position: Some(xy(x, y)),
+        orientation: Some(fx::Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: r32(s),
+            w: r32(c),
+        }),
     }
 }
 
-#[derive(Serialize, Clone, Copy)]
-struct Color {
-    r: f32,
-    g: f32,
-    b: f32,
-    a: f32,
+fn rgb(c: [u8; 3]) -> fx::Color {
+    rgba(c, 1.0)
 }
 
-impl Color {
-    fn rgb(c: [u8; 3]) -> Self {
-        Self {
-            r: c[0] as f32 / 255.0,
-            g: c[1] as f32 / 255.0,
-            b: c[2] as f32 / 255.0,
-            a: 1.0,
-        }
+fn rgba(c: [u8; 3], a: f32) -> fx::Color {
+    fx::Color {
+        r: r32(c[0] as f64 / 255.0),
+        g: r32(c[1] as f64 / 255.0),
+        b: r32(c[2] as f64 / 255.0),
+        a: a as f64,
     }
 }
 
-#[derive(Serialize)]
-struct Arrow {
-    pose: Pose,
-    shaft_length: f32,
-    shaft_diameter: f32,
-    head_length: f32,
-    head_diameter: f32,
-    color: Color,
-}
-
-impl Arrow {
-    /// An arrow from (x, y) along `v`, drawn `length` long, with a head sized by `r`.
-    fn new(x: f64, y: f64, v: [f64; 2], length: f64, r: f64, color: Color) -> Self {
-        let head = (2.5 * r).min(0.4 * length);
-        Self {
-            pose: Pose::at(x, y, v[1].atan2(v[0])),
-            shaft_length: (length - head) as f32,
-            shaft_diameter: (0.6 * r) as f32,
-            head_length: head as f32,
-            head_diameter: (1.8 * r) as f32,
-            color,
-        }
+/// An arrow from (x, y) along `v`, drawn `length` long, with a head sized by `r`.
+fn arrow(x: f64, y: f64, v: [f64; 2], length: f64, r: f64, color: fx::Color) -> fx::ArrowPrimitive {
+    let head = (2.5 * r).min(0.4 * length);
+    fx::ArrowPrimitive {
+        pose: Some(pose(x, y, v[1].atan2(v[0]))),
+        shaft_length: r32(length - head),
+        shaft_diameter: r32(0.6 * r),
+        head_length: r32(head),
+        head_diameter: r32(1.8 * r),
+        color: Some(color),
     }
 }
 
-#[derive(Serialize)]
-struct Sphere {
-    pose: Pose,
-    size: Vec3,
-    color: Color,
-}
-
-#[derive(Serialize)]
-struct Line {
-    /// 0 = LINE_STRIP.
-    #[serde(rename = "type")]
-    kind: u8,
-    pose: Pose,
-    thickness: f32,
-    scale_invariant: bool,
-    points: Vec<Vec3>,
-    color: Color,
-    colors: [Color; 0],
-    indices: [u32; 0],
-}
-
-impl Line {
-    fn strip(points: impl Iterator<Item = [f64; 2]>, thickness_px: f32, color: Color) -> Self {
-        Self {
-            kind: 0,
-            pose: Pose::at(0.0, 0.0, 0.0),
-            thickness: thickness_px,
-            scale_invariant: true,
-            points: points.map(|p| Vec3::xy(p[0], p[1])).collect(),
-            color,
-            colors: [],
-            indices: [],
-        }
+/// A LINE_STRIP through `points`, `thickness_px` screen pixels wide.
+fn strip(
+    points: impl Iterator<Item = [f64; 2]>,
+    thickness_px: f64,
+    color: fx::Color,
+) -> fx::LinePrimitive {
+    fx::LinePrimitive {
+        r#type: 0,
+        pose: Some(pose(0.0, 0.0, 0.0)),
+        thickness: thickness_px,
+        scale_invariant: true,
+        points: points.map(|p| xy(p[0], p[1])).collect(),
+        color: Some(color),
+        colors: Vec::new(),
+        indices: Vec::new(),
     }
 }
 
-#[derive(Serialize)]
-struct Text {
-    pose: Pose,
-    billboard: bool,
-    font_size: f32,
-    scale_invariant: bool,
-    color: Color,
-    text: String,
+/// A white label at (x, y), facing the camera, 14 px high.
+fn label(x: f64, y: f64, text: String) -> fx::TextPrimitive {
+    fx::TextPrimitive {
+        pose: Some(pose(x, y, 0.0)),
+        billboard: true,
+        font_size: 14.0,
+        scale_invariant: true,
+        color: Some(rgb([255, 255, 255])),
+        text,
+    }
 }
 
-#[derive(Serialize)]
-struct Entity {
-    timestamp: Stamp,
-    frame_id: &'static str,
-    id: String,
-    lifetime: Stamp,
-    frame_locked: bool,
-    metadata: [(); 0],
-    arrows: Vec<Arrow>,
-    cubes: [(); 0],
-    spheres: Vec<Sphere>,
-    cylinders: [(); 0],
-    lines: Vec<Line>,
-    triangles: [(); 0],
-    texts: Vec<Text>,
-    models: [(); 0],
-}
-
-impl Entity {
-    fn new(id: String, timestamp: Stamp) -> Self {
-        Self {
-            timestamp,
-            frame_id: FRAME,
-            id,
-            lifetime: Stamp { sec: 0, nsec: 0 },
-            frame_locked: false,
-            metadata: [],
-            arrows: Vec::new(),
-            cubes: [],
-            spheres: Vec::new(),
-            cylinders: [],
-            lines: Vec::new(),
-            triangles: [],
-            texts: Vec::new(),
-            models: [],
-        }
+/// An entity with nothing in it yet, kept until replaced (lifetime 0).
+fn entity(id: String, ns: u64) -> fx::SceneEntity {
+    fx::SceneEntity {
+        timestamp: Some(stamp(ns)),
+        frame_id: FRAME.into(),
+        id,
+        lifetime: Some(fx::Duration::default()),
+        frame_locked: false,
+        arrows: Vec::new(),
+        spheres: Vec::new(),
+        lines: Vec::new(),
+        texts: Vec::new(),
     }
 }
 
 /// The obstacles as one entity of outlines (planes and sines clipped to the region the run
 /// visits; free bodies are drawn at their pose every step) and the legend (force scale bar and
-/// its text), serialised once.
-fn obstacle_entity(obstacles: &[Obstacle], bodies: &[BodySpec], style: &SceneStyle) -> String {
-    let mut e = Entity::new("obstacles".into(), Stamp { sec: 0, nsec: 0 });
+/// its text).
+fn static_entities(
+    obstacles: &[Obstacle],
+    bodies: &[BodySpec],
+    style: &SceneStyle,
+    ns: u64,
+) -> Vec<fx::SceneEntity> {
+    let mut e = entity("obstacles".into(), ns);
     for (k, o) in obstacles.iter().enumerate() {
         if bodies.iter().any(|b| b.obstacle == k) {
             continue;
         }
         for line in obstacle_outline(o, style.lo, style.hi) {
-            e.lines.push(Line::strip(
-                line.into_iter(),
-                2.0,
-                Color::rgb(OBSTACLE_COLOR),
-            ));
+            e.lines
+                .push(strip(line.into_iter(), 2.0, rgb(OBSTACLE_COLOR)));
         }
     }
-    let mut legend = Entity::new("legend".into(), Stamp { sec: 0, nsec: 0 });
+    let mut legend = entity("legend".into(), ns);
     let fs = &style.forces;
     let h = style.hi[1] - style.lo[1];
     let (x0, y0) = (
@@ -929,47 +826,35 @@ fn obstacle_entity(obstacles: &[Obstacle], bodies: &[BodySpec], style: &SceneSty
         style.hi[1] + 0.07 * h,
     );
     let r = style.rods.first().map(|r| r.node_radius).unwrap_or(1e-3);
-    legend.arrows.push(Arrow::new(
+    legend.arrows.push(arrow(
         x0,
         y0,
         [1.0, 0.0],
         fs.unit_length,
         0.5 * r,
-        Color::rgb(REACTION_COLOR),
+        rgb(REACTION_COLOR),
     ));
-    legend.texts.push(Text {
-        pose: Pose::at(x0, y0 + 0.03 * h, 0.0),
-        billboard: true,
-        font_size: 14.0,
-        scale_invariant: true,
-        color: Color::rgb([255, 255, 255]),
-        text: fs.describe(),
-    });
-    format!(
-        "{},{}",
-        serde_json::to_string(&e).expect("a scene entity serialises"),
-        serde_json::to_string(&legend).expect("a scene entity serialises")
-    )
+    legend.texts.push(label(x0, y0 + 0.03 * h, fs.describe()));
+    vec![e, legend]
 }
 
 /// A free body's outline (with a spoke from its centre that shows the rotation) in its own
-/// frame: centroid at the origin, unrotated; a JSON array of f32 points.
-fn body_points_json(
+/// frame: centroid at the origin, unrotated.
+fn body_points(
     shape: &Obstacle,
     specs: &[BodySpec],
     b: &BodyView<'_>,
     style: &SceneStyle,
-) -> String {
+) -> Vec<fx::Vector3> {
     let at_rest = BodyView {
         position: [0.0, 0.0],
         angle: 0.0,
         ..*b
     };
-    let pts: Vec<Vec3> = super::body_outline(shape, specs, &at_rest, style)
+    super::body_outline(shape, specs, &at_rest, style)
         .into_iter()
-        .map(|p| Vec3::xy(p[0], p[1]))
-        .collect();
-    serde_json::to_string(&pts).expect("points serialise")
+        .map(|p| xy(p[0], p[1]))
+        .collect()
 }
 
 /// One rod: centre line, nodes coloured by reaction (the recording's colour map), reactions
@@ -980,23 +865,22 @@ fn rod_entity(
     style: &SceneStyle,
     r: usize,
     v: &RodStepView<'_>,
-    stamp: Stamp,
-) -> Entity {
+    ns: u64,
+) -> fx::SceneEntity {
     let rs = &style.rods[r];
-    let mut e = Entity::new(format!("rod/{}", info.name), stamp);
+    let mut e = entity(format!("rod/{}", info.name), ns);
     let n = v.in_contact.len();
     let p = |i: usize| [v.q[2 * i], v.q[2 * i + 1]];
-    e.lines
-        .push(Line::strip((0..n).map(p), 2.0, Color::rgb(ROD_COLOR)));
+    e.lines.push(strip((0..n).map(p), 2.0, rgb(ROD_COLOR)));
     let rad = rs.node_radius;
-    let sphere = |x: f64, y: f64, d: f64, c: [u8; 3], a: f32| Sphere {
-        pose: Pose::at(x, y, 0.0),
-        size: Vec3 {
-            x: d as f32,
-            y: d as f32,
-            z: d as f32,
-        },
-        color: Color { a, ..Color::rgb(c) },
+    let sphere = |x: f64, y: f64, d: f64, color: fx::Color| fx::SpherePrimitive {
+        pose: Some(pose(x, y, 0.0)),
+        size: Some(fx::Vector3 {
+            x: r32(d),
+            y: r32(d),
+            z: r32(d),
+        }),
+        color: Some(color),
     };
     let corrected = v.q_predictor.len() == v.q.len() && v.q_predictor != v.q;
     for i in 0..n {
@@ -1007,44 +891,35 @@ fn rod_entity(
         } else {
             style.forces.color(f)
         };
-        e.spheres.push(sphere(x, y, 2.0 * rad, color, 1.0));
+        e.spheres.push(sphere(x, y, 2.0 * rad, rgb(color)));
         if corrected {
             let (px, py) = (v.q_predictor[2 * i], v.q_predictor[2 * i + 1]);
             e.spheres
-                .push(sphere(px, py, 3.2 * rad, PREDICTOR_COLOR, 0.45));
+                .push(sphere(px, py, 3.2 * rad, rgba(PREDICTOR_COLOR, 0.45)));
         }
         if v.in_contact[i] {
             let nrm = [v.normal[2 * i], v.normal[2 * i + 1]];
             let side = 2.2 * rad;
-            e.arrows.push(Arrow::new(
+            e.arrows.push(arrow(
                 x - side * nrm[1],
                 y + side * nrm[0],
                 nrm,
                 rs.normal_length,
                 0.4 * rad,
-                Color::rgb(NORMAL_COLOR),
+                rgb(NORMAL_COLOR),
             ));
         }
         if f > 0.0 {
             let dir = [v.reaction[2 * i] / f, v.reaction[2 * i + 1] / f];
             let len = style.forces.length(f);
             let (ox, oy) = (x + rad * dir[0], y + rad * dir[1]);
-            e.arrows.push(Arrow::new(
-                ox,
-                oy,
-                dir,
-                len,
-                0.9 * rad,
-                Color::rgb(REACTION_COLOR),
+            e.arrows
+                .push(arrow(ox, oy, dir, len, 0.9 * rad, rgb(REACTION_COLOR)));
+            e.texts.push(label(
+                ox + len * dir[0],
+                oy + len * dir[1],
+                format!("{} N", super::fmt_force(f)),
             ));
-            e.texts.push(Text {
-                pose: Pose::at(ox + len * dir[0], oy + len * dir[1], 0.0),
-                billboard: true,
-                font_size: 14.0,
-                scale_invariant: true,
-                color: Color::rgb([255, 255, 255]),
-                text: format!("{} N", super::fmt_force(f)),
-            });
         }
     }
     e

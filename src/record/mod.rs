@@ -12,6 +12,7 @@
 pub mod accepted;
 pub mod csv;
 pub mod csv3;
+pub mod foxglove;
 pub mod grasp;
 pub mod mcap;
 pub mod pressure;

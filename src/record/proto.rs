@@ -68,6 +68,7 @@ pub struct Rod {
     /// +∞: no obstacle.
     #[prost(double, repeated, tag = "13")]
     pub gap: Vec<f64>,
+    /// Empty on a step without a corrector pass (then it equals `q`; format 3).
     #[prost(double, repeated, tag = "14")]
     pub q_predictor: Vec<f64>,
 }
@@ -354,7 +355,12 @@ impl Rod {
             .extend(v.contact_obstacle2.iter().map(|&k| index(k)));
         set(&mut self.bending_stress, v.bending_stress);
         set(&mut self.gap, v.gap);
-        set(&mut self.q_predictor, v.q_predictor);
+        // Only on steps with a corrector pass: elsewhere it equals q (format 3).
+        if v.q_predictor == v.q {
+            self.q_predictor.clear();
+        } else {
+            set(&mut self.q_predictor, v.q_predictor);
+        }
     }
 }
 
@@ -557,6 +563,9 @@ pub fn decode_json(schema: &str, encoding: &str, data: &[u8]) -> Option<serde_js
         ("json", _) => serde_json::from_slice(data).ok(),
         ("protobuf", "gripsim.Step") => Step::decode(data).ok().map(|s| s.to_json()),
         ("protobuf", "gripsim.Iteration") => Iteration::decode(data).ok().map(|s| s.to_json()),
+        ("protobuf", super::foxglove::SCHEMA) => super::foxglove::SceneUpdate::decode(data)
+            .ok()
+            .map(|s| s.to_json()),
         _ => None,
     }
 }

@@ -664,13 +664,18 @@ pub fn read_messages(
                                 steps + 1
                             ))
                         };
-                        let s: Step = if protobuf.contains(&header.channel_id) {
+                        let mut s: Step = if protobuf.contains(&header.channel_id) {
                             let pb = <proto::Step as prost::Message>::decode(data.as_ref())
                                 .map_err(|e| bad(e.to_string()))?;
                             Step::try_from(pb).map_err(bad)?
                         } else {
                             serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
                         };
+                        // Format 3 leaves `q_predictor` out on steps without a corrector
+                        // pass, where it is `q`.
+                        for r in s.rods.iter_mut().filter(|r| r.q_predictor.is_empty()) {
+                            r.q_predictor.clone_from(&r.q);
+                        }
                         check_step(&s, sh).map_err(err)?;
                         if let Some((k, t)) = last_step {
                             if s.step <= k || s.t < t {

@@ -23,6 +23,11 @@ of format 2) with Google's `protobuf` library from the FileDescriptorSet the fil
                 in_contact, gap (null for no obstacle); contacts: node, normal force and the
                 compliant contact's indentation, half-width, peak pressure, bruise threshold
                 and bruise half-width
+  scene_samples the first /scene messages and every 250th after (format 3: protobuf
+                foxglove.SceneUpdate, decoded by Google's library): index (the message's
+                number on the topic = its step), and per entity its id, the points of its
+                first line, its spheres' centres and the number of arrows and texts
+  scene_static  the /scene/static message's entity ids and line counts
   error         null, or why reading stopped early (a file cut short by a crash)
 
 A file cut short (no summary, last chunk half written) is read up to its last complete
@@ -73,6 +78,26 @@ def step_sample(msg):
     }
 
 
+def xyz(v):
+    return [v.x, v.y, v.z]
+
+
+def scene_sample(msg, index):
+    """What the report shows of a protobuf /scene message."""
+    entities = []
+    for e in msg.entities:
+        entities.append(
+            {
+                "id": e.id,
+                "line_points": [xyz(p) for p in e.lines[0].points] if e.lines else [],
+                "spheres": [xyz(s.pose.position) for s in e.spheres],
+                "arrows": len(e.arrows),
+                "texts": [t.text for t in e.texts],
+            }
+        )
+    return {"index": index, "entities": entities}
+
+
 # What the report shows of each active contact of a sampled step.
 CONTACT_FIELDS = [
     "node",
@@ -92,6 +117,7 @@ def main(path):
     last_event, last_time, monotone = None, -1, True
     seen, validated, error = {}, 0, None
     protobuf, decoders, samples = DecoderFactory(), {}, []
+    scene_samples, scene_static = [], None
     with open(path, "rb") as f:
         try:
             for record in StreamReader(f, validate_crcs=True).records:
@@ -138,6 +164,11 @@ def main(path):
                             samples.append(step_sample(msg))
                     elif topic == "/sim/event":
                         last_event = msg
+                    elif topic == "/scene" and not isinstance(msg, dict):
+                        if n < 20 or n % 250 == 0:
+                            scene_samples.append(scene_sample(msg, n))
+                    elif topic == "/scene/static" and not isinstance(msg, dict):
+                        scene_static = [{"id": e.id, "lines": len(e.lines)} for e in msg.entities]
                 elif isinstance(record, Metadata):
                     metadata[record.name] = dict(record.metadata)
                 elif isinstance(record, Statistics):
@@ -164,6 +195,8 @@ def main(path):
         log_time_monotone=monotone,
         validated=validated,
         step_samples=samples,
+        scene_samples=scene_samples,
+        scene_static=scene_static,
         error=error,
     )
     json.dump(report, sys.stdout)

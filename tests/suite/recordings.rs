@@ -90,8 +90,9 @@ fn assert_channels(report: &Value) {
     for (topic, schema) in CHANNELS {
         let t = &report["topics"][topic];
         assert_eq!(t["schema"], schema, "{topic}: {t}");
-        // The high-rate channels are protobuf with the schema in the file, the rest JSON.
-        let binary = topic == "/sim/step" || topic == "/sim/iteration";
+        // The high-rate channels and the scene are protobuf with the schema in the file, the
+        // rest JSON.
+        let binary = ["/sim/step", "/sim/iteration", "/scene"].contains(&topic);
         let (schema_encoding, message_encoding) = if binary {
             ("protobuf", "protobuf")
         } else {
@@ -303,6 +304,63 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     }
     assert!(contact_samples > 0, "a sample in contact");
 
+    // The protobuf /scene, as Google's library decodes it: the prong's centre line and node
+    // spheres at the step's positions (rounded to f32), a red and a white arrow and a label
+    // per pressed node on steps in contact, the obstacles and legend once on /scene/static.
+    let statics = report["scene_static"].as_array().unwrap();
+    let ids: Vec<&str> = statics.iter().map(|e| e["id"].as_str().unwrap()).collect();
+    assert_eq!(ids, ["obstacles", "legend"]);
+    assert!(statics[0]["lines"].as_u64().unwrap() >= 1);
+    let scenes = report["scene_samples"].as_array().unwrap();
+    assert_eq!(scenes.len(), samples.len());
+    let mut labelled = 0;
+    for sc in scenes {
+        let step = sc["index"].as_u64().unwrap();
+        let rod = &steps_json[&step]["rods"][0];
+        let q = f64s(&rod["q"]);
+        let want: Vec<Vec<f64>> = q
+            .chunks(2)
+            .map(|p| vec![p[0] as f32 as f64, p[1] as f32 as f64, 0.0])
+            .collect();
+        let e = &sc["entities"][0];
+        assert_eq!(e["id"], "rod/prong");
+        let line: Vec<Vec<f64>> = e["line_points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(f64s)
+            .collect();
+        assert_eq!(line, want, "centre line at step {step}");
+        let spheres: Vec<Vec<f64>> = e["spheres"].as_array().unwrap().iter().map(f64s).collect();
+        let corrected = spheres.len() == 2 * want.len();
+        assert!(
+            corrected || spheres.len() == want.len(),
+            "{step}: {}",
+            spheres.len()
+        );
+        let nodes: Vec<Vec<f64>> = spheres
+            .into_iter()
+            .step_by(1 + corrected as usize)
+            .collect();
+        assert_eq!(nodes, want, "node spheres at step {step}");
+        let pressed = f64s(&rod["reaction_norm"])
+            .iter()
+            .filter(|&&f| f > 0.0)
+            .count();
+        let touching = rod["in_contact"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| *c == true)
+            .count();
+        assert_eq!(e["arrows"].as_u64().unwrap() as usize, pressed + touching);
+        let texts = e["texts"].as_array().unwrap();
+        assert_eq!(texts.len(), pressed);
+        assert!(texts.iter().all(|t| t.as_str().unwrap().ends_with(" N")));
+        labelled += texts.len();
+    }
+    assert!(labelled > 0, "a sampled scene with reaction labels");
+
     // The CSV: header, one row per step and node, the same peaks.
     let mut rdr = csv::Reader::from_path(&csv).unwrap();
     let header: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
@@ -350,7 +408,7 @@ fn seed_grasp_recordings_agree_with_the_summary() {
 
     // The MCAP alone rebuilds the run: its scenario text runs to the same summary.
     let meta = &msgs.iter().find(|m| m.topic == "/sim/meta").unwrap().json;
-    assert_eq!(meta["format_version"], 2);
+    assert_eq!(meta["format_version"], 3);
     let replay = d.join("replay.toml");
     std::fs::write(&replay, meta["scenario_text"].as_str().unwrap()).unwrap();
     let again = d.join("again.json");

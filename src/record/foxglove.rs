@@ -1,0 +1,738 @@
+//! `foxglove.SceneUpdate` as protobuf: the MCAP `/scene` and `/scene/static` channels.
+//!
+//! The messages we write are `prost` derives; the schema the channels carry is a
+//! `google.protobuf.FileDescriptorSet` built here from one table per message ([`MESSAGES`],
+//! field names and numbers as Foxglove publishes them), with the two well-known types it
+//! imports (`google/protobuf/timestamp.proto`, `duration.proto`) in the same set, so Foxglove
+//! and any protobuf library decode the file without a `.proto` file. The set describes every
+//! message `foxglove.SceneEntity` refers to (cubes, cylinders, triangles, models, metadata),
+//! also those gripsim never writes, so a reader sees the complete published type.
+
+use prost::Message as _;
+use prost_types::field_descriptor_proto::{Label, Type};
+use prost_types::{
+    DescriptorProto, EnumDescriptorProto, EnumValueDescriptorProto, FieldDescriptorProto,
+    FileDescriptorProto, FileDescriptorSet,
+};
+
+/// `foxglove.SceneUpdate`.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct SceneUpdate {
+    #[prost(message, repeated, tag = "1")]
+    pub deletions: Vec<SceneEntityDeletion>,
+    #[prost(message, repeated, tag = "2")]
+    pub entities: Vec<SceneEntity>,
+}
+
+/// `foxglove.SceneEntityDeletion` (never written; here for the wire test and readers).
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct SceneEntityDeletion {
+    #[prost(message, optional, tag = "1")]
+    pub timestamp: Option<Timestamp>,
+    /// 0 = MATCHING_ID, 1 = ALL.
+    #[prost(int32, tag = "2")]
+    pub r#type: i32,
+    #[prost(string, tag = "3")]
+    pub id: String,
+}
+
+/// `foxglove.SceneEntity` with the primitives gripsim draws (fields 6, 8, 10, 12 and 14 —
+/// metadata, cubes, cylinders, triangles, models — are in the schema, never written).
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct SceneEntity {
+    #[prost(message, optional, tag = "1")]
+    pub timestamp: Option<Timestamp>,
+    #[prost(string, tag = "2")]
+    pub frame_id: String,
+    #[prost(string, tag = "3")]
+    pub id: String,
+    /// Zero (or absent): kept until replaced.
+    #[prost(message, optional, tag = "4")]
+    pub lifetime: Option<Duration>,
+    #[prost(bool, tag = "5")]
+    pub frame_locked: bool,
+    #[prost(message, repeated, tag = "7")]
+    pub arrows: Vec<ArrowPrimitive>,
+    #[prost(message, repeated, tag = "9")]
+    pub spheres: Vec<SpherePrimitive>,
+    #[prost(message, repeated, tag = "11")]
+    pub lines: Vec<LinePrimitive>,
+    #[prost(message, repeated, tag = "13")]
+    pub texts: Vec<TextPrimitive>,
+}
+
+/// `google.protobuf.Timestamp`.
+#[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
+pub struct Timestamp {
+    #[prost(int64, tag = "1")]
+    pub seconds: i64,
+    #[prost(int32, tag = "2")]
+    pub nanos: i32,
+}
+
+/// `google.protobuf.Duration`.
+#[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
+pub struct Duration {
+    #[prost(int64, tag = "1")]
+    pub seconds: i64,
+    #[prost(int32, tag = "2")]
+    pub nanos: i32,
+}
+
+/// `foxglove.ArrowPrimitive`.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct ArrowPrimitive {
+    #[prost(message, optional, tag = "1")]
+    pub pose: Option<Pose>,
+    #[prost(double, tag = "2")]
+    pub shaft_length: f64,
+    #[prost(double, tag = "3")]
+    pub shaft_diameter: f64,
+    #[prost(double, tag = "4")]
+    pub head_length: f64,
+    #[prost(double, tag = "5")]
+    pub head_diameter: f64,
+    #[prost(message, optional, tag = "6")]
+    pub color: Option<Color>,
+}
+
+/// `foxglove.SpherePrimitive`.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct SpherePrimitive {
+    #[prost(message, optional, tag = "1")]
+    pub pose: Option<Pose>,
+    #[prost(message, optional, tag = "2")]
+    pub size: Option<Vector3>,
+    #[prost(message, optional, tag = "3")]
+    pub color: Option<Color>,
+}
+
+/// `foxglove.LinePrimitive`.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct LinePrimitive {
+    /// 0 = LINE_STRIP, 1 = LINE_LOOP, 2 = LINE_LIST.
+    #[prost(int32, tag = "1")]
+    pub r#type: i32,
+    #[prost(message, optional, tag = "2")]
+    pub pose: Option<Pose>,
+    #[prost(double, tag = "3")]
+    pub thickness: f64,
+    #[prost(bool, tag = "4")]
+    pub scale_invariant: bool,
+    /// `foxglove.Point3` (the same fields as `Vector3`).
+    #[prost(message, repeated, tag = "5")]
+    pub points: Vec<Vector3>,
+    #[prost(message, optional, tag = "6")]
+    pub color: Option<Color>,
+    #[prost(message, repeated, tag = "7")]
+    pub colors: Vec<Color>,
+    #[prost(fixed32, repeated, tag = "8")]
+    pub indices: Vec<u32>,
+}
+
+/// `foxglove.TextPrimitive`.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct TextPrimitive {
+    #[prost(message, optional, tag = "1")]
+    pub pose: Option<Pose>,
+    #[prost(bool, tag = "2")]
+    pub billboard: bool,
+    #[prost(double, tag = "3")]
+    pub font_size: f64,
+    #[prost(bool, tag = "4")]
+    pub scale_invariant: bool,
+    #[prost(message, optional, tag = "5")]
+    pub color: Option<Color>,
+    #[prost(string, tag = "6")]
+    pub text: String,
+}
+
+/// `foxglove.Pose`.
+#[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
+pub struct Pose {
+    #[prost(message, optional, tag = "1")]
+    pub position: Option<Vector3>,
+    #[prost(message, optional, tag = "2")]
+    pub orientation: Option<Quaternion>,
+}
+
+/// `foxglove.Vector3` and `foxglove.Point3`.
+#[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
+pub struct Vector3 {
+    #[prost(double, tag = "1")]
+    pub x: f64,
+    #[prost(double, tag = "2")]
+    pub y: f64,
+    #[prost(double, tag = "3")]
+    pub z: f64,
+}
+
+/// `foxglove.Quaternion`.
+#[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
+pub struct Quaternion {
+    #[prost(double, tag = "1")]
+    pub x: f64,
+    #[prost(double, tag = "2")]
+    pub y: f64,
+    #[prost(double, tag = "3")]
+    pub z: f64,
+    #[prost(double, tag = "4")]
+    pub w: f64,
+}
+
+/// `foxglove.Color` (components 0 … 1).
+#[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
+pub struct Color {
+    #[prost(double, tag = "1")]
+    pub r: f64,
+    #[prost(double, tag = "2")]
+    pub g: f64,
+    #[prost(double, tag = "3")]
+    pub b: f64,
+    #[prost(double, tag = "4")]
+    pub a: f64,
+}
+
+/// The type of a field in a descriptor table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Double,
+    Bool,
+    Int32,
+    Int64,
+    Fixed32,
+    Str,
+    Bytes,
+    /// A message or enum by its full name (`.foxglove.Pose`).
+    Message(&'static str),
+    Enum(&'static str),
+}
+
+/// One field: name, number, type, repeated.
+pub type Field = (&'static str, i32, Kind, bool);
+
+use Kind as K;
+
+const POSE: Kind = K::Message(".foxglove.Pose");
+const COLOR: Kind = K::Message(".foxglove.Color");
+const VECTOR3: Kind = K::Message(".foxglove.Vector3");
+const POINT3: Kind = K::Message(".foxglove.Point3");
+const TIMESTAMP: Kind = K::Message(".google.protobuf.Timestamp");
+
+const XYZ: &[Field] = &[
+    ("x", 1, K::Double, false),
+    ("y", 2, K::Double, false),
+    ("z", 3, K::Double, false),
+];
+const SECONDS_NANOS: &[Field] = &[
+    ("seconds", 1, K::Int64, false),
+    ("nanos", 2, K::Int32, false),
+];
+
+/// A nested enum: its name and values.
+type EnumDef = (&'static str, &'static [(&'static str, i32)]);
+
+/// Every message of the package `foxglove` that `SceneUpdate` reaches, with its fields and
+/// nested enums.
+pub const MESSAGES: [(&str, &[Field], Option<EnumDef>); 17] = [
+    (
+        "SceneUpdate",
+        &[
+            (
+                "deletions",
+                1,
+                K::Message(".foxglove.SceneEntityDeletion"),
+                true,
+            ),
+            ("entities", 2, K::Message(".foxglove.SceneEntity"), true),
+        ],
+        None,
+    ),
+    (
+        "SceneEntityDeletion",
+        &[
+            ("timestamp", 1, TIMESTAMP, false),
+            (
+                "type",
+                2,
+                K::Enum(".foxglove.SceneEntityDeletion.Type"),
+                false,
+            ),
+            ("id", 3, K::Str, false),
+        ],
+        Some(("Type", &[("MATCHING_ID", 0), ("ALL", 1)])),
+    ),
+    (
+        "SceneEntity",
+        &[
+            ("timestamp", 1, TIMESTAMP, false),
+            ("frame_id", 2, K::Str, false),
+            ("id", 3, K::Str, false),
+            (
+                "lifetime",
+                4,
+                K::Message(".google.protobuf.Duration"),
+                false,
+            ),
+            ("frame_locked", 5, K::Bool, false),
+            ("metadata", 6, K::Message(".foxglove.KeyValuePair"), true),
+            ("arrows", 7, K::Message(".foxglove.ArrowPrimitive"), true),
+            ("cubes", 8, K::Message(".foxglove.CubePrimitive"), true),
+            ("spheres", 9, K::Message(".foxglove.SpherePrimitive"), true),
+            (
+                "cylinders",
+                10,
+                K::Message(".foxglove.CylinderPrimitive"),
+                true,
+            ),
+            ("lines", 11, K::Message(".foxglove.LinePrimitive"), true),
+            (
+                "triangles",
+                12,
+                K::Message(".foxglove.TriangleListPrimitive"),
+                true,
+            ),
+            ("texts", 13, K::Message(".foxglove.TextPrimitive"), true),
+            ("models", 14, K::Message(".foxglove.ModelPrimitive"), true),
+        ],
+        None,
+    ),
+    (
+        "KeyValuePair",
+        &[("key", 1, K::Str, false), ("value", 2, K::Str, false)],
+        None,
+    ),
+    (
+        "ArrowPrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("shaft_length", 2, K::Double, false),
+            ("shaft_diameter", 3, K::Double, false),
+            ("head_length", 4, K::Double, false),
+            ("head_diameter", 5, K::Double, false),
+            ("color", 6, COLOR, false),
+        ],
+        None,
+    ),
+    (
+        "CubePrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("size", 2, VECTOR3, false),
+            ("color", 3, COLOR, false),
+        ],
+        None,
+    ),
+    (
+        "SpherePrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("size", 2, VECTOR3, false),
+            ("color", 3, COLOR, false),
+        ],
+        None,
+    ),
+    (
+        "CylinderPrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("size", 2, VECTOR3, false),
+            ("bottom_scale", 3, K::Double, false),
+            ("top_scale", 4, K::Double, false),
+            ("color", 5, COLOR, false),
+        ],
+        None,
+    ),
+    (
+        "LinePrimitive",
+        &[
+            ("type", 1, K::Enum(".foxglove.LinePrimitive.Type"), false),
+            ("pose", 2, POSE, false),
+            ("thickness", 3, K::Double, false),
+            ("scale_invariant", 4, K::Bool, false),
+            ("points", 5, POINT3, true),
+            ("color", 6, COLOR, false),
+            ("colors", 7, COLOR, true),
+            ("indices", 8, K::Fixed32, true),
+        ],
+        Some((
+            "Type",
+            &[("LINE_STRIP", 0), ("LINE_LOOP", 1), ("LINE_LIST", 2)],
+        )),
+    ),
+    (
+        "TriangleListPrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("points", 2, POINT3, true),
+            ("color", 3, COLOR, false),
+            ("colors", 4, COLOR, true),
+            ("indices", 5, K::Fixed32, true),
+        ],
+        None,
+    ),
+    (
+        "TextPrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("billboard", 2, K::Bool, false),
+            ("font_size", 3, K::Double, false),
+            ("scale_invariant", 4, K::Bool, false),
+            ("color", 5, COLOR, false),
+            ("text", 6, K::Str, false),
+        ],
+        None,
+    ),
+    (
+        "ModelPrimitive",
+        &[
+            ("pose", 1, POSE, false),
+            ("scale", 2, VECTOR3, false),
+            ("color", 3, COLOR, false),
+            ("override_color", 4, K::Bool, false),
+            ("url", 5, K::Str, false),
+            ("media_type", 6, K::Str, false),
+            ("data", 7, K::Bytes, false),
+        ],
+        None,
+    ),
+    (
+        "Pose",
+        &[
+            ("position", 1, VECTOR3, false),
+            ("orientation", 2, K::Message(".foxglove.Quaternion"), false),
+        ],
+        None,
+    ),
+    ("Vector3", XYZ, None),
+    ("Point3", XYZ, None),
+    (
+        "Quaternion",
+        &[
+            ("x", 1, K::Double, false),
+            ("y", 2, K::Double, false),
+            ("z", 3, K::Double, false),
+            ("w", 4, K::Double, false),
+        ],
+        None,
+    ),
+    (
+        "Color",
+        &[
+            ("r", 1, K::Double, false),
+            ("g", 2, K::Double, false),
+            ("b", 3, K::Double, false),
+            ("a", 4, K::Double, false),
+        ],
+        None,
+    ),
+];
+
+/// The schema name of the scene channels.
+pub const SCHEMA: &str = "foxglove.SceneUpdate";
+
+impl SceneUpdate {
+    /// The message as JSON with the protobuf field names (absent sub-messages `null`), for
+    /// tools and tests.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).expect("a scene update serialises")
+    }
+}
+
+fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto {
+    let (ty, type_name) = match kind {
+        K::Double => (Type::Double, None),
+        K::Bool => (Type::Bool, None),
+        K::Int32 => (Type::Int32, None),
+        K::Int64 => (Type::Int64, None),
+        K::Fixed32 => (Type::Fixed32, None),
+        K::Str => (Type::String, None),
+        K::Bytes => (Type::Bytes, None),
+        K::Message(m) => (Type::Message, Some(m.to_string())),
+        K::Enum(e) => (Type::Enum, Some(e.to_string())),
+    };
+    let mut f = FieldDescriptorProto {
+        name: Some(name.to_string()),
+        number: Some(number),
+        type_name,
+        json_name: Some(name.to_string()),
+        ..Default::default()
+    };
+    f.set_label(if repeated {
+        Label::Repeated
+    } else {
+        Label::Optional
+    });
+    f.set_type(ty);
+    f
+}
+
+fn message_proto(name: &str, fields: &[Field], nested: Option<EnumDef>) -> DescriptorProto {
+    DescriptorProto {
+        name: Some(name.to_string()),
+        field: fields.iter().map(field_proto).collect(),
+        enum_type: nested
+            .map(|(name, values)| EnumDescriptorProto {
+                name: Some(name.to_string()),
+                value: values
+                    .iter()
+                    .map(|&(v, n)| EnumValueDescriptorProto {
+                        name: Some(v.to_string()),
+                        number: Some(n),
+                        ..Default::default()
+                    })
+                    .collect(),
+                ..Default::default()
+            })
+            .into_iter()
+            .collect(),
+        ..Default::default()
+    }
+}
+
+/// A `google/protobuf/<file>.proto` with one message of `seconds` and `nanos`.
+fn well_known(file: &str, message: &str) -> FileDescriptorProto {
+    FileDescriptorProto {
+        name: Some(format!("google/protobuf/{file}.proto")),
+        package: Some("google.protobuf".into()),
+        message_type: vec![message_proto(message, SECONDS_NANOS, None)],
+        syntax: Some("proto3".into()),
+        ..Default::default()
+    }
+}
+
+/// The schema of the scene channels, serialised: a `FileDescriptorSet` of
+/// `google/protobuf/timestamp.proto`, `google/protobuf/duration.proto` and
+/// `foxglove/SceneUpdate.proto` (package `foxglove`, every message of [`MESSAGES`]).
+pub fn file_descriptor_set() -> Vec<u8> {
+    let scene = FileDescriptorProto {
+        name: Some("foxglove/SceneUpdate.proto".into()),
+        package: Some("foxglove".into()),
+        dependency: vec![
+            "google/protobuf/duration.proto".into(),
+            "google/protobuf/timestamp.proto".into(),
+        ],
+        message_type: MESSAGES
+            .iter()
+            .map(|&(name, fields, nested)| message_proto(name, fields, nested))
+            .collect(),
+        syntax: Some("proto3".into()),
+        ..Default::default()
+    };
+    FileDescriptorSet {
+        file: vec![
+            well_known("timestamp", "Timestamp"),
+            well_known("duration", "Duration"),
+            scene,
+        ],
+    }
+    .encode_to_vec()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use prost::encoding::{decode_key, WireType};
+
+    /// Every field of `bytes` (one message) as (number, wire type), in order.
+    fn wire_fields(mut bytes: &[u8]) -> Vec<(u32, WireType)> {
+        let mut out = Vec::new();
+        while !bytes.is_empty() {
+            let (tag, wt) = decode_key(&mut bytes).unwrap();
+            out.push((tag, wt));
+            match wt {
+                WireType::Varint => {
+                    prost::encoding::decode_varint(&mut bytes).unwrap();
+                }
+                WireType::SixtyFourBit => bytes = &bytes[8..],
+                WireType::ThirtyTwoBit => bytes = &bytes[4..],
+                WireType::LengthDelimited => {
+                    let n = prost::encoding::decode_varint(&mut bytes).unwrap() as usize;
+                    bytes = &bytes[n..];
+                }
+                _ => panic!("group wire type"),
+            }
+        }
+        out
+    }
+
+    fn expected_wire(kind: Kind, repeated: bool) -> WireType {
+        match (kind, repeated) {
+            (_, true) | (K::Str | K::Bytes | K::Message(_), false) => WireType::LengthDelimited,
+            (K::Double, false) => WireType::SixtyFourBit,
+            (K::Fixed32, false) => WireType::ThirtyTwoBit,
+            _ => WireType::Varint,
+        }
+    }
+
+    /// The fields `bytes` holds agree with the table of `name` (numbers and wire types), for
+    /// the table fields whose numbers are in `written`.
+    fn check(name: &str, bytes: &[u8], written: &[i32]) {
+        let fields = MESSAGES
+            .iter()
+            .find(|(n, _, _)| *n == name)
+            .map(|m| m.1)
+            .unwrap_or(SECONDS_NANOS);
+        let got = wire_fields(bytes);
+        let want: Vec<(u32, WireType)> = fields
+            .iter()
+            .filter(|f| written.contains(&f.1))
+            .map(|&(_, n, k, r)| (n as u32, expected_wire(k, r)))
+            .collect();
+        assert_eq!(
+            got, want,
+            "{name}: the derive and the descriptor table differ"
+        );
+    }
+
+    #[test]
+    fn derives_and_descriptor_tables_agree_on_the_wire() {
+        let v = Vector3 {
+            x: 1.0,
+            y: 1.0,
+            z: 1.0,
+        };
+        let q = Quaternion {
+            x: 1.0,
+            y: 1.0,
+            z: 1.0,
+            w: 1.0,
+        };
+        let c = Color {
+            r: 1.0,
+            g: 1.0,
+            b: 1.0,
+            a: 1.0,
+        };
+        let pose = Pose {
+            position: Some(v),
+            orientation: Some(q),
+        };
+        let ts = Timestamp {
+            seconds: 1,
+            nanos: 1,
+        };
+        let arrow = ArrowPrimitive {
+            pose: Some(pose),
+            shaft_length: 1.0,
+            shaft_diameter: 1.0,
+            head_length: 1.0,
+            head_diameter: 1.0,
+            color: Some(c),
+        };
+        let sphere = SpherePrimitive {
+            pose: Some(pose),
+            size: Some(v),
+            color: Some(c),
+        };
+        let line = LinePrimitive {
+            r#type: 2,
+            pose: Some(pose),
+            thickness: 1.0,
+            scale_invariant: true,
+            points: vec![v],
+            color: Some(c),
+            colors: vec![c],
+            indices: vec![1],
+        };
+        let text = TextPrimitive {
+            pose: Some(pose),
+            billboard: true,
+            font_size: 1.0,
+            scale_invariant: true,
+            color: Some(c),
+            text: "a".into(),
+        };
+        let entity = SceneEntity {
+            timestamp: Some(ts),
+            frame_id: "world".into(),
+            id: "a".into(),
+            lifetime: Some(Duration {
+                seconds: 1,
+                nanos: 1,
+            }),
+            frame_locked: true,
+            arrows: vec![arrow.clone()],
+            spheres: vec![sphere.clone()],
+            lines: vec![line.clone()],
+            texts: vec![text.clone()],
+        };
+        let deletion = SceneEntityDeletion {
+            timestamp: Some(ts),
+            r#type: 1,
+            id: "a".into(),
+        };
+        let update = SceneUpdate {
+            deletions: vec![deletion.clone()],
+            entities: vec![entity.clone()],
+        };
+        check("SceneUpdate", &update.encode_to_vec(), &[1, 2]);
+        check("SceneEntityDeletion", &deletion.encode_to_vec(), &[1, 2, 3]);
+        check(
+            "SceneEntity",
+            &entity.encode_to_vec(),
+            &[1, 2, 3, 4, 5, 7, 9, 11, 13],
+        );
+        check(
+            "ArrowPrimitive",
+            &arrow.encode_to_vec(),
+            &[1, 2, 3, 4, 5, 6],
+        );
+        check("SpherePrimitive", &sphere.encode_to_vec(), &[1, 2, 3]);
+        check(
+            "LinePrimitive",
+            &line.encode_to_vec(),
+            &[1, 2, 3, 4, 5, 6, 7, 8],
+        );
+        check("TextPrimitive", &text.encode_to_vec(), &[1, 2, 3, 4, 5, 6]);
+        check("Pose", &pose.encode_to_vec(), &[1, 2]);
+        check("Vector3", &v.encode_to_vec(), &[1, 2, 3]);
+        check("Quaternion", &q.encode_to_vec(), &[1, 2, 3, 4]);
+        check("Color", &c.encode_to_vec(), &[1, 2, 3, 4]);
+        check("Timestamp", &ts.encode_to_vec(), &[1, 2]);
+        assert_eq!(
+            SceneUpdate::decode(update.encode_to_vec().as_slice()).unwrap(),
+            update
+        );
+    }
+
+    #[test]
+    fn the_descriptor_set_resolves_every_type_it_names() {
+        let set = FileDescriptorSet::decode(file_descriptor_set().as_slice()).unwrap();
+        let names: Vec<&str> = set.file.iter().map(|f| f.name()).collect();
+        assert_eq!(
+            names,
+            [
+                "google/protobuf/timestamp.proto",
+                "google/protobuf/duration.proto",
+                "foxglove/SceneUpdate.proto"
+            ]
+        );
+        // Every full name a field refers to is a message (or a nested enum) of the set.
+        let mut known = Vec::new();
+        for f in &set.file {
+            for m in &f.message_type {
+                let full = format!(".{}.{}", f.package(), m.name());
+                for e in &m.enum_type {
+                    known.push(format!("{full}.{}", e.name()));
+                }
+                known.push(full);
+            }
+        }
+        let mut refs = 0;
+        for f in &set.file {
+            for m in &f.message_type {
+                for fd in &m.field {
+                    if let Some(t) = &fd.type_name {
+                        assert!(known.contains(t), "{}.{}: {t} unknown", m.name(), fd.name());
+                        refs += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(refs, 42);
+        let scene = &set.file[2];
+        assert_eq!(scene.package(), "foxglove");
+        assert_eq!(scene.message_type[0].name(), "SceneUpdate");
+    }
+}
