@@ -93,6 +93,12 @@ pub struct RodWork {
     /// inside it; `pressed_edges` are the segment interiors (segment, weight, contact).
     pub edge_mode: bool,
     pub pressed_edges: Vec<(usize, f64, Pressed)>,
+    /// Per node held at the end of the last accepted step: the normal part of its reaction
+    /// (N, > 0 pressing), and when stuck its margin to the friction cone μ_s R_n − |R_t|
+    /// (N); NaN when not held (or held by a body, a corner or an edge). The time of release
+    /// interpolates them against the step's end.
+    pub rn_end: Vec<f64>,
+    pub cone_end: Vec<f64>,
 }
 
 /// Variable-step BDF2 on (q, u): q₁ = ĥ_q + β u₁, u₁ = ĥ_u + β a₁ with ω = dt/dt_prev,
@@ -315,6 +321,8 @@ impl RodWork {
             edge_nodes: vec![false; n],
             edge_mode: false,
             pressed_edges: Vec::new(),
+            rn_end: vec![f64::NAN; n],
+            cone_end: vec![f64::NAN; n],
             bdf: Bdf2 {
                 s: vec![0.0; 2 * n],
                 dq_prev: vec![0.0; 2 * n],
