@@ -58,6 +58,8 @@ pub struct Summary {
     /// Steps split at a time of impact or of release (a contact-state change located inside
     /// the step).
     pub split_steps: u64,
+    /// Jacobians the per-rod Newton solves factorised (BDF2's chord steps reuse one).
+    pub jacobian_factorizations: u64,
     pub simulated_time_s: f64,
     pub wall_time_s: f64,
     pub peak_reaction_force_n: f64,
@@ -225,6 +227,7 @@ impl SummaryCollector {
             rejected_steps: stats.rejected_steps,
             first_order_node_steps: stats.first_order_node_steps,
             split_steps: stats.split_steps,
+            jacobian_factorizations: stats.jacobian_factorizations,
             simulated_time_s: stats.t,
             wall_time_s,
             peak_reaction_force_n: self.peak,

@@ -62,6 +62,9 @@ pub struct RunStats {
     pub rejected_steps: u64,
     /// Steps cut short at a time of impact or of release.
     pub split_steps: u64,
+    /// Jacobians factorised by the per-rod Newton solves, over every attempt (rejected and
+    /// split ones included; the coupled rod–body solve is not counted).
+    pub jacobian_factorizations: u64,
     /// BDF2: free node-steps estimated at first order (contact, or no smooth history), over
     /// every attempt the error estimate looked at (0 under backward Euler).
     pub first_order_node_steps: u64,

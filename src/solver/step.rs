@@ -62,6 +62,7 @@ impl Simulation {
                 force_tol: solve.force_tol,
                 step_tol: solve.step_tol,
                 max_iterations: solve.max_newton_iterations,
+                chord: dynamic && solve.integrator == Integrator::Bdf2,
             },
             max_passes: solve
                 .max_contact_passes
@@ -472,6 +473,7 @@ impl Simulation {
         self.stats.max_penetration = max_pen;
         self.stats.steps += 1;
         self.stats.newton_iterations += newton_iterations as u64;
+        self.stats.jacobian_factorizations = self.work.iter().map(|w| w.factorizations).sum();
         self.stats.contact_passes += passes as u64;
         self.step = ctx.step;
         self.t = ctx.t1;

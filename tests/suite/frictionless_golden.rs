@@ -37,6 +37,7 @@ fn strip(mut v: Value, clamped: &[Vec<bool>]) -> Value {
         "rejected_steps",
         "first_order_node_steps",
         "split_steps",
+        "jacobian_factorizations",
     ] {
         o.remove(k);
     }
