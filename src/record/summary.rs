@@ -49,6 +49,17 @@ pub struct Summary {
     pub newton_iterations: u64,
     pub contact_passes: u64,
     pub dt_backoffs: u64,
+    /// Adaptive stepping: attempts the error estimate rejected.
+    pub rejected_steps: u64,
+    /// Second-order integrator: free node-steps that dropped to first order (a contact-state
+    /// change, no smooth history), over every attempt the error estimate looked at; 0 under
+    /// backward Euler.
+    pub first_order_node_steps: u64,
+    /// Steps split at a time of impact or of release (a contact-state change located inside
+    /// the step).
+    pub split_steps: u64,
+    /// Jacobians the per-rod Newton solves factorised (BDF2's chord steps reuse one).
+    pub jacobian_factorizations: u64,
     pub simulated_time_s: f64,
     pub wall_time_s: f64,
     pub peak_reaction_force_n: f64,
@@ -213,6 +224,10 @@ impl SummaryCollector {
             newton_iterations: stats.newton_iterations,
             contact_passes: stats.contact_passes,
             dt_backoffs: stats.backoffs,
+            rejected_steps: stats.rejected_steps,
+            first_order_node_steps: stats.first_order_node_steps,
+            split_steps: stats.split_steps,
+            jacobian_factorizations: stats.jacobian_factorizations,
             simulated_time_s: stats.t,
             wall_time_s,
             peak_reaction_force_n: self.peak,

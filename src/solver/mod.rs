@@ -8,6 +8,7 @@ pub mod coupled;
 mod edges;
 pub mod newton;
 mod outputs;
+mod release;
 mod stability;
 mod step;
 
@@ -59,6 +60,11 @@ pub struct RunStats {
     pub backoffs: u64,
     /// Adaptive stepping: attempts rejected by the error estimate.
     pub rejected_steps: u64,
+    /// Steps cut short at a time of impact or of release.
+    pub split_steps: u64,
+    /// Jacobians factorised by the per-rod Newton solves, over every attempt (rejected and
+    /// split ones included; the coupled rod–body solve is not counted).
+    pub jacobian_factorizations: u64,
     /// BDF2: free node-steps estimated at first order (contact, or no smooth history), over
     /// every attempt the error estimate looked at (0 under backward Euler).
     pub first_order_node_steps: u64,
@@ -144,8 +150,14 @@ struct StepFailure {
 enum StepError {
     /// Newton failed (or the contact set did not settle) on a rod.
     Newton { rod: usize, fail: NewtonFailure },
-    /// A free node would cross an obstacle at this fraction of the step.
-    Split { theta: f64, rod: usize, node: usize },
+    /// A free node would cross an obstacle at this fraction of the step, or (`release`) a
+    /// held node's reaction crosses zero or the friction cone there.
+    Split {
+        theta: f64,
+        rod: usize,
+        node: usize,
+        release: bool,
+    },
     /// Adaptive stepping: the error estimate exceeds the tolerance; retry with `dt`.
     Reject { dt: f64 },
 }
@@ -469,13 +481,16 @@ impl Simulation {
                     }
                     return Ok(attempt);
                 }
-                Err(StepError::Split { theta, .. }) => {
+                Err(StepError::Split { theta, release, .. }) => {
                     allow_split = false;
                     split_from = Some(*dt * (1.0 - theta));
-                    (
-                        *dt * theta,
-                        "time of impact: a free node reaches an obstacle inside the step",
-                    )
+                    self.stats.split_steps += 1;
+                    let reason = if release {
+                        "time of release: a held node's reaction crosses zero (or the friction cone) inside the step"
+                    } else {
+                        "time of impact: a free node reaches an obstacle inside the step"
+                    };
+                    (*dt * theta, reason)
                 }
                 Err(StepError::Reject { dt: retry, .. }) => {
                     self.stats.rejected_steps += 1;

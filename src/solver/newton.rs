@@ -93,6 +93,15 @@ pub struct RodWork {
     /// inside it; `pressed_edges` are the segment interiors (segment, weight, contact).
     pub edge_mode: bool,
     pub pressed_edges: Vec<(usize, f64, Pressed)>,
+    /// Per node held at the end of the last accepted step: the normal part of its reaction
+    /// (N, > 0 pressing), and when stuck its margin to the friction cone μ_s R_n − |R_t|
+    /// (N); NaN when not held (or held by a body, a corner or an edge). The time of release
+    /// interpolates them against the step's end.
+    pub rn_end: Vec<f64>,
+    pub cone_end: Vec<f64>,
+    /// Jacobians factorised by [`solve`] (a counter; the run's total is in
+    /// `RunStats::jacobian_factorizations`).
+    pub factorizations: u64,
 }
 
 /// Variable-step BDF2 on (q, u): q₁ = ĥ_q + β u₁, u₁ = ĥ_u + β a₁ with ω = dt/dt_prev,
@@ -315,6 +324,9 @@ impl RodWork {
             edge_nodes: vec![false; n],
             edge_mode: false,
             pressed_edges: Vec::new(),
+            rn_end: vec![f64::NAN; n],
+            cone_end: vec![f64::NAN; n],
+            factorizations: 0,
             bdf: Bdf2 {
                 s: vec![0.0; 2 * n],
                 dq_prev: vec![0.0; 2 * n],
@@ -408,7 +420,15 @@ pub struct NewtonOptions {
     pub force_tol: f64,
     pub step_tol: f64,
     pub max_iterations: u32,
+    /// BDF2 steps: after an update that cut the residual by at least [`CHORD_CONTRACTION`],
+    /// the next update reuses the factorised Jacobian (a chord step: no Hessian assembly, no
+    /// factorisation, one back-substitution); the tolerances are unchanged.
+    pub chord: bool,
 }
+
+/// How much an update must have reduced the residual for the next one to reuse the Jacobian
+/// (and how much a chord update must reduce it, or the next update refactors).
+pub const CHORD_CONTRACTION: f64 = 0.25;
 
 /// Solve one rod's step with its current constraint set, starting from `w.dq`.
 /// `on_iter` is called after every update when `Some`. The rod must hold no contact on a free
@@ -423,6 +443,9 @@ pub fn solve(
     let ftol = opt.force_tol * w.force_scale;
     let stol = opt.step_tol * w.length_scale;
     let mut iterations = 0u32;
+    // The residual the factorised Jacobian (if any) was last used at.
+    let mut last_res = f64::INFINITY;
+    let chord = opt.chord && w.edges.is_empty();
     loop {
         // The Hessian comes with the first residual (nearly every step needs an update); after
         // an update most steps have converged, so the residual is assembled without it first
@@ -445,11 +468,18 @@ pub fn solve(
                 iterations,
             });
         }
-        if !want_hessian {
-            residual(rod, w, opt, true, iterations)?;
+        // A chord step when the last update converged fast: the residual alone (already in
+        // w.rhs) against the factors still in the band.
+        let reuse = chord && iterations > 0 && res <= CHORD_CONTRACTION * last_res;
+        if !reuse {
+            if !want_hessian {
+                residual(rod, w, opt, true, iterations)?;
+            }
+            jacobian(rod, w, opt);
+            factor(w, res, iterations)?;
+            w.factorizations += 1;
         }
-        jacobian(rod, w, opt);
-        factor(w, res, iterations)?;
+        last_res = res;
         w.band.solve(&mut w.rhs);
         if !w.edges.is_empty() {
             super::edges::border(w, res, iterations)?;

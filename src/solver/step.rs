@@ -23,6 +23,22 @@ pub(super) struct StepCtx {
     pub wants_steps: bool,
 }
 
+/// The Newton start of free DOF k (node i) in a dynamic step of size dt: the step's own
+/// update rule with the last step's acceleration a_k in place of a_{k+1}, so it is off by
+/// O(dt³) where the motion is smooth. Backward Euler: Δq = dt u + dt² a. BDF2 (a node that
+/// takes its row, see [`newton::RodWork::second_order`]): Δq = s + β² a, with s the BDF2
+/// offset (the extrapolation of the last two steps); backward Euler's start there is off
+/// by ½ dt² a and costs a second Newton iteration on most steps.
+#[inline]
+fn predictor(w: &newton::RodWork, i: usize, k: usize, dt: f64) -> f64 {
+    let b = &w.bdf;
+    if b.on && b.hist[i] && !w.edge_nodes[i] {
+        b.s[k] + b.beta * b.beta * w.a[k]
+    } else {
+        dt * w.u[k] + dt * dt * w.a[k]
+    }
+}
+
 impl Simulation {
     pub(super) fn step_ctx(
         &self,
@@ -46,6 +62,7 @@ impl Simulation {
                 force_tol: solve.force_tol,
                 step_tol: solve.step_tol,
                 max_iterations: solve.max_newton_iterations,
+                chord: dynamic && solve.integrator == Integrator::Bdf2,
             },
             max_passes: solve
                 .max_contact_passes
@@ -78,6 +95,9 @@ impl Simulation {
             newton_iterations += self.solve_pass(&ctx, pass, obs)?;
             if pass == 0 {
                 self.after_predictor(&ctx, allow_split)?;
+            }
+            if allow_split && ctx.dynamic {
+                self.split_at_release(&ctx)?;
             }
             let changed = self.update_contacts(&ctx, pass, obs);
             if changed == 0 {
@@ -130,7 +150,7 @@ impl Simulation {
                             0.0
                         };
                     } else if ctx.dynamic {
-                        w.dq[k] = ctx.dt * w.u[k] + ctx.dt * ctx.dt * w.a[k];
+                        w.dq[k] = predictor(w, i, k, ctx.dt);
                     } else {
                         w.dq[k] = 0.0;
                     }
@@ -329,10 +349,26 @@ impl Simulation {
                             theta,
                             rod: r,
                             node,
+                            release: false,
                         });
                     }
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Time of release (with time of impact): split the step where a held node's reaction
+    /// crosses zero or the friction cone, so that release is not located at step ends only.
+    fn split_at_release(&mut self, ctx: &StepCtx) -> Result<(), StepError> {
+        if let Some((theta, rod, node)) = self.release_fraction(ctx.dt) {
+            self.rollback();
+            return Err(StepError::Split {
+                theta,
+                rod,
+                node,
+                release: true,
+            });
         }
         Ok(())
     }
@@ -426,6 +462,7 @@ impl Simulation {
             w.bdf.dt_prev = if ctx.bdf2 { ctx.dt } else { 0.0 };
             w.clear_release_marks();
         }
+        self.remember_reactions();
         self.driven_velocities(ctx);
         self.accept_bodies(ctx);
         for r in 0..self.rods.len() {
@@ -436,6 +473,7 @@ impl Simulation {
         self.stats.max_penetration = max_pen;
         self.stats.steps += 1;
         self.stats.newton_iterations += newton_iterations as u64;
+        self.stats.jacobian_factorizations = self.work.iter().map(|w| w.factorizations).sum();
         self.stats.contact_passes += passes as u64;
         self.step = ctx.step;
         self.t = ctx.t1;

@@ -34,6 +34,10 @@ fn strip(mut v: Value, clamped: &[Vec<bool>]) -> Value {
         "energy_closure_rel",
         "min_eigenvalue",
         "unstable_equilibrium",
+        "rejected_steps",
+        "first_order_node_steps",
+        "split_steps",
+        "jacobian_factorizations",
     ] {
         o.remove(k);
     }
