@@ -307,89 +307,45 @@ impl Simulation {
     }
 }
 
-/// A compliant fruit's force in edge mode: for each fruit, the prong presses at the local
-/// minima of its distance from the fruit's centre along the polyline — a segment's foot of the
-/// perpendicular when it lies inside the segment, else a node both of whose segments lead
-/// away — so a contact region is one Hertz line contact wherever the nodes fall (node mode
-/// gives every node inside the fruit a contact of its own, and their number grows with the
-/// nodes). The force F n at p = (1 − s) x_i + s x_{i+1} is shared (1 − s, s); its stiffness
-/// enters the band as w_a w_b K (the foot's motion along the segment is left out of the
-/// Jacobian: Newton stays exact in its residual, its rate may drop).
+/// A compliant fruit's force in edge mode: its pressure distributed along the prong and
+/// integrated over the contact arcs (src/contact/conforming.rs), so the force does not depend
+/// on where the nodes fall. The nodal forces (F / A) G_j join the balance; with `hessian` the
+/// banded part of their stiffness, (F / A) ∂G_j/∂x_k, joins the band (the rank-one part, from
+/// the resultant's dependence on the whole overlap area, is left to the Newton iteration: the
+/// residual is exact, and the banded part is the stiffer of the two, so the iterates do not
+/// overshoot).
 pub fn press_compliant_edges(rod: &Rod, w: &mut RodWork, hessian: bool) {
     w.pressed.iter_mut().for_each(|p| *p = None);
-    w.pressed_edges.clear();
-    let n = rod.n;
+    w.pressings.clear();
     for ci in 0..w.compliant.len() {
-        let c = w.compliant[ci];
-        let q = &w.qn;
-        let foot = |i: usize| {
-            let e = [q[2 * i + 2] - q[2 * i], q[2 * i + 3] - q[2 * i + 1]];
-            let ee = e[0] * e[0] + e[1] * e[1];
-            if ee == 0.0 {
-                return 0.0;
-            }
-            (((c.center[0] - q[2 * i]) * e[0] + (c.center[1] - q[2 * i + 1]) * e[1]) / ee)
-                .clamp(0.0, 1.0)
+        let Some(p) = crate::contact::conforming::press(&w.compliant[ci], &w.qn, rod.n) else {
+            continue;
         };
-        let feet: Vec<f64> = (0..n - 1).map(foot).collect();
-        let mut hits: Vec<(usize, f64, crate::contact::compliant::Pressed)> = Vec::new();
-        for j in 0..n {
-            let left = j == 0 || feet[j - 1] >= 1.0;
-            let right = j + 1 == n || feet[j] <= 0.0;
-            if left && right && w.free_index[j] != usize::MAX {
-                if let Some(pr) = c.press([q[2 * j], q[2 * j + 1]]) {
-                    hits.push((j, 0.0, pr));
-                }
-            }
-            if j + 1 < n
-                && feet[j] > 0.0
-                && feet[j] < 1.0
-                && w.free_index[j] != usize::MAX
-                && w.free_index[j + 1] != usize::MAX
-            {
-                if let Some(pr) = c.press(edge::point(q, j, feet[j])) {
-                    hits.push((j, feet[j], pr));
-                }
-            }
-        }
-        for (i, s, pr) in hits {
-            apply_pressed(w, i, s, &pr, hessian);
-            if s == 0.0 {
-                if w.pressed[i].is_none_or(|o| pr.indentation > o.indentation) {
-                    w.pressed[i] = Some(pr);
-                }
-            } else {
-                w.pressed_edges.push((i, s, pr));
-            }
-        }
+        apply_pressing(w, &p, hessian);
+        w.pressings.push(p);
     }
 }
 
-/// F n at weight s of segment i (node i alone at s = 0) into the balance, w_a w_b K into the
-/// band.
-fn apply_pressed(
-    w: &mut RodWork,
-    i: usize,
-    s: f64,
-    pr: &crate::contact::compliant::Pressed,
-    hessian: bool,
-) {
-    let ws = [1.0 - s, s];
-    let count = if s == 0.0 { 1 } else { 2 };
-    for a in 0..count {
-        let k = 2 * (i + a);
-        w.r[k] -= ws[a] * pr.force * pr.normal[0];
-        w.r[k + 1] -= ws[a] * pr.force * pr.normal[1];
-        if !hessian {
+/// A fruit's nodal forces into the balance (r −= f), −∂f/∂x's banded part into the band.
+fn apply_pressing(w: &mut RodWork, p: &crate::contact::conforming::Pressing, hessian: bool) {
+    let last = p.first + p.g.len() - 1;
+    for j in p.first..=last {
+        let f = p.node_force(j);
+        w.r[2 * j] -= f[0];
+        w.r[2 * j + 1] -= f[1];
+        let fj = w.free_index[j];
+        if !hessian || fj == usize::MAX {
             continue;
         }
-        let fa = w.free_index[i + a];
-        for b in 0..count {
-            let fb = w.free_index[i + b];
+        for k in j.saturating_sub(1).max(p.first)..=(j + 1).min(last) {
+            let fk = w.free_index[k];
+            if fk == usize::MAX {
+                continue;
+            }
+            let b = p.band_block(j, k);
             for x in 0..2 {
                 for y in 0..2 {
-                    w.band
-                        .add(2 * fa + x, 2 * fb + y, ws[a] * ws[b] * pr.stiffness[x][y]);
+                    w.band.add(2 * fj + x, 2 * fk + y, -b[x][y]);
                 }
             }
         }

@@ -88,11 +88,11 @@ pub struct RodWork {
     pub edge_y: Vec<f64>,
     pub edge_released: Vec<(usize, usize)>,
     pub edge_nodes: Vec<bool>,
-    /// `[contact] points = "edges"`: a compliant fruit presses at the local minima of its
-    /// distance along the prong (a segment's interior point or a node), not at every node
-    /// inside it; `pressed_edges` are the segment interiors (segment, weight, contact).
+    /// `[contact] points = "edges"`: a compliant fruit presses along the prong, its pressure
+    /// integrated over the contact arcs (src/contact/conforming.rs), not at every node inside
+    /// it; `pressings` are the fruits this rod presses into at the last residual evaluation.
     pub edge_mode: bool,
-    pub pressed_edges: Vec<(usize, f64, Pressed)>,
+    pub pressings: Vec<crate::contact::conforming::Pressing>,
     /// Per node held at the end of the last accepted step: the normal part of its reaction
     /// (N, > 0 pressing), and when stuck its margin to the friction cone μ_s R_n − |R_t|
     /// (N); NaN when not held (or held by a body, a corner or an edge). The time of release
@@ -323,7 +323,7 @@ impl RodWork {
             edge_released: Vec::new(),
             edge_nodes: vec![false; n],
             edge_mode: false,
-            pressed_edges: Vec::new(),
+            pressings: Vec::new(),
             rn_end: vec![f64::NAN; n],
             cone_end: vec![f64::NAN; n],
             factorizations: 0,
