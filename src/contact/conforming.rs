@@ -141,8 +141,12 @@ pub struct Region {
     pub area: f64,
     pub depth: f64,
     pub length: f64,
-    /// Its share of the resultant, F A_r / A (N).
+    /// Its share of the law's load, F A_r / A (N): ∫ p b ds over the arc, which the pressure
+    /// figures are of.
     pub force: f64,
+    /// The magnitude of its resultant, |∫ p n b ds| (N): the force it presses the fruit with
+    /// (below `force` by the fan of the normals over the arc, O(a²/R²) for a narrow contact).
+    pub resultant: f64,
     /// The force's centre along the polyline (segment, weight) and its direction (the
     /// normalised ∫ g n ds).
     pub segment: usize,
@@ -191,10 +195,7 @@ impl Pressing {
             return [[0.0; 2]; 2];
         };
         match self.dg.get(jj).and_then(|d| d.get(o)) {
-            Some(m) => [
-                [s * m[0][0], s * m[0][1]],
-                [s * m[1][0], s * m[1][1]],
-            ],
+            Some(m) => [[s * m[0][0], s * m[0][1]], [s * m[1][0], s * m[1][1]]],
             None => [[0.0; 2]; 2],
         }
     }
@@ -290,48 +291,7 @@ pub fn press(c: &CompliantCircle, q: &[f64], n: usize) -> Option<Pressing> {
             arc_at[i - first] + (q[2 * i + 2] - q[2 * i]).hypot(q[2 * i + 3] - q[2 * i + 1]);
     }
     for &(i, lo, hi) in &pieces {
-        let (a, b) = (node(i), node(i + 1));
-        let e = [b[0] - a[0], b[1] - a[1]];
-        let l = e[0].hypot(e[1]);
-        let t = [e[0] / l, e[1] / l];
-        let p = piece(a, b, c, lo, hi);
-        let j = i - first;
-        out.area += l * p.ig;
-        // ∂L/∂x_i = −t, ∂L/∂x_{i+1} = t.
-        let dl = [[-t[0], -t[1]], t];
-        for s in 0..2 {
-            for d in 0..2 {
-                out.g[j + s][d] += l * p.ing[s][d];
-                out.h[j + s][d] += dl[s][d] * p.ig - l * p.jn[s][d];
-            }
-            for r in 0..2 {
-                let blk = &mut out.dg[j + s][1 + r - s];
-                for x in 0..2 {
-                    for y in 0..2 {
-                        blk[x][y] += l * p.m[s][r][x][y] + p.ing[s][x] * dl[r][y];
-                    }
-                }
-            }
-        }
-        // A region goes on only through a node inside the circle (a piece ending at ξ = 1
-        // followed by one starting at ξ = 0 on the next segment).
-        let joined = acc.last().is_some_and(|r| r.open && r.last == i && lo == 0.0);
-        if !joined {
-            acc.push(Acc {
-                first: i,
-                ..Acc::default()
-            });
-        }
-        let r = acc.last_mut().expect("pushed");
-        r.last = i + 1;
-        r.open = hi == 1.0;
-        r.area += l * p.ig;
-        r.moment += l * (arc_at[j] * p.ig + l * p.ixg);
-        for d in 0..2 {
-            r.gn[d] += l * (p.ing[0][d] + p.ing[1][d]);
-        }
-        r.depth = r.depth.max(p.depth);
-        r.length += l * (hi - lo);
+        add_piece(c, q, i, lo, hi, arc_at[i - first], &mut out, &mut acc);
     }
     if out.area <= 0.0 {
         return None;
@@ -346,6 +306,65 @@ pub fn press(c: &CompliantCircle, q: &[f64], n: usize) -> Option<Pressing> {
         .map(|r| region(c, first, &arc_at, out.force * r.area / out.area, r))
         .collect();
     Some(out)
+}
+
+/// Segment i's part [lo, hi] inside the fruit (s0: the arc length at node i from node
+/// `out.first`) into the sums of the pressing and of its region.
+#[allow(clippy::too_many_arguments)]
+fn add_piece(
+    c: &CompliantCircle,
+    q: &[f64],
+    i: usize,
+    lo: f64,
+    hi: f64,
+    s0: f64,
+    out: &mut Pressing,
+    acc: &mut Vec<Acc>,
+) {
+    let (a, b) = ([q[2 * i], q[2 * i + 1]], [q[2 * i + 2], q[2 * i + 3]]);
+    let e = [b[0] - a[0], b[1] - a[1]];
+    let l = e[0].hypot(e[1]);
+    let t = [e[0] / l, e[1] / l];
+    let p = piece(a, b, c, lo, hi);
+    let j = i - out.first;
+    out.area += l * p.ig;
+    // ∂L/∂x_i = −t, ∂L/∂x_{i+1} = t.
+    let dl = [[-t[0], -t[1]], t];
+    for s in 0..2 {
+        for d in 0..2 {
+            out.g[j + s][d] += l * p.ing[s][d];
+            out.h[j + s][d] += dl[s][d] * p.ig - l * p.jn[s][d];
+        }
+        for r in 0..2 {
+            let blk = &mut out.dg[j + s][1 + r - s];
+            for x in 0..2 {
+                for y in 0..2 {
+                    blk[x][y] += l * p.m[s][r][x][y] + p.ing[s][x] * dl[r][y];
+                }
+            }
+        }
+    }
+    // A region goes on only through a node inside the circle (a piece ending at ξ = 1
+    // followed by one starting at ξ = 0 on the next segment).
+    let joined = acc
+        .last()
+        .is_some_and(|r| r.open && r.last == i && lo == 0.0);
+    if !joined {
+        acc.push(Acc {
+            first: i,
+            ..Acc::default()
+        });
+    }
+    let r = acc.last_mut().expect("pushed");
+    r.last = i + 1;
+    r.open = hi == 1.0;
+    r.area += l * p.ig;
+    r.moment += l * (s0 * p.ig + l * p.ixg);
+    for d in 0..2 {
+        r.gn[d] += l * (p.ing[0][d] + p.ing[1][d]);
+    }
+    r.depth = r.depth.max(p.depth);
+    r.length += l * (hi - lo);
 }
 
 /// A region's sums while the pieces are added.
@@ -389,6 +408,7 @@ fn region(c: &CompliantCircle, first: usize, arc_at: &[f64], force: f64, r: &Acc
         depth: r.depth,
         length: r.length,
         force,
+        resultant: force / r.area * norm,
         segment: seg,
         weight,
         normal,
@@ -508,7 +528,10 @@ mod tests {
                 let fj = p.node_force(j);
                 [s[0] + fj[0], s[1] + fj[1]]
             });
-            assert!(sum[0].abs() < 1e-9 * f && (sum[1] - f).abs() < 1e-3 * f, "{sum:?}");
+            assert!(
+                sum[0].abs() < 1e-9 * f && (sum[1] - f).abs() < 1e-3 * f,
+                "{sum:?}"
+            );
         }
     }
 
@@ -544,7 +567,10 @@ mod tests {
                 } else {
                     0.0
                 };
-                assert!((da - hk).abs() < 1e-6 * p.area / 1e-3, "h[{k}][{y}]: {da} vs {hk}");
+                assert!(
+                    (da - hk).abs() < 1e-6 * p.area / 1e-3,
+                    "h[{k}][{y}]: {da} vs {hk}"
+                );
                 for j in 0..n {
                     for x in 0..2 {
                         let fd = (fp[2 * j + x] - fm[2 * j + x]) / (2.0 * h);
@@ -583,7 +609,10 @@ mod tests {
         let (f1, f2, f3, f4) = (at(28), at(82), at(244), at(730));
         println!("(force, p0, length) at 28 / 82 / 244 / 730 nodes: {f1:?} {f2:?} {f3:?} {f4:?}");
         let err = |f: (f64, f64, f64)| ((f.0 - f4.0) / f4.0).abs();
-        assert!(err(f2) < 0.15 * err(f1) && err(f3) < 0.15 * err(f2), "{f1:?} {f2:?} {f3:?}");
+        assert!(
+            err(f2) < 0.15 * err(f1) && err(f3) < 0.15 * err(f2),
+            "{f1:?} {f2:?} {f3:?}"
+        );
         assert!(err(f3) < 0.002, "{}", err(f3));
         assert!(((f3.1 - f4.1) / f4.1).abs() < 0.002);
         // It is conforming: the arc is far longer than a straight face's chord of its depth.

@@ -15,9 +15,9 @@
 
 pub mod body;
 pub mod compliant;
+pub mod conforming;
 pub mod constraint;
 pub mod detect;
-pub mod conforming;
 pub mod edge;
 pub mod friction;
 pub mod surfaces;

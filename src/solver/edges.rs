@@ -97,16 +97,18 @@ pub fn border(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFa
     let m = w.edges.len();
     let dim = w.rhs.len();
     let all: Vec<_> = (0..m).map(|j| parts(w, j)).collect();
-    w.edge_y.resize(m * dim, 0.0);
+    let mut ey = std::mem::take(&mut w.edge_y);
+    ey.resize(m * dim, 0.0);
     for j in 0..m {
-        let y = &mut w.edge_y[j * dim..(j + 1) * dim];
+        let y = &mut ey[j * dim..(j + 1) * dim];
         y.fill(0.0);
         for (fi, u, _) in all[j].iter().flatten() {
             y[2 * fi] += u[0];
             y[2 * fi + 1] += u[1];
         }
-        w.band.solve(y);
+        solve_k(w, y);
     }
+    w.edge_y = ey;
     let mut s = vec![0.0; m * m];
     let mut rhs = vec![0.0; m];
     for j in 0..m {
@@ -310,10 +312,9 @@ impl Simulation {
 /// A compliant fruit's force in edge mode: its pressure distributed along the prong and
 /// integrated over the contact arcs (src/contact/conforming.rs), so the force does not depend
 /// on where the nodes fall. The nodal forces (F / A) G_j join the balance; with `hessian` the
-/// banded part of their stiffness, (F / A) ∂G_j/∂x_k, joins the band (the rank-one part, from
-/// the resultant's dependence on the whole overlap area, is left to the Newton iteration: the
-/// residual is exact, and the banded part is the stiffer of the two, so the iterates do not
-/// overshoot).
+/// banded part of their stiffness, (F / A) ∂G_j/∂x_k, joins the band; the rank-one part, from
+/// the resultant's dependence on the whole overlap area, joins the solve by Woodbury's formula
+/// ([`prepare_conforming`], [`solve_k`]): the full Jacobian, Newton's quadratic rate.
 pub fn press_compliant_edges(rod: &Rod, w: &mut RodWork, hessian: bool) {
     w.pressed.iter_mut().for_each(|p| *p = None);
     w.pressings.clear();
@@ -323,6 +324,78 @@ pub fn press_compliant_edges(rod: &Rod, w: &mut RodWork, hessian: bool) {
         };
         apply_pressing(w, &p, hessian);
         w.pressings.push(p);
+    }
+}
+
+/// Ready the rank-one parts of the conforming contacts' stiffness for [`solve_k`] (after the
+/// band is factored): per fruit pressed, ∂r/∂x gains u vᵀ with u = −c G (rows filtered as the
+/// band's, L u) and v = h = ∂A/∂x (columns filtered, P v), c = d(F/A)/dA. Woodbury:
+/// Z = K⁻¹ U (one banded solve per fruit) and S = I + Vᵀ Z.
+pub fn prepare_conforming(rod: &Rod, w: &mut RodWork) {
+    let m = w.pressings.len();
+    let dim = w.rhs.len();
+    w.conform_z.clear();
+    w.conform_v.clear();
+    w.conform_s.clear();
+    if m == 0 {
+        return;
+    }
+    w.conform_z.resize(m * dim, 0.0);
+    w.conform_v.resize(m * dim, 0.0);
+    for (k, p) in w.pressings.iter().enumerate() {
+        let c = p.rank_one();
+        for (jj, (g, h)) in p.g.iter().zip(&p.h).enumerate() {
+            let j = p.first + jj;
+            let fj = w.free_index[j];
+            if j >= rod.n || fj == usize::MAX {
+                continue;
+            }
+            let u = super::newton::rows(-c * g[0], -c * g[1], w.contact[j]);
+            let v = super::newton::tangential(h[0], h[1], w.contact[j]);
+            w.conform_z[k * dim + 2 * fj] = u.0;
+            w.conform_z[k * dim + 2 * fj + 1] = u.1;
+            w.conform_v[k * dim + 2 * fj] = v.0;
+            w.conform_v[k * dim + 2 * fj + 1] = v.1;
+        }
+        w.band.solve(&mut w.conform_z[k * dim..(k + 1) * dim]);
+    }
+    w.conform_s = vec![0.0; m * m];
+    for a in 0..m {
+        for b in 0..m {
+            let va = &w.conform_v[a * dim..(a + 1) * dim];
+            let zb = &w.conform_z[b * dim..(b + 1) * dim];
+            let d: f64 = va.iter().zip(zb).map(|(x, y)| x * y).sum();
+            w.conform_s[a * m + b] = d + if a == b { 1.0 } else { 0.0 };
+        }
+    }
+}
+
+/// x ← (K + U Vᵀ)⁻¹ x on the factored band K with the rank-one parts readied by
+/// [`prepare_conforming`] (just K⁻¹ x when there are none).
+pub fn solve_k(w: &RodWork, x: &mut [f64]) {
+    w.band.solve(x);
+    let m = w.conform_s.len().isqrt();
+    if m == 0 || m * m != w.conform_s.len() {
+        return;
+    }
+    let dim = x.len();
+    let mut t: Vec<f64> = (0..m)
+        .map(|a| {
+            w.conform_v[a * dim..(a + 1) * dim]
+                .iter()
+                .zip(x.iter())
+                .map(|(v, y)| v * y)
+                .sum()
+        })
+        .collect();
+    let mut s = w.conform_s.clone();
+    if !dense_solve(&mut s, &mut t, m) {
+        return;
+    }
+    for (a, ta) in t.iter().enumerate() {
+        for (d, xd) in x.iter_mut().enumerate() {
+            *xd -= w.conform_z[a * dim + d] * ta;
+        }
     }
 }
 

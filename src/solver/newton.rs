@@ -102,6 +102,11 @@ pub struct RodWork {
     /// Jacobians factorised by [`solve`] (a counter; the run's total is in
     /// `RunStats::jacobian_factorizations`).
     pub factorizations: u64,
+    /// The rank-one parts of their stiffness for the solve (Woodbury: Z = K⁻¹ U, V, and
+    /// S = I + Vᵀ Z, one column per fruit pressed; src/solver/edges.rs).
+    pub conform_z: Vec<f64>,
+    pub conform_v: Vec<f64>,
+    pub conform_s: Vec<f64>,
 }
 
 /// Variable-step BDF2 on (q, u): q₁ = ĥ_q + β u₁, u₁ = ĥ_u + β a₁ with ω = dt/dt_prev,
@@ -327,6 +332,9 @@ impl RodWork {
             rn_end: vec![f64::NAN; n],
             cone_end: vec![f64::NAN; n],
             factorizations: 0,
+            conform_z: Vec::new(),
+            conform_v: Vec::new(),
+            conform_s: Vec::new(),
             bdf: Bdf2 {
                 s: vec![0.0; 2 * n],
                 dq_prev: vec![0.0; 2 * n],
@@ -477,10 +485,13 @@ pub fn solve(
             }
             jacobian(rod, w, opt);
             factor(w, res, iterations)?;
+            super::edges::prepare_conforming(rod, w);
             w.factorizations += 1;
         }
         last_res = res;
-        w.band.solve(&mut w.rhs);
+        let mut rhs = std::mem::take(&mut w.rhs);
+        super::edges::solve_k(w, &mut rhs);
+        w.rhs = rhs;
         if !w.edges.is_empty() {
             super::edges::border(w, res, iterations)?;
         }

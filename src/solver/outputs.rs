@@ -281,9 +281,9 @@ impl Simulation {
         })
     }
 
-    /// A conforming compliant contact (edge mode): one connected contact arc, its share of
-    /// the fruit's force at the force's centre on the face, its deepest overlap, and the
-    /// Hertz half-width and peak pressure of that force over the arc.
+    /// A conforming compliant contact (edge mode): one connected contact arc, its resultant at
+    /// the force's centre on the face, its deepest overlap, and the Hertz half-width and peak
+    /// pressure of its load over the arc.
     fn region_view(&self, r: usize, g: &crate::contact::conforming::Region) -> ContactView {
         let bruise = self.scenario.materials[g.obstacle]
             .as_ref()
@@ -302,7 +302,7 @@ impl Simulation {
             body: usize::MAX,
             point: [x[0] - off * g.normal[0], x[1] - off * g.normal[1]],
             normal: g.normal,
-            normal_force: g.force,
+            normal_force: g.resultant,
             indentation: g.depth,
             half_width: g.half_width,
             peak_pressure: g.peak_pressure,

@@ -768,3 +768,181 @@ fn the_compliant_grasps_contact_force_converges_in_nodes_with_edge_contact() {
     // The same refinement moves the node-only figure by more than ten times as much.
     assert!((n28.0 - n82.0).abs() > 10.0 * (e28.0 - e82.0).abs());
 }
+
+/// A soft strip (E = 1 MPa, 12 cm, 2 cm × 5 mm) laid over a compliant apple (r = 5 cm) and
+/// pulled down 1 cm at both ends: it wraps the fruit over centimetres (a conforming contact,
+/// the arc far longer than a Hertz contact's). `nodes` = 13 / 37 / 109 keep the old nodes.
+fn strip_over_apple(nodes: usize) -> String {
+    format!(
+        r#"
+name = "strip-over-apple"
+[solve]
+t_end = 0.1
+dt = 1e-4
+gravity = [0.0, 0.0]
+integrator = "bdf2"
+[contact]
+surface = "face"
+points = "edges"
+[[rod]]
+name = "strip"
+nodes = {nodes}
+shape = {{ kind = "straight", start = [-0.06, 0.0526], end = [0.06, 0.0526] }}
+E = 1e6
+nu = 0.5
+section = {{ kind = "rect", b = 0.02, h = 0.005 }}
+mass = 0.01
+clamped = [0, {last}]
+drive = {{ kind = "constant_velocity", velocity = [0.0, -0.1], stop_travel = 0.01 }}
+[[obstacle]]
+kind = "circle"
+center = [0.0, 0.0]
+radius = 0.05
+material = "apple"
+"#,
+        last = nodes - 1
+    )
+}
+
+/// Per run: the last step's number of contacts and its first contact.
+#[derive(Default)]
+struct Wrap {
+    count: usize,
+    last: Option<gripsim::events::ContactView>,
+}
+
+impl Observer for Wrap {
+    fn on_event(&mut self, e: &Event<'_>) {
+        if let Event::StepEnd { contacts, .. } = e {
+            self.count = contacts.len();
+            self.last = contacts.first().copied();
+        }
+    }
+}
+
+fn wrap(nodes: usize) -> gripsim::events::ContactView {
+    let sc = scenario(&strip_over_apple(nodes), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut w = Wrap::default();
+    sim.run(&mut w).unwrap_or_else(|e| panic!("{e}"));
+    // Wrapped: one contact arc at the end (the first touch may come as two arcs that merge).
+    assert_eq!(w.count, 1, "{nodes} nodes: one contact region");
+    w.last.expect("the strip presses the apple")
+}
+
+/// Issue 11: a conforming contact converges in nodes. The strip wraps the apple over an arc
+/// many times a Hertz contact's width; in edge mode the fruit's pressure is integrated over
+/// that arc (src/contact/conforming.rs), so its force, peak pressure, width and indentation
+/// are properties of the grasp: they converge as the nodes are tripled.
+#[test]
+fn a_conforming_contact_converges_in_nodes() {
+    let c: Vec<_> = [13, 37, 109].iter().map(|&n| wrap(n)).collect();
+    for (n, v) in [13, 37, 109].iter().zip(&c) {
+        println!(
+            "{n} nodes: F = {:.6} N, p0 = {:.1} Pa, a = {:.4e} m, indentation {:.4e} m, \
+             at {:?} (segment {}, weight {:.3})",
+            v.normal_force,
+            v.peak_pressure,
+            v.half_width,
+            v.indentation,
+            v.point,
+            v.segment,
+            v.weight
+        );
+    }
+    let rel = |f: &dyn Fn(&gripsim::events::ContactView) -> f64| {
+        (
+            ((f(&c[0]) - f(&c[2])) / f(&c[2])).abs(),
+            ((f(&c[1]) - f(&c[2])) / f(&c[2])).abs(),
+        )
+    };
+    for (name, (e1, e2)) in [
+        ("force", rel(&|v| v.normal_force)),
+        ("peak pressure", rel(&|v| v.peak_pressure)),
+        ("half-width", rel(&|v| v.half_width)),
+        ("indentation", rel(&|v| v.indentation)),
+    ] {
+        println!(
+            "{name}: 13 → 109 nodes {:.4} %, 37 → 109 nodes {:.4} %",
+            100.0 * e1,
+            100.0 * e2
+        );
+        assert!(e2 < 0.01, "{name}: {e2}");
+        assert!(e2 < 0.25 * e1, "{name}: {e1} → {e2}");
+    }
+    // Conforming: the contact is far wider than a narrow (Hertz) contact of the same force,
+    // and its peak pressure lower.
+    let (a, p0) = hertz(c[2].normal_force, e_star(1e6, 0.5, 1.5e6, 0.3), 0.05, 0.02);
+    println!("Hertz for the same force: a = {a:.4e} m, p0 = {p0:.1} Pa");
+    assert!(c[2].half_width > 3.0 * a && c[2].peak_pressure < p0 / 3.0);
+}
+
+fn settle_with(text: &str, sets: &[&str]) -> Last {
+    let sc = scenario(text, sets).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut last = Last::default();
+    sim.run(&mut last).unwrap_or_else(|e| panic!("{e}"));
+    last
+}
+
+/// The conforming law (edge mode) keeps the Hertz limit: a stiff straight punch at small load
+/// is a narrow contact, and its one contact region has Hertz's half-width and peak pressure and
+/// Johnson's approach, as with node contact.
+#[test]
+fn the_conforming_law_gives_hertz_for_a_punch() {
+    let (r, b, p) = (0.05, 0.02, 0.5);
+    let apple = "material = { E = 1.5e6, nu = 0.3, bruise_pressure = 1e5 }";
+    let last = settle_with(&punch(apple, 1e9, p), &["contact.points=edges"]);
+    assert_eq!(last.contacts.len(), 1, "one contact: {:?}", last.contacts);
+    let c = &last.contacts[0];
+    let es = e_star(1e9, 0.5, 1.5e6, 0.3);
+    let (a, p0) = hertz(p, es, r, b);
+    let delta = 2.0 * p / (PI * b * es) * ((4.0 * r / a).ln() - 0.5);
+    println!(
+        "edges, P = {p} N: F = {:.9} N; a = {:.6e} m (Hertz {a:.6e}); p0 = {:.6e} Pa (Hertz \
+         {p0:.6e}); indentation {:.6e} m (law {delta:.6e}); segment {} weight {}",
+        c.normal_force, c.half_width, c.peak_pressure, c.indentation, c.segment, c.weight
+    );
+    assert!((c.normal_force - p).abs() < 1e-6 * p);
+    assert!((c.half_width - a).abs() < 0.02 * a);
+    assert!((c.peak_pressure - p0).abs() < 0.02 * p0);
+    assert!((c.indentation - delta).abs() < 0.02 * delta);
+    // At the punch's middle, on the face.
+    assert!(c.point[0].abs() < 1e-9, "{:?}", c.point);
+    assert!((c.point[1] - (r - c.indentation)).abs() < 1e-3 * delta);
+}
+
+/// The conforming law's E → ∞ limit is the rigid edge-mode solver's.
+#[test]
+fn the_conforming_law_approaches_the_rigid_solver() {
+    let p = 0.5;
+    let edges = ["contact.points=edges"];
+    let rigid = settle_with(&punch("", 1e12, p), &edges);
+    let mut last_gap = f64::INFINITY;
+    for e in [1e6, 1e8, 1e10, 1e12] {
+        let soft = settle_with(
+            &punch(
+                &format!("material = {{ E = {e:e}, nu = 0.3, bruise_pressure = 1e5 }}"),
+                1e12,
+                p,
+            ),
+            &edges,
+        );
+        let worst = soft
+            .q
+            .iter()
+            .zip(&rigid.q)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let c = &soft.contacts[0];
+        println!(
+            "edges, E_fruit = {e:e} Pa: indentation {:.3e} m, largest node offset from the \
+             rigid solution {worst:.3e} m, force {:.9} N",
+            c.indentation, c.normal_force
+        );
+        assert!((c.normal_force - p).abs() < 1e-3 * p);
+        assert!(worst < last_gap, "monotone approach");
+        last_gap = worst;
+    }
+    assert!(last_gap < 1e-9, "{last_gap}");
+}
