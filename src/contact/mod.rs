@@ -10,9 +10,12 @@
 //! - [`edge`]: a segment's interior point held on an obstacle (edge contact).
 //! - [`body`]: a free body's own contacts with fixed obstacles (a fruit on a table).
 //! - [`compliant`]: a fruit of elastic material: the Hertz line-contact law, solved implicitly.
+//! - [`conforming`]: the same fruit pressed along the prong (edge mode): a pressure
+//!   distributed over the contact arc, one contact per connected arc.
 
 pub mod body;
 pub mod compliant;
+pub mod conforming;
 pub mod constraint;
 pub mod detect;
 pub mod edge;

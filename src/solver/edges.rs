@@ -97,16 +97,18 @@ pub fn border(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFa
     let m = w.edges.len();
     let dim = w.rhs.len();
     let all: Vec<_> = (0..m).map(|j| parts(w, j)).collect();
-    w.edge_y.resize(m * dim, 0.0);
+    let mut ey = std::mem::take(&mut w.edge_y);
+    ey.resize(m * dim, 0.0);
     for j in 0..m {
-        let y = &mut w.edge_y[j * dim..(j + 1) * dim];
+        let y = &mut ey[j * dim..(j + 1) * dim];
         y.fill(0.0);
         for (fi, u, _) in all[j].iter().flatten() {
             y[2 * fi] += u[0];
             y[2 * fi + 1] += u[1];
         }
-        w.band.solve(y);
+        solve_k(w, y);
     }
+    w.edge_y = ey;
     let mut s = vec![0.0; m * m];
     let mut rhs = vec![0.0; m];
     for j in 0..m {
@@ -307,89 +309,116 @@ impl Simulation {
     }
 }
 
-/// A compliant fruit's force in edge mode: for each fruit, the prong presses at the local
-/// minima of its distance from the fruit's centre along the polyline — a segment's foot of the
-/// perpendicular when it lies inside the segment, else a node both of whose segments lead
-/// away — so a contact region is one Hertz line contact wherever the nodes fall (node mode
-/// gives every node inside the fruit a contact of its own, and their number grows with the
-/// nodes). The force F n at p = (1 − s) x_i + s x_{i+1} is shared (1 − s, s); its stiffness
-/// enters the band as w_a w_b K (the foot's motion along the segment is left out of the
-/// Jacobian: Newton stays exact in its residual, its rate may drop).
+/// A compliant fruit's force in edge mode: its pressure distributed along the prong and
+/// integrated over the contact arcs (src/contact/conforming.rs), so the force does not depend
+/// on where the nodes fall. The nodal forces (F / A) G_j join the balance; with `hessian` the
+/// banded part of their stiffness, (F / A) ∂G_j/∂x_k, joins the band; the rank-one part, from
+/// the resultant's dependence on the whole overlap area, joins the solve by Woodbury's formula
+/// ([`prepare_conforming`], [`solve_k`]): the full Jacobian, Newton's quadratic rate.
 pub fn press_compliant_edges(rod: &Rod, w: &mut RodWork, hessian: bool) {
     w.pressed.iter_mut().for_each(|p| *p = None);
-    w.pressed_edges.clear();
-    let n = rod.n;
+    w.pressings.clear();
     for ci in 0..w.compliant.len() {
-        let c = w.compliant[ci];
-        let q = &w.qn;
-        let foot = |i: usize| {
-            let e = [q[2 * i + 2] - q[2 * i], q[2 * i + 3] - q[2 * i + 1]];
-            let ee = e[0] * e[0] + e[1] * e[1];
-            if ee == 0.0 {
-                return 0.0;
-            }
-            (((c.center[0] - q[2 * i]) * e[0] + (c.center[1] - q[2 * i + 1]) * e[1]) / ee)
-                .clamp(0.0, 1.0)
+        let Some(p) = crate::contact::conforming::press(&w.compliant[ci], &w.qn, rod.n) else {
+            continue;
         };
-        let feet: Vec<f64> = (0..n - 1).map(foot).collect();
-        let mut hits: Vec<(usize, f64, crate::contact::compliant::Pressed)> = Vec::new();
-        for j in 0..n {
-            let left = j == 0 || feet[j - 1] >= 1.0;
-            let right = j + 1 == n || feet[j] <= 0.0;
-            if left && right && w.free_index[j] != usize::MAX {
-                if let Some(pr) = c.press([q[2 * j], q[2 * j + 1]]) {
-                    hits.push((j, 0.0, pr));
-                }
+        apply_pressing(w, &p, hessian);
+        w.pressings.push(p);
+    }
+}
+
+/// Ready the rank-one parts of the conforming contacts' stiffness for [`solve_k`] (after the
+/// band is factored): per fruit pressed, ∂r/∂x gains u vᵀ with u = −c G (rows filtered as the
+/// band's, L u) and v = h = ∂A/∂x (columns filtered, P v), c = d(F/A)/dA. Woodbury:
+/// Z = K⁻¹ U (one banded solve per fruit) and S = I + Vᵀ Z.
+pub fn prepare_conforming(rod: &Rod, w: &mut RodWork) {
+    let m = w.pressings.len();
+    let dim = w.rhs.len();
+    w.conform_z.clear();
+    w.conform_v.clear();
+    w.conform_s.clear();
+    if m == 0 {
+        return;
+    }
+    w.conform_z.resize(m * dim, 0.0);
+    w.conform_v.resize(m * dim, 0.0);
+    for (k, p) in w.pressings.iter().enumerate() {
+        let c = p.rank_one();
+        for (jj, (g, h)) in p.g.iter().zip(&p.h).enumerate() {
+            let j = p.first + jj;
+            let fj = w.free_index[j];
+            if j >= rod.n || fj == usize::MAX {
+                continue;
             }
-            if j + 1 < n
-                && feet[j] > 0.0
-                && feet[j] < 1.0
-                && w.free_index[j] != usize::MAX
-                && w.free_index[j + 1] != usize::MAX
-            {
-                if let Some(pr) = c.press(edge::point(q, j, feet[j])) {
-                    hits.push((j, feet[j], pr));
-                }
-            }
+            let u = super::newton::rows(-c * g[0], -c * g[1], w.contact[j]);
+            let v = super::newton::tangential(h[0], h[1], w.contact[j]);
+            w.conform_z[k * dim + 2 * fj] = u.0;
+            w.conform_z[k * dim + 2 * fj + 1] = u.1;
+            w.conform_v[k * dim + 2 * fj] = v.0;
+            w.conform_v[k * dim + 2 * fj + 1] = v.1;
         }
-        for (i, s, pr) in hits {
-            apply_pressed(w, i, s, &pr, hessian);
-            if s == 0.0 {
-                if w.pressed[i].is_none_or(|o| pr.indentation > o.indentation) {
-                    w.pressed[i] = Some(pr);
-                }
-            } else {
-                w.pressed_edges.push((i, s, pr));
-            }
+        w.band.solve(&mut w.conform_z[k * dim..(k + 1) * dim]);
+    }
+    w.conform_s = vec![0.0; m * m];
+    for a in 0..m {
+        for b in 0..m {
+            let va = &w.conform_v[a * dim..(a + 1) * dim];
+            let zb = &w.conform_z[b * dim..(b + 1) * dim];
+            let d: f64 = va.iter().zip(zb).map(|(x, y)| x * y).sum();
+            w.conform_s[a * m + b] = d + if a == b { 1.0 } else { 0.0 };
         }
     }
 }
 
-/// F n at weight s of segment i (node i alone at s = 0) into the balance, w_a w_b K into the
-/// band.
-fn apply_pressed(
-    w: &mut RodWork,
-    i: usize,
-    s: f64,
-    pr: &crate::contact::compliant::Pressed,
-    hessian: bool,
-) {
-    let ws = [1.0 - s, s];
-    let count = if s == 0.0 { 1 } else { 2 };
-    for a in 0..count {
-        let k = 2 * (i + a);
-        w.r[k] -= ws[a] * pr.force * pr.normal[0];
-        w.r[k + 1] -= ws[a] * pr.force * pr.normal[1];
-        if !hessian {
+/// x ← (K + U Vᵀ)⁻¹ x on the factored band K with the rank-one parts readied by
+/// [`prepare_conforming`] (just K⁻¹ x when there are none).
+pub fn solve_k(w: &RodWork, x: &mut [f64]) {
+    w.band.solve(x);
+    let m = w.conform_s.len().isqrt();
+    if m == 0 || m * m != w.conform_s.len() {
+        return;
+    }
+    let dim = x.len();
+    let mut t: Vec<f64> = (0..m)
+        .map(|a| {
+            w.conform_v[a * dim..(a + 1) * dim]
+                .iter()
+                .zip(x.iter())
+                .map(|(v, y)| v * y)
+                .sum()
+        })
+        .collect();
+    let mut s = w.conform_s.clone();
+    if !dense_solve(&mut s, &mut t, m) {
+        return;
+    }
+    for (a, ta) in t.iter().enumerate() {
+        for (d, xd) in x.iter_mut().enumerate() {
+            *xd -= w.conform_z[a * dim + d] * ta;
+        }
+    }
+}
+
+/// A fruit's nodal forces into the balance (r −= f), −∂f/∂x's banded part into the band.
+fn apply_pressing(w: &mut RodWork, p: &crate::contact::conforming::Pressing, hessian: bool) {
+    let last = p.first + p.g.len() - 1;
+    for j in p.first..=last {
+        let f = p.node_force(j);
+        w.r[2 * j] -= f[0];
+        w.r[2 * j + 1] -= f[1];
+        let fj = w.free_index[j];
+        if !hessian || fj == usize::MAX {
             continue;
         }
-        let fa = w.free_index[i + a];
-        for b in 0..count {
-            let fb = w.free_index[i + b];
+        for k in j.saturating_sub(1).max(p.first)..=(j + 1).min(last) {
+            let fk = w.free_index[k];
+            if fk == usize::MAX {
+                continue;
+            }
+            let b = p.band_block(j, k);
             for x in 0..2 {
                 for y in 0..2 {
-                    w.band
-                        .add(2 * fa + x, 2 * fb + y, ws[a] * ws[b] * pr.stiffness[x][y]);
+                    w.band.add(2 * fj + x, 2 * fk + y, -b[x][y]);
                 }
             }
         }

@@ -88,11 +88,11 @@ pub struct RodWork {
     pub edge_y: Vec<f64>,
     pub edge_released: Vec<(usize, usize)>,
     pub edge_nodes: Vec<bool>,
-    /// `[contact] points = "edges"`: a compliant fruit presses at the local minima of its
-    /// distance along the prong (a segment's interior point or a node), not at every node
-    /// inside it; `pressed_edges` are the segment interiors (segment, weight, contact).
+    /// `[contact] points = "edges"`: a compliant fruit presses along the prong, its pressure
+    /// integrated over the contact arcs (src/contact/conforming.rs), not at every node inside
+    /// it; `pressings` are the fruits this rod presses into at the last residual evaluation.
     pub edge_mode: bool,
-    pub pressed_edges: Vec<(usize, f64, Pressed)>,
+    pub pressings: Vec<crate::contact::conforming::Pressing>,
     /// Per node held at the end of the last accepted step: the normal part of its reaction
     /// (N, > 0 pressing), and when stuck its margin to the friction cone μ_s R_n − |R_t|
     /// (N); NaN when not held (or held by a body, a corner or an edge). The time of release
@@ -102,6 +102,11 @@ pub struct RodWork {
     /// Jacobians factorised by [`solve`] (a counter; the run's total is in
     /// `RunStats::jacobian_factorizations`).
     pub factorizations: u64,
+    /// The rank-one parts of their stiffness for the solve (Woodbury: Z = K⁻¹ U, V, and
+    /// S = I + Vᵀ Z, one column per fruit pressed; src/solver/edges.rs).
+    pub conform_z: Vec<f64>,
+    pub conform_v: Vec<f64>,
+    pub conform_s: Vec<f64>,
 }
 
 /// Variable-step BDF2 on (q, u): q₁ = ĥ_q + β u₁, u₁ = ĥ_u + β a₁ with ω = dt/dt_prev,
@@ -323,10 +328,13 @@ impl RodWork {
             edge_released: Vec::new(),
             edge_nodes: vec![false; n],
             edge_mode: false,
-            pressed_edges: Vec::new(),
+            pressings: Vec::new(),
             rn_end: vec![f64::NAN; n],
             cone_end: vec![f64::NAN; n],
             factorizations: 0,
+            conform_z: Vec::new(),
+            conform_v: Vec::new(),
+            conform_s: Vec::new(),
             bdf: Bdf2 {
                 s: vec![0.0; 2 * n],
                 dq_prev: vec![0.0; 2 * n],
@@ -477,10 +485,13 @@ pub fn solve(
             }
             jacobian(rod, w, opt);
             factor(w, res, iterations)?;
+            super::edges::prepare_conforming(rod, w);
             w.factorizations += 1;
         }
         last_res = res;
-        w.band.solve(&mut w.rhs);
+        let mut rhs = std::mem::take(&mut w.rhs);
+        super::edges::solve_k(w, &mut rhs);
+        w.rhs = rhs;
         if !w.edges.is_empty() {
             super::edges::border(w, res, iterations)?;
         }

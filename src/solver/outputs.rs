@@ -176,9 +176,9 @@ impl Simulation {
                 let v = self.edge_contact_view(r, j);
                 self.contact_out.push(v);
             }
-            for j in 0..self.work[r].pressed_edges.len() {
-                let (i, s, p) = self.work[r].pressed_edges[j];
-                if let Some(v) = self.pressed_view(r, i, s, &p) {
+            for j in 0..self.work[r].pressings.len() {
+                for k in 0..self.work[r].pressings[j].regions.len() {
+                    let v = self.region_view(r, &self.work[r].pressings[j].regions[k]);
                     self.contact_out.push(v);
                 }
             }
@@ -255,29 +255,14 @@ impl Simulation {
     /// Node (r, i)'s contact with a compliant fruit, if it presses into one: its force, the
     /// indentation, and the Hertz half-width and peak pressure of that force.
     fn compliant_contact_view(&self, r: usize, i: usize) -> Option<ContactView> {
-        let p = self.work[r].pressed[i]?;
-        self.pressed_view(r, i, 0.0, &p)
-    }
-
-    /// A compliant contact at weight s of segment i (node i itself at s = 0).
-    fn pressed_view(
-        &self,
-        r: usize,
-        i: usize,
-        s: f64,
-        p: &crate::contact::compliant::Pressed,
-    ) -> Option<ContactView> {
         let w = &self.work[r];
+        let p = w.pressed[i]?;
         let law = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?.law;
         let bruise = self.scenario.materials[p.obstacle]
             .as_ref()
             .map_or(0.0, |m| m.bruise_pressure);
         let off = self.rod_offset[r];
-        let x = if s == 0.0 {
-            [w.q[2 * i], w.q[2 * i + 1]]
-        } else {
-            crate::contact::edge::point(&w.q, i, s)
-        };
+        let x = [w.q[2 * i], w.q[2 * i + 1]];
         Some(ContactView {
             rod: r,
             node: i,
@@ -292,10 +277,41 @@ impl Simulation {
             peak_pressure: law.peak_pressure(p.force),
             bruise_pressure: bruise,
             bruise_half_width: law.width_above(p.force, bruise),
-            segment: if s == 0.0 { usize::MAX } else { i },
-            weight: s,
             ..RIGID
         })
+    }
+
+    /// A conforming compliant contact (edge mode): one connected contact arc, its resultant at
+    /// the force's centre on the face, its deepest overlap, and the Hertz half-width and peak
+    /// pressure of its load over the arc.
+    fn region_view(&self, r: usize, g: &crate::contact::conforming::Region) -> ContactView {
+        let bruise = self.scenario.materials[g.obstacle]
+            .as_ref()
+            .map_or(0.0, |m| m.bruise_pressure);
+        let x = crate::contact::edge::point(&self.work[r].q, g.segment, g.weight);
+        let off = self.rod_offset[r];
+        let above = if g.peak_pressure > bruise {
+            g.half_width * (1.0 - (bruise / g.peak_pressure).powi(2)).sqrt()
+        } else {
+            0.0
+        };
+        ContactView {
+            rod: r,
+            node: g.segment,
+            obstacle: g.obstacle,
+            body: usize::MAX,
+            point: [x[0] - off * g.normal[0], x[1] - off * g.normal[1]],
+            normal: g.normal,
+            normal_force: g.resultant,
+            indentation: g.depth,
+            half_width: g.half_width,
+            peak_pressure: g.peak_pressure,
+            bruise_pressure: bruise,
+            bruise_half_width: above,
+            segment: g.segment,
+            weight: g.weight,
+            ..RIGID
+        }
     }
 
     fn body_contact_views(&mut self, bi: usize, dt: f64) {
@@ -368,7 +384,7 @@ const RIGID: ContactView = ContactView {
 
 /// A free node's contact force at the end of a step: its eq. 2 reaction `r` when a constraint
 /// (its own or an edge's) holds it, plus a compliant fruit's force on it and its share of a
-/// compliant contact between it and a neighbour (edge mode).
+/// conforming compliant contact's nodal force (edge mode).
 fn contact_force(
     w: &super::newton::RodWork,
     i: usize,
@@ -383,14 +399,10 @@ fn contact_force(
         g[0] += p.force * p.normal[0];
         g[1] += p.force * p.normal[1];
     }
-    for (j, s, p) in w.pressed_edges.iter().filter(|_| !initial) {
-        let share = match i.checked_sub(*j) {
-            Some(0) => 1.0 - s,
-            Some(1) => *s,
-            _ => continue,
-        };
-        g[0] += share * p.force * p.normal[0];
-        g[1] += share * p.force * p.normal[1];
+    for p in w.pressings.iter().filter(|_| !initial) {
+        let f = p.node_force(i);
+        g[0] += f[0];
+        g[1] += f[1];
     }
     g
 }
@@ -415,8 +427,9 @@ fn held_by(
     edge.map(|e| (e.normal, e.obstacle))
         .or(pressed.map(|p| (p.normal, p.obstacle)))
         .or(w
-            .pressed_edges
+            .pressings
             .iter()
-            .find(|(j, _, _)| !initial && (*j == i || *j + 1 == i))
-            .map(|(_, _, p)| (p.normal, p.obstacle)))
+            .flat_map(|p| &p.regions)
+            .find(|g| !initial && g.first <= i && i <= g.last)
+            .map(|g| (g.normal, g.obstacle)))
 }

@@ -768,3 +768,119 @@ fn the_compliant_grasps_contact_force_converges_in_nodes_with_edge_contact() {
     // The same refinement moves the node-only figure by more than ten times as much.
     assert!((n28.0 - n82.0).abs() > 10.0 * (e28.0 - e82.0).abs());
 }
+
+/// Issue 11: a conforming contact converges in nodes. The soft seed prong (E = 1 MPa) wraps the
+/// 5 cm apple (its distance along the prong is nearly flat over centimetres): with one Hertz
+/// contact per distance minimum its peak force was 25.7 / 16.1 / 18.3 / 14.8 N at 10 / 28 / 82
+/// / 244 nodes; with the pressure integrated over the contact arc (src/contact/conforming.rs)
+/// it converges (docs/seed-study.md: 17.97 / 17.16 / 17.13 / 17.10 N).
+#[test]
+fn a_conforming_contact_converges_in_nodes() {
+    let text = std::fs::read_to_string(crate::common::scenario("seed-grasp-r5"))
+        .unwrap()
+        .replace("node_mass = 0.01", "mass = 0.1");
+    let peak = |nodes: usize, clamped: &str| {
+        let sets: Vec<String> = [
+            "contact.surface=face",
+            "contact.points=edges",
+            "obstacle.0.center=[-0.055,-0.05]",
+            "obstacle.0.material=apple",
+            "rod.0.E=1e6",
+            "solve.integrator=bdf2",
+            "solve.t_end=0.08",
+            "rod.0.drive.stop_travel=0.025",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([
+            format!("rod.0.nodes={nodes}"),
+            format!("rod.0.clamped={clamped}"),
+        ])
+        .collect();
+        let sc = Scenario::from_str(&text, "r5-mass.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&sc);
+        let mut col = gripsim::record::summary::SummaryCollector::new();
+        sim.run(&mut col).unwrap_or_else(|e| panic!("{e}"));
+        let c = col.finish(&sim.stats, 0.0).contact_pressure.unwrap();
+        (
+            c.peak_contact_force_n,
+            c.max_pressure_pa,
+            c.max_indentation_m,
+        )
+    };
+    let (a, b) = (peak(28, "[0,1,2]"), peak(82, "[0,1,2,3,4,5]"));
+    println!("soft seed prong on the 5 cm apple, 28 → 82 nodes: {a:?} → {b:?}");
+    assert!((a.0 - b.0).abs() < 0.005 * b.0, "force");
+    assert!((a.1 - b.1).abs() < 0.015 * b.1, "peak pressure");
+    assert!((a.2 - b.2).abs() < 0.02 * b.2, "indentation");
+}
+
+fn settle_with(text: &str, sets: &[&str]) -> Last {
+    let sc = scenario(text, sets).unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut last = Last::default();
+    sim.run(&mut last).unwrap_or_else(|e| panic!("{e}"));
+    last
+}
+
+/// The conforming law (edge mode) keeps the Hertz limit: a stiff straight punch at small load
+/// is a narrow contact, and its one contact region has Hertz's half-width and peak pressure and
+/// Johnson's approach, as with node contact.
+#[test]
+fn the_conforming_law_gives_hertz_for_a_punch() {
+    let (r, b, p) = (0.05, 0.02, 0.5);
+    let apple = "material = { E = 1.5e6, nu = 0.3, bruise_pressure = 1e5 }";
+    let last = settle_with(&punch(apple, 1e9, p), &["contact.points=edges"]);
+    assert_eq!(last.contacts.len(), 1, "one contact: {:?}", last.contacts);
+    let c = &last.contacts[0];
+    let es = e_star(1e9, 0.5, 1.5e6, 0.3);
+    let (a, p0) = hertz(p, es, r, b);
+    let delta = 2.0 * p / (PI * b * es) * ((4.0 * r / a).ln() - 0.5);
+    println!(
+        "edges, P = {p} N: F = {:.9} N; a = {:.6e} m (Hertz {a:.6e}); p0 = {:.6e} Pa (Hertz \
+         {p0:.6e}); indentation {:.6e} m (law {delta:.6e}); segment {} weight {}",
+        c.normal_force, c.half_width, c.peak_pressure, c.indentation, c.segment, c.weight
+    );
+    assert!((c.normal_force - p).abs() < 1e-6 * p);
+    assert!((c.half_width - a).abs() < 0.02 * a);
+    assert!((c.peak_pressure - p0).abs() < 0.02 * p0);
+    assert!((c.indentation - delta).abs() < 0.02 * delta);
+    // At the punch's middle, on the face.
+    assert!(c.point[0].abs() < 1e-9, "{:?}", c.point);
+    assert!((c.point[1] - (r - c.indentation)).abs() < 1e-3 * delta);
+}
+
+/// The conforming law's E → ∞ limit is the rigid edge-mode solver's.
+#[test]
+fn the_conforming_law_approaches_the_rigid_solver() {
+    let p = 0.5;
+    let edges = ["contact.points=edges"];
+    let rigid = settle_with(&punch("", 1e12, p), &edges);
+    let mut last_gap = f64::INFINITY;
+    for e in [1e6, 1e8, 1e10, 1e12] {
+        let soft = settle_with(
+            &punch(
+                &format!("material = {{ E = {e:e}, nu = 0.3, bruise_pressure = 1e5 }}"),
+                1e12,
+                p,
+            ),
+            &edges,
+        );
+        let worst = soft
+            .q
+            .iter()
+            .zip(&rigid.q)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let c = &soft.contacts[0];
+        println!(
+            "edges, E_fruit = {e:e} Pa: indentation {:.3e} m, largest node offset from the \
+             rigid solution {worst:.3e} m, force {:.9} N",
+            c.indentation, c.normal_force
+        );
+        assert!((c.normal_force - p).abs() < 1e-3 * p);
+        assert!(worst < last_gap, "monotone approach");
+        last_gap = worst;
+    }
+    assert!(last_gap < 1e-9, "{last_gap}");
+}
