@@ -3,7 +3,9 @@
 //! drawn to scale.
 //!
 //! The compliant law is Hertz's line contact (docs/model.md): over the contact half-width a the
-//! pressure is p(x) = p₀ √(1 − x²/a²). A contact is drawn on the prong's face, where the fruit's
+//! pressure is p(x) = p₀ √(1 − x²/a²) (a wrapping arc in edge mode spreads its load in
+//! proportion to the overlap, src/contact/conforming.rs: there the drawing shows the contact's
+//! p₀ and a, not the shape of its distribution). A contact is drawn on the prong's face, where the fruit's
 //! pressed surface is. The colour of a pressure is its ratio to the fruit's bruise threshold:
 //! green (0) → yellow (½) → red (the threshold) → purple above it (bruising, the colour of
 //! `replay check`'s bruise ring). A fruit without a threshold is coloured against the contact's
