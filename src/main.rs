@@ -639,14 +639,6 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary and
 /// `.rrd` (src/record/rerun3.rs), with `--set` overrides.
 fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
-    let unsupported = [("--check", out.check.is_some())];
-    if let Some((flag, _)) = unsupported.iter().find(|(_, on)| *on) {
-        eprintln!(
-            "error: {}: {flag} is not available for 3D scenarios yet (use --rrd, --mcap, --csv and --summary)",
-            path.display()
-        );
-        return ExitCode::from(2);
-    }
     let sc = match gripsim::scenario::three::Scenario3::load_with(path, sets) {
         Ok(s) => s,
         Err(e) => {
@@ -654,11 +646,13 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    let check_json = out.check.as_ref().and_then(|(_, j)| j.clone());
     let outputs: Vec<(&str, &Path)> = [
         ("--rrd", &out.rrd),
         ("--mcap", &out.mcap),
         ("--csv", &out.csv),
         ("--summary", &out.summary),
+        ("--check-json", &check_json),
     ]
     .into_iter()
     .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
@@ -693,8 +687,27 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
         }
         None => None,
     };
+    let mut check = match &out.check {
+        Some((th, _)) => {
+            if let Err(e) = th.validate() {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+            match gripsim::replay::three::Detector3::new(&sc, th) {
+                Ok(detector) => Some(gripsim::replay::three::Detect3Observer { detector }),
+                Err(e) => {
+                    eprintln!("error: {}: {e}", path.display());
+                    return ExitCode::from(2);
+                }
+            }
+        }
+        None => None,
+    };
     let start = std::time::Instant::now();
     let mut sinks = gripsim::rod3d::events::Observers3::default();
+    if let Some(c) = check.as_mut() {
+        sinks.sinks.push(c);
+    }
     if let Some(r) = rrd.as_mut() {
         sinks.sinks.push(r);
     }
@@ -746,6 +759,25 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
             "finger forces {:?} N (max grip {:.4} N); fruit {:?} -> {:?}; max twist {:.3e} rad; worst penetration {:.2e} m",
             s.finger_forces, s.max_grip_force, s.fruit_start, s.fruit_end, s.max_twist, s.worst_penetration
         );
+    }
+    if let Some(c) = check {
+        let report = c
+            .detector
+            .finish(&format!("{} (live)", path.display()), &s.name);
+        print!("{}", gripsim::replay::three::format_check(&report));
+        if let Some(p) = &check_json {
+            let text = serde_json::to_string_pretty(&report).expect("a report serialises");
+            if let Err(e) = std::fs::write(p, text + "\n") {
+                eprintln!(
+                    "error: cannot write the check report to {}: {e}",
+                    p.display()
+                );
+                return ExitCode::from(2);
+            }
+        }
+        if report.flagged {
+            return ExitCode::from(1);
+        }
     }
     ExitCode::SUCCESS
 }
