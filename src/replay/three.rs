@@ -408,15 +408,35 @@ struct MetaIn {
     sets: Vec<String>,
 }
 
-/// Whether `path` is the MCAP of a 3D run (its `/sim/step` carries `gripsim.Step3`).
+/// Whether `path` is the MCAP of a 3D run (its `/sim/step` carries `gripsim.Step3`): the
+/// summary section's schema records are looked at (found through the footer), so a planar
+/// recording is not read whole to find out.
 pub fn is_3d_mcap(path: &Path) -> bool {
-    let Ok(bytes) = std::fs::read(path) else {
+    use std::io::{Read as _, Seek as _, SeekFrom};
+    let Ok(mut f) = std::fs::File::open(path) else {
         return false;
     };
-    let Ok(summary) = mcap::Summary::read(&bytes) else {
+    let Ok(len) = f.seek(SeekFrom::End(0)) else {
         return false;
     };
-    summary.is_some_and(|s| s.schemas.values().any(|s| s.name == "gripsim.Step3"))
+    // The footer: opcode, length, summary_start (u64), summary_offset_start, crc; then magic.
+    if len < 8 + 29 + 8 {
+        return false;
+    }
+    let mut start = [0u8; 8];
+    if f.seek(SeekFrom::Start(len - 28)).is_err() || f.read_exact(&mut start).is_err() {
+        return false;
+    }
+    let start = u64::from_le_bytes(start);
+    if start == 0 || start >= len || len - start > (64 << 20) {
+        return false;
+    }
+    let mut summary = Vec::new();
+    if f.seek(SeekFrom::Start(start)).is_err() || f.read_to_end(&mut summary).is_err() {
+        return false;
+    }
+    let needle = b"gripsim.Step3";
+    summary.windows(needle.len()).any(|w| w == needle)
 }
 
 impl Run3 {
