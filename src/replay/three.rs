@@ -688,6 +688,7 @@ pub fn show(path: &Path, out: &Path) -> Result<u64, ReplayError> {
                 gap: c.gap,
                 surface: c.shape as usize,
                 stick: c.stuck,
+                normal_reaction: c.normal_force,
             })
             .collect();
         let bodies: Vec<BodyPose3> = m

@@ -30,13 +30,15 @@ pub struct Contact3 {
     pub surface: usize,
     /// Stuck (true) or sliding (false).
     pub stick: bool,
+    /// n·R, the normal part of the reaction as the solver has it (N; `reaction` is n (n·R),
+    /// whose projection on n can differ from it in the last bit).
+    pub normal_reaction: f64,
 }
 
 impl Contact3 {
     /// The normal part n·R of the reaction (N).
     pub fn normal_force(&self) -> f64 {
-        let (n, r) = (self.normal, self.reaction);
-        n[0] * r[0] + n[1] * r[1] + n[2] * r[2]
+        self.normal_reaction
     }
 }
 
@@ -367,6 +369,7 @@ impl World3 {
                         Surface3::Body(b) => nobs + b,
                     },
                     stick: matches!(c.grip, Grip3::Stick { .. }),
+                    normal_reaction: rn,
                 });
             }
         }
