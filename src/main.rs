@@ -277,10 +277,8 @@ fn main() -> ExitCode {
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
-        Command::Validate { scenario, sets }
-            if sets.is_empty() && gripsim::scenario::three::file_is_3d(&scenario) =>
-        {
-            match gripsim::scenario::three::Scenario3::load(&scenario) {
+        Command::Validate { scenario, sets } if gripsim::scenario::three::file_is_3d(&scenario) => {
+            match gripsim::scenario::three::Scenario3::load_with(&scenario, &sets) {
                 Ok(sc) => {
                     say!(
                         "{}: ok ({:?}, 3D, {} finger(s) of {} node(s), {} obstacle(s), fruit: {})",
@@ -638,36 +636,108 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
     );
 }
 
-/// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV and summary only.
+/// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary and
+/// `.rrd` (src/record/rerun3.rs), with `--set` overrides.
 fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
-    let unsupported = [
-        ("--set", !sets.is_empty()),
-        ("--rrd", out.rrd.is_some()),
-        ("--mcap", out.mcap.is_some()),
-        ("--check", out.check.is_some()),
-    ];
-    if let Some((flag, _)) = unsupported.iter().find(|(_, on)| *on) {
-        eprintln!(
-            "error: {}: {flag} is not available for 3D scenarios yet (use --csv and --summary)",
-            path.display()
-        );
-        return ExitCode::from(2);
-    }
-    let sc = match gripsim::scenario::three::Scenario3::load(path) {
+    let sc = match gripsim::scenario::three::Scenario3::load_with(path, sets) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::from(2);
         }
     };
+    let check_json = out.check.as_ref().and_then(|(_, j)| j.clone());
+    let outputs: Vec<(&str, &Path)> = [
+        ("--rrd", &out.rrd),
+        ("--mcap", &out.mcap),
+        ("--csv", &out.csv),
+        ("--summary", &out.summary),
+        ("--check-json", &check_json),
+    ]
+    .into_iter()
+    .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
+    .collect();
+    if let Err(e) = gripsim::record::check_distinct(&outputs, &[("the scenario", path)]) {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
+    let mut rrd = match &out.rrd {
+        Some(p) => match gripsim::record::rerun3::Rrd3::create(p, &sc.name) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        },
+        None => None,
+    };
+    let mut mcap = match &out.mcap {
+        Some(p) => {
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            match gripsim::record::mcap3::Mcap3::create(p, &sc.name, &text, sets) {
+                Ok(m) => Some(m),
+                Err(e) => {
+                    if let Some(r) = rrd {
+                        let _ = r.abandon();
+                    }
+                    eprintln!("error: {e}");
+                    return ExitCode::from(2);
+                }
+            }
+        }
+        None => None,
+    };
+    let mut check = match &out.check {
+        Some((th, _)) => {
+            if let Err(e) = th.validate() {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+            match gripsim::replay::three::Detector3::new(&sc, th) {
+                Ok(detector) => Some(gripsim::replay::three::Detect3Observer { detector }),
+                Err(e) => {
+                    eprintln!("error: {}: {e}", path.display());
+                    return ExitCode::from(2);
+                }
+            }
+        }
+        None => None,
+    };
     let start = std::time::Instant::now();
-    let s = match gripsim::rod3d::run3::run(&sc, out.csv.as_deref()) {
+    let mut sinks = gripsim::rod3d::events::Observers3::default();
+    if let Some(c) = check.as_mut() {
+        sinks.sinks.push(c);
+    }
+    if let Some(r) = rrd.as_mut() {
+        sinks.sinks.push(r);
+    }
+    if let Some(m) = mcap.as_mut() {
+        sinks.sinks.push(m);
+    }
+    let result = gripsim::rod3d::run3::run_observed(&sc, out.csv.as_deref(), &mut sinks);
+    drop(sinks);
+    // The recording is closed (and moved into place, or removed on failure) either way.
+    let mut closed = match rrd {
+        Some(r) if result.is_ok() => r.finish(),
+        Some(r) => r.abandon(),
+        None => Ok(()),
+    };
+    match mcap {
+        Some(m) if result.is_ok() => closed = closed.and(m.finish()),
+        Some(m) => m.abandon(),
+        None => {}
+    }
+    let s = match result {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {}: {e}", path.display());
             return ExitCode::from(1);
         }
     };
+    if let Err(e) = closed {
+        eprintln!("error: {e}");
+        return ExitCode::from(1);
+    }
     if let Some(p) = &out.summary {
         let text = serde_json::to_string_pretty(&s).expect("summary serialises");
         if let Err(e) = std::fs::write(p, text + "\n") {
@@ -689,6 +759,25 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
             "finger forces {:?} N (max grip {:.4} N); fruit {:?} -> {:?}; max twist {:.3e} rad; worst penetration {:.2e} m",
             s.finger_forces, s.max_grip_force, s.fruit_start, s.fruit_end, s.max_twist, s.worst_penetration
         );
+    }
+    if let Some(c) = check {
+        let report = c
+            .detector
+            .finish(&format!("{} (live)", path.display()), &s.name);
+        print!("{}", gripsim::replay::three::format_check(&report));
+        if let Some(p) = &check_json {
+            let text = serde_json::to_string_pretty(&report).expect("a report serialises");
+            if let Err(e) = std::fs::write(p, text + "\n") {
+                eprintln!(
+                    "error: cannot write the check report to {}: {e}",
+                    p.display()
+                );
+                return ExitCode::from(2);
+            }
+        }
+        if report.flagged {
+            return ExitCode::from(1);
+        }
     }
     ExitCode::SUCCESS
 }

@@ -78,7 +78,7 @@ impl Observer3 for Csv3 {
                     }
                 }
             }
-            Event3::End { .. } => {}
+            Event3::End { .. } | Event3::Scene { .. } => {}
         }
     }
 }

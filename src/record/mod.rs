@@ -15,10 +15,12 @@ pub mod csv3;
 pub mod foxglove;
 pub mod grasp;
 pub mod mcap;
+pub mod mcap3;
 pub mod pressure;
 pub mod proto;
 pub mod rerun;
 pub mod rerun3;
+pub mod shape3;
 pub mod summary;
 
 use crate::events::{Observer, RodStepView};

@@ -3,11 +3,62 @@
 //! midpoint (m₁ red, m₂ green, length the section's half extent along it × `frame_scale`), and
 //! the contacts' normals (blue), reactions (orange) and friction forces (purple) at their
 //! points when there are any. Times: `step` (sequence) and `sim_time` (duration).
+//! The world's obstacles and free bodies ([`Event3::Scene`]) are meshes
+//! (`scene/shapes/<name>`, tessellated by [`super::shape3`]) placed by a Transform3D, static
+//! for a fixed obstacle and logged at every step for a free body (the fruit moves with its
+//! pose). Plots: `plots/finger_force/<rod>` (summed normal reaction of each rod),
+//! `plots/grip_force` (their mean), `plots/fruit/<name>/z`, `solver/newton_iterations`,
+//! `solver/corrector_passes`; contact made/lost as a text log under `events`. The file opens
+//! with a blueprint: the Spatial3D scene beside the force and solver plots.
 //! The file is written as `<path>.partial` and renamed at [`Rrd3::finish`].
 
-use crate::rod3d::events::{Contact3, Event3, Observer3, Rod3Info, Rod3StepView};
-use ::rerun::{Arrows3D, Color, LineStrips3D, RecordingStream, RecordingStreamBuilder};
+use crate::rod3d::events::{BodyPose3, Contact3, Event3, Observer3, Rod3Info, Rod3StepView};
+use crate::rod3d::events::{ContactChange3, Shape3Info};
+use ::rerun::blueprint::components::PanelState;
+use ::rerun::blueprint::{
+    Blueprint, BlueprintPanel, Horizontal, SelectionPanel, Spatial3DView, Tabs, TextLogView,
+    TimePanel, TimeSeriesView, Vertical,
+};
+use ::rerun::{
+    Arrows3D, Color, LineStrips3D, Mesh3D, Quaternion, RecordingStream, RecordingStreamBuilder,
+    Scalars, TextLog, Transform3D,
+};
 use std::path::{Path, PathBuf};
+
+/// The layout a 3D `.rrd` opens with.
+pub fn blueprint3() -> Blueprint {
+    let scene = Spatial3DView::new("Scene")
+        .with_origin("/")
+        .with_contents(["+ /scene/**"]);
+    let plots = Vertical::new([
+        TimeSeriesView::new("Finger forces (N)")
+            .with_origin("/plots/finger_force")
+            .into(),
+        Tabs::new([
+            TimeSeriesView::new("Grip force (N)")
+                .with_origin("/plots/grip_force")
+                .into(),
+            TimeSeriesView::new("Fruit height (m)")
+                .with_origin("/plots/fruit")
+                .into(),
+            TimeSeriesView::new("Newton its, passes")
+                .with_origin("/solver")
+                .into(),
+        ])
+        .into(),
+        TextLogView::new("Contact events")
+            .with_origin("/events")
+            .into(),
+    ]);
+    Blueprint::new(Horizontal::new([scene.into(), plots.into()]).with_column_shares([0.62, 0.38]))
+        .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Collapsed))
+        .with_selection_panel(SelectionPanel::new().with_state(PanelState::Collapsed))
+        .with_time_panel(
+            TimePanel::new()
+                .with_timeline("sim_time")
+                .with_state(PanelState::Collapsed),
+        )
+}
 
 /// Collects a 3D run into an `.rrd` file.
 pub struct Rrd3 {
@@ -15,6 +66,9 @@ pub struct Rrd3 {
     path: PathBuf,
     partial: PathBuf,
     rods: Vec<Rod3Info>,
+    shapes: Vec<Shape3Info>,
+    /// Half size of a drawn plane (m).
+    pub plane_half: f64,
     /// Material-frame arrows are this many section half extents long.
     pub frame_scale: f64,
     /// Force arrows: metres per newton.
@@ -31,6 +85,7 @@ impl Rrd3 {
         let partial = PathBuf::from(format!("{}.partial", path.display()));
         let rec = RecordingStreamBuilder::new("gripsim")
             .recording_id(format!("{name}-3d"))
+            .with_blueprint(blueprint3())
             .save(&partial)
             .map_err(|e| format!("{}: {e}", partial.display()))?;
         rec.set_log_time_enabled(false);
@@ -42,8 +97,10 @@ impl Rrd3 {
             path: path.to_path_buf(),
             partial,
             rods: vec![],
+            shapes: vec![],
+            plane_half: 0.1,
             frame_scale: 3.0,
-            force_scale: 0.01,
+            force_scale: 0.04,
             error: None,
         })
     }
@@ -60,6 +117,16 @@ impl Rrd3 {
         }
         std::fs::rename(&self.partial, &self.path)
             .map_err(|e| format!("{}: {e}", self.path.display()))
+    }
+
+    /// Close and remove the unfinished file (a failed run leaves nothing).
+    pub fn abandon(mut self) -> Result<(), String> {
+        if let Some(rec) = self.rec.take() {
+            let _ = rec.flush_blocking();
+            drop(rec);
+        }
+        let _ = std::fs::remove_file(&self.partial);
+        Ok(())
     }
 
     fn rod(
@@ -143,6 +210,109 @@ impl Rrd3 {
     }
 }
 
+fn colour(k: usize, free: bool) -> Color {
+    if free {
+        Color::from_unmultiplied_rgba(230, 120, 60, 140)
+    } else if k == 0 {
+        Color::from_unmultiplied_rgba(150, 150, 150, 110)
+    } else {
+        Color::from_unmultiplied_rgba(120, 140, 170, 160)
+    }
+}
+
+fn transform(position: [f64; 3], rotation: [f64; 4]) -> Transform3D {
+    let q = rotation.map(|v| v as f32);
+    Transform3D::from_translation(f32s(position)).with_quaternion(Quaternion::from_xyzw(q))
+}
+
+impl Rrd3 {
+    fn shape_path(&self, k: usize) -> String {
+        match self.shapes.get(k) {
+            Some(s) => format!("scene/shapes/{}", s.name),
+            None => format!("scene/shapes/{k}"),
+        }
+    }
+
+    /// The shapes as static meshes (fixed ones placed once).
+    fn scene(&self, rec: &RecordingStream) -> ::rerun::RecordingStreamResult<()> {
+        for (k, s) in self.shapes.iter().enumerate() {
+            let t = super::shape3::tessellate(&s.shape, self.plane_half);
+            let path = self.shape_path(k);
+            rec.log_static(
+                format!("{path}/mesh"),
+                &Mesh3D::new(t.vertices.iter().map(|v| f32s(*v)))
+                    .with_vertex_normals(t.normals.iter().map(|v| f32s(*v)))
+                    .with_triangle_indices(t.triangles.iter().copied())
+                    .with_albedo_factor(colour(k, s.free).0),
+            )?;
+            let q = nalgebra::UnitQuaternion::from_rotation_matrix(&s.pose.rotation);
+            let tf = transform(s.pose.position.into(), [q.i, q.j, q.k, q.w]);
+            if s.free {
+                rec.log(path, &tf)?;
+            } else {
+                rec.log_static(path, &tf)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Free bodies' poses, the force plots, the solver counts and the contact changes.
+    fn plots(
+        &self,
+        rec: &RecordingStream,
+        bodies: &[BodyPose3],
+        contacts: &[Contact3],
+        changes: &[ContactChange3],
+        counts: [u32; 2],
+    ) -> ::rerun::RecordingStreamResult<()> {
+        for b in bodies {
+            rec.log(self.shape_path(b.shape), &transform(b.position, b.rotation))?;
+            let name = self.shapes.get(b.shape).map_or("body", |s| s.name.as_str());
+            rec.log(
+                format!("plots/fruit/{name}/z"),
+                &Scalars::single(b.position[2]),
+            )?;
+        }
+        let mut forces = vec![0.0; self.rods.len()];
+        for c in contacts {
+            if let Some(f) = forces.get_mut(c.rod) {
+                *f += c.normal_force();
+            }
+        }
+        for (f, r) in forces.iter().zip(&self.rods) {
+            rec.log(
+                format!("plots/finger_force/{}", r.name),
+                &Scalars::single(*f),
+            )?;
+        }
+        if !forces.is_empty() {
+            let mean = forces.iter().sum::<f64>() / forces.len() as f64;
+            rec.log("plots/grip_force", &Scalars::single(mean))?;
+        }
+        rec.log(
+            "solver/newton_iterations",
+            &Scalars::single(counts[0] as f64),
+        )?;
+        rec.log(
+            "solver/corrector_passes",
+            &Scalars::single(counts[1] as f64),
+        )?;
+        // One row per step (rows logged at one time on one entity would hide each other).
+        if !changes.is_empty() {
+            let text: Vec<String> = changes
+                .iter()
+                .map(|c| {
+                    let rod = self.rods.get(c.rod).map_or("rod", |r| r.name.as_str());
+                    let what = if c.added { "contact" } else { "release" };
+                    format!("{what}: {rod} node {}", c.node)
+                })
+                .collect();
+            rec.log("events", &TextLog::new(text.join("; ")))?;
+        }
+        Ok(())
+    }
+}
+
 impl Observer3 for Rrd3 {
     fn on_event(&mut self, e: &Event3<'_>) {
         let Some(rec) = self.rec.clone() else { return };
@@ -151,11 +321,19 @@ impl Observer3 for Rrd3 {
                 self.rods = rods.to_vec();
                 Ok(())
             }
+            Event3::Scene { shapes } => {
+                self.shapes = shapes.to_vec();
+                self.scene(&rec)
+            }
             Event3::Step {
                 step,
                 time,
                 rods,
                 contacts,
+                bodies,
+                changes,
+                newton_iterations,
+                passes,
                 ..
             } => {
                 rec.set_time_sequence("step", *step as i64);
@@ -164,10 +342,15 @@ impl Observer3 for Rrd3 {
                 for (i, v) in rods.iter().enumerate() {
                     r = r.and(self.rod(&rec, i, v));
                 }
-                if !contacts.is_empty() {
-                    r = r.and(self.contacts(&rec, contacts));
-                }
-                r
+                // Logged also when empty, so released contacts' arrows disappear.
+                r = r.and(self.contacts(&rec, contacts));
+                r.and(self.plots(
+                    &rec,
+                    bodies,
+                    contacts,
+                    changes,
+                    [*newton_iterations, *passes],
+                ))
             }
             Event3::End { .. } => Ok(()),
         };

@@ -17,6 +17,7 @@ pub mod diff;
 pub mod grasp;
 pub mod overlay;
 pub mod read;
+pub mod three;
 
 pub use detect::{Detector, Effective, Findings, Scales, Thresholds};
 pub use diff::{DiffReport, Tolerances};
@@ -478,6 +479,10 @@ fn say(text: &str) {
 }
 
 fn run_command(args: ReplayArgs) -> Result<u8, ReplayError> {
+    // Recordings of 3D runs (dimension = 3) have their own reader and rules.
+    if let Some(code) = run_3d(&args.command)? {
+        return Ok(code);
+    }
     match args.command {
         ReplayCommand::Check {
             run,
@@ -564,5 +569,70 @@ fn run_command(args: ReplayArgs) -> Result<u8, ReplayError> {
             ));
             Ok(0)
         }
+    }
+}
+
+/// `replay check|diff|show` on the MCAP of a 3D run ([`three`]); `None` for planar recordings.
+fn run_3d(cmd: &ReplayCommand) -> Result<Option<u8>, ReplayError> {
+    match cmd {
+        ReplayCommand::Check {
+            run,
+            json,
+            rrd,
+            thresholds,
+            ..
+        } if three::is_3d_mcap(run) => {
+            if rrd.is_some() {
+                return Err(ReplayError::file(
+                    run,
+                    "--rrd is not available for 3D runs yet (use replay show)".into(),
+                ));
+            }
+            let report = three::check(run, thresholds)?;
+            say(&three::format_check(&report));
+            if let Some(p) = json {
+                write_json(p, &report)?;
+            }
+            Ok(Some(u8::from(report.flagged)))
+        }
+        ReplayCommand::Diff {
+            a,
+            b,
+            json,
+            rrd,
+            tolerances,
+            ..
+        } if three::is_3d_mcap(a) || three::is_3d_mcap(b) => {
+            if !(three::is_3d_mcap(a) && three::is_3d_mcap(b)) {
+                return Err(ReplayError::new(format!(
+                    "{} and {}: one is a 3D run, the other is not: not comparable",
+                    a.display(),
+                    b.display()
+                )));
+            }
+            if rrd.is_some() {
+                return Err(ReplayError::file(
+                    a,
+                    "--rrd is not available for 3D diffs yet".into(),
+                ));
+            }
+            tolerances.validate().map_err(ReplayError::new)?;
+            let report = three::diff(a, b, tolerances.tol_position)?;
+            say(&three::format_diff(&report));
+            if let Some(p) = json {
+                write_json(p, &report)?;
+            }
+            Ok(Some(u8::from(!report.within_tolerance)))
+        }
+        ReplayCommand::Show { run, rrd } if three::is_3d_mcap(run) => {
+            let steps = three::show(run, rrd)?;
+            say(&format!(
+                "wrote {} ({steps} steps; open: rerun {})\n",
+                rrd.display(),
+                rrd.display()
+            ));
+            Ok(Some(0))
+        }
+        _ => Ok(None),
     }
 }

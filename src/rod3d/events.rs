@@ -4,9 +4,12 @@
 //! [`Sim3::step_observed`] is generic over the observer, so with [`NullObserver3`] the call
 //! compiles away and a run pays nothing for the interface.
 
+use super::contact3::{Grip3, Surface3};
 use super::energy::{material_frame, EdgeFrame};
 use super::rod::{angle, pos};
-use super::{Sim3, Solve3Error};
+use super::section::Section3;
+use super::{Sim3, Solve3Error, StepReport3, World3};
+use crate::obstacle3::{Pose3, Shape3};
 
 /// One contact of a 3D rod node at the end of a step (vectors in world coordinates, N and m).
 /// The 3D contact model fills these; a rod alone has none.
@@ -23,6 +26,52 @@ pub struct Contact3 {
     pub friction: [f64; 3],
     /// Signed gap (negative: penetration before the projection).
     pub gap: f64,
+    /// Index into the shapes of [`Event3::Scene`] (0 if unknown).
+    pub surface: usize,
+    /// Stuck (true) or sliding (false).
+    pub stick: bool,
+    /// n·R, the normal part of the reaction as the solver has it (N; `reaction` is n (n·R),
+    /// whose projection on n can differ from it in the last bit).
+    pub normal_reaction: f64,
+}
+
+impl Contact3 {
+    /// The normal part n·R of the reaction (N).
+    pub fn normal_force(&self) -> f64 {
+        self.normal_reaction
+    }
+}
+
+/// One obstacle or free body of a 3D world, sent once after [`Event3::Start`]: its shape in its
+/// own frame and its pose at t = 0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape3Info {
+    pub name: String,
+    pub shape: Shape3,
+    pub pose: Pose3,
+    /// A free body (its pose is sent with each step), not a fixed obstacle.
+    pub free: bool,
+}
+
+/// The pose and velocity of a free body at the end of a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyPose3 {
+    /// Index into the shapes of [`Event3::Scene`].
+    pub shape: usize,
+    pub position: [f64; 3],
+    /// Unit quaternion [x, y, z, w] of the body's rotation.
+    pub rotation: [f64; 4],
+    pub velocity: [f64; 3],
+    pub angular_velocity: [f64; 3],
+}
+
+/// A node that came into contact (`added`) or left it during a step (a node released and
+/// caught again within one step is neither).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ContactChange3 {
+    pub rod: usize,
+    pub node: usize,
+    pub added: bool,
 }
 
 /// Static facts about one 3D rod, sent once before the first step.
@@ -79,6 +128,10 @@ pub enum Event3<'a> {
     Start {
         rods: &'a [Rod3Info],
     },
+    /// The obstacles (first) and free bodies of a world, right after `Start`.
+    Scene {
+        shapes: &'a [Shape3Info],
+    },
     Step {
         step: u64,
         time: f64,
@@ -86,6 +139,13 @@ pub enum Event3<'a> {
         newton_iterations: u32,
         rods: &'a [Rod3StepView<'a>],
         contacts: &'a [Contact3],
+        /// The free bodies' poses (empty for a rod alone).
+        bodies: &'a [BodyPose3],
+        /// Contacts made and lost in this step.
+        changes: &'a [ContactChange3],
+        /// Corrector passes and stick/slip switches of the step.
+        passes: u32,
+        switches: u32,
     },
     End {
         steps: u64,
@@ -96,6 +156,10 @@ pub enum Event3<'a> {
 /// A sink of 3D events.
 pub trait Observer3 {
     fn on_event(&mut self, e: &Event3<'_>);
+    /// Whether this sink listens to steps at all (false: the world builds no step event).
+    fn wants_steps(&self) -> bool {
+        true
+    }
 }
 
 /// Listens to nothing: with it, observing costs nothing.
@@ -104,6 +168,27 @@ pub struct NullObserver3;
 impl Observer3 for NullObserver3 {
     #[inline(always)]
     fn on_event(&mut self, _: &Event3<'_>) {}
+    #[inline(always)]
+    fn wants_steps(&self) -> bool {
+        false
+    }
+}
+
+/// Any number of sinks, each sent every event in turn.
+#[derive(Default)]
+pub struct Observers3<'s> {
+    pub sinks: Vec<&'s mut dyn Observer3>,
+}
+
+impl Observer3 for Observers3<'_> {
+    fn on_event(&mut self, e: &Event3<'_>) {
+        for s in self.sinks.iter_mut() {
+            s.on_event(e);
+        }
+    }
+    fn wants_steps(&self) -> bool {
+        self.sinks.iter().any(|s| s.wants_steps())
+    }
 }
 
 impl Sim3 {
@@ -143,7 +228,161 @@ impl Sim3 {
             newton_iterations: it,
             rods: &rods,
             contacts: &[],
+            bodies: &[],
+            changes: &[],
+            passes: 1,
+            switches: 0,
         });
         Ok(it)
+    }
+}
+
+/// Half extents of a section along m₁ and m₂ (m).
+pub fn half_extents(s: &Section3) -> [f64; 2] {
+    match *s {
+        Section3::Rect { b, h } => [0.5 * h, 0.5 * b],
+        Section3::Circle { r } => [r, r],
+    }
+}
+
+/// The buffers a world reuses to describe its steps to observers (allocated only while some
+/// observer listens to steps).
+#[derive(Debug, Default)]
+pub struct Emit3 {
+    contacts: Vec<Contact3>,
+    bodies: Vec<BodyPose3>,
+    changes: Vec<ContactChange3>,
+    /// Whether each node of each rod was in contact at the end of the last step sent.
+    before: Vec<Vec<bool>>,
+}
+
+impl World3 {
+    /// The rods' static facts and the world's shapes: [`Event3::Start`] then [`Event3::Scene`].
+    pub fn start_observed<O: Observer3>(&self, emit: &mut Emit3, obs: &mut O) {
+        let rods: Vec<Rod3Info> = self
+            .rods
+            .iter()
+            .zip(&self.rod_names)
+            .zip(&self.sections)
+            .map(|((sim, name), sec)| sim.info(name, half_extents(sec)))
+            .collect();
+        obs.on_event(&Event3::Start { rods: &rods });
+        let shapes: Vec<Shape3Info> = self
+            .obstacles
+            .iter()
+            .map(|o| (o, false))
+            .chain(self.bodies.iter().map(|b| (&b.obstacle, true)))
+            .map(|(o, free)| Shape3Info {
+                name: o.name.clone(),
+                shape: o.shape.clone(),
+                pose: o.pose,
+                free,
+            })
+            .collect();
+        obs.on_event(&Event3::Scene { shapes: &shapes });
+        emit.before = self.contacts.iter().map(|c| vec![false; c.len()]).collect();
+        for (r, cs) in self.contacts.iter().enumerate() {
+            for (i, c) in cs.iter().enumerate() {
+                emit.before[r][i] = c.is_some();
+            }
+        }
+    }
+
+    /// [`World3::step`], then (if `obs` listens to steps) an [`Event3::Step`] with the rods,
+    /// contacts, body poses and contact changes. With [`NullObserver3`] this is `step`.
+    pub fn step_observed<O: Observer3>(
+        &mut self,
+        dt: f64,
+        emit: &mut Emit3,
+        obs: &mut O,
+    ) -> Result<StepReport3, Solve3Error> {
+        let rep = self.step(dt)?;
+        if obs.wants_steps() {
+            self.fill(emit);
+            let rods: Vec<Rod3StepView<'_>> = self.rods.iter().map(|s| s.view()).collect();
+            obs.on_event(&Event3::Step {
+                step: self.steps,
+                time: self.time,
+                dt,
+                newton_iterations: rep.newton_iterations,
+                rods: &rods,
+                contacts: &emit.contacts,
+                bodies: &emit.bodies,
+                changes: &emit.changes,
+                passes: rep.passes,
+                switches: rep.switches,
+            });
+        }
+        Ok(rep)
+    }
+
+    /// [`Event3::End`].
+    pub fn end_observed<O: Observer3>(&self, obs: &mut O) {
+        obs.on_event(&Event3::End {
+            steps: self.steps,
+            time: self.time,
+        });
+    }
+
+    /// The contacts, bodies and changes of the step just taken, into `emit`'s buffers.
+    fn fill(&self, emit: &mut Emit3) {
+        emit.contacts.clear();
+        emit.changes.clear();
+        emit.bodies.clear();
+        if emit.before.len() != self.contacts.len() {
+            emit.before = self.contacts.iter().map(|c| vec![false; c.len()]).collect();
+        }
+        let nobs = self.obstacles.len();
+        for (r, cs) in self.contacts.iter().enumerate() {
+            let q = &self.rods[r].q;
+            for (i, c) in cs.iter().enumerate() {
+                let now = c.is_some();
+                if now != emit.before[r][i] {
+                    emit.changes.push(ContactChange3 {
+                        rod: r,
+                        node: i,
+                        added: now,
+                    });
+                    emit.before[r][i] = now;
+                }
+                let Some(c) = c else { continue };
+                let x = [q[pos(i)], q[pos(i) + 1], q[pos(i) + 2]];
+                let n = c.normal;
+                let re = self.reactions[r][i];
+                let rn = n.dot(&re);
+                let fr = re - n * rn;
+                let o = match c.surface {
+                    Surface3::Obstacle(k) => &self.obstacles[k],
+                    Surface3::Body(b) => &self.bodies[b].obstacle,
+                };
+                let prox = o.query(&crate::obstacle3::V3::from(x));
+                emit.contacts.push(Contact3 {
+                    rod: r,
+                    node: i,
+                    point: prox.closest.into(),
+                    normal: n.into(),
+                    reaction: (n * rn).into(),
+                    friction: fr.into(),
+                    gap: prox.distance - c.offset,
+                    surface: match c.surface {
+                        Surface3::Obstacle(k) => k,
+                        Surface3::Body(b) => nobs + b,
+                    },
+                    stick: matches!(c.grip, Grip3::Stick { .. }),
+                    normal_reaction: rn,
+                });
+            }
+        }
+        for (b, body) in self.bodies.iter().enumerate() {
+            let p = body.obstacle.pose;
+            let qt = nalgebra::UnitQuaternion::from_rotation_matrix(&p.rotation);
+            emit.bodies.push(BodyPose3 {
+                shape: nobs + b,
+                position: p.position.into(),
+                rotation: [qt.i, qt.j, qt.k, qt.w],
+                velocity: body.v.into(),
+                angular_velocity: body.omega().into(),
+            });
+        }
     }
 }

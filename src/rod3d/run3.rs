@@ -3,6 +3,7 @@
 //! edge it starts, its contact and reaction) and of the fruit's pose, and a summary.
 
 use super::body3::Body3;
+use super::events::{Emit3, NullObserver3, Observer3};
 use super::gripper::{radial, Gripper3};
 use super::rod::{angle, pos};
 use super::world::World3;
@@ -145,6 +146,15 @@ fn step_limit(sc: &Scenario3) -> u64 {
 /// Run `sc`, writing the CSV (if any) to `csv` (written as a .partial file, renamed at the
 /// end, removed on failure).
 pub fn run(sc: &Scenario3, csv: Option<&std::path::Path>) -> Result<Summary3, String> {
+    run_observed(sc, csv, &mut NullObserver3)
+}
+
+/// [`run`], sending the world's events ([`super::events::Event3`]) to `obs`.
+pub fn run_observed<O: Observer3>(
+    sc: &Scenario3,
+    csv: Option<&std::path::Path>,
+    obs: &mut O,
+) -> Result<Summary3, String> {
     let (mut w, mut g) = build(sc)?;
     let partial = csv.map(|p| p.with_extension("partial.csv"));
     let mut file = match &partial {
@@ -158,7 +168,7 @@ pub fn run(sc: &Scenario3, csv: Option<&std::path::Path>) -> Result<Summary3, St
         }
         None => None,
     };
-    let result = run_loop(sc, &mut w, &mut g, file.as_mut());
+    let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs);
     drop(file);
     match (&result, &partial, csv) {
         (Ok(_), Some(p), Some(c)) => {
@@ -177,7 +187,10 @@ fn run_loop(
     w: &mut World3,
     g: &mut Gripper3,
     mut csv: Option<&mut std::io::BufWriter<std::fs::File>>,
+    obs: &mut impl Observer3,
 ) -> Result<Summary3, String> {
+    let mut emit = Emit3::default();
+    w.start_observed(&mut emit, obs);
     let fruit_start = w.bodies.first().map(|b| b.centre().into());
     let mut s = Summary3 {
         name: sc.name.clone(),
@@ -204,7 +217,7 @@ fn run_loop(
         let t1 = (s.steps + 1) as f64 * sc.dt;
         g.drive(w, t1, sc.dt);
         let rep = w
-            .step(sc.dt)
+            .step_observed(sc.dt, &mut emit, obs)
             .map_err(|e| format!("step {} (t = {t1:e} s): {e}", s.steps + 1))?;
         s.steps += 1;
         s.newton_iterations += rep.newton_iterations as u64;
@@ -225,6 +238,7 @@ fn run_loop(
             csv_rows(f, w, s.steps).map_err(|e| e.to_string())?;
         }
     }
+    w.end_observed(obs);
     s.t_end = w.time;
     s.finger_forces = g.finger_forces(w);
     s.squeezed_at = g.squeezed_at;

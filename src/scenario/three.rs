@@ -295,8 +295,59 @@ impl Scenario3 {
         })
     }
 
+    /// [`Scenario3::from_str`] after the `--set KEY=VALUE` overrides `sets`
+    /// ([`super::overrides`], the planar rules: every array on the path must exist, a bad key
+    /// or index is refused naming the file, the `--set` and the key).
+    pub fn from_str_with(
+        text: &str,
+        file: &str,
+        dir: &std::path::Path,
+        sets: &[String],
+    ) -> Result<Scenario3, ScenarioError> {
+        if sets.is_empty() {
+            return Self::from_str(text, file, dir);
+        }
+        // A syntax error is reported by the reader itself, on the text as written.
+        let Ok(mut root) = text.parse::<toml::Table>() else {
+            return Self::from_str(text, file, dir);
+        };
+        for s in sets {
+            super::overrides::apply(&mut root, s).map_err(|(key, value, message, hint)| {
+                let shown = if s.contains(['\n', '\r']) {
+                    s.escape_debug().to_string()
+                } else {
+                    s.clone()
+                };
+                ScenarioError {
+                    file: format!("{file} (--set {shown})"),
+                    key,
+                    value,
+                    message,
+                    hint,
+                }
+            })?;
+        }
+        let text = toml::to_string(&root).map_err(|e| ScenarioError {
+            file: file.to_string(),
+            key: String::new(),
+            value: String::new(),
+            message: format!("the overridden scenario does not serialise: {e}"),
+            hint: None,
+        })?;
+        let shown = format!("{file} (--set {})", sets.join(" --set "));
+        Self::from_str(&text, &shown, dir).map(|mut sc| {
+            sc.file = file.to_string();
+            sc
+        })
+    }
+
     /// Read and parse a 3D scenario file.
     pub fn load(path: &std::path::Path) -> Result<Scenario3, ScenarioError> {
+        Self::load_with(path, &[])
+    }
+
+    /// Read a 3D scenario file and apply `--set` overrides (see [`Scenario3::from_str_with`]).
+    pub fn load_with(path: &std::path::Path, sets: &[String]) -> Result<Scenario3, ScenarioError> {
         let file = path.display().to_string();
         let err = |message: String| ScenarioError {
             file: file.clone(),
@@ -315,7 +366,7 @@ impl Scenario3 {
         }
         let text = String::from_utf8(bytes).map_err(|e| err(format!("not UTF-8 text: {e}")))?;
         let dir = path.parent().unwrap_or(std::path::Path::new("."));
-        Self::from_str(&text, &file, dir)
+        Self::from_str_with(&text, &file, dir, sets)
     }
 }
 

@@ -28,6 +28,10 @@ of format 2) with Google's `protobuf` library from the FileDescriptorSet the fil
                 number on the topic = its step), and per entity its id, the points of its
                 first line, its spheres' centres and the number of arrows and texts
   scene_static  the /scene/static message's entity ids and line counts
+  last_step3    (3D runs, schema gripsim.Step3) the last /sim/step as decoded: per rod x (x, y, z
+                interleaved), theta, twist, m1; bodies' shape, position, rotation; contacts'
+                rod, node, shape, normal force, reaction, friction, stuck. The same shape is in
+                step_samples; meta3 holds the rods' names and the shapes of /sim/meta
   error         null, or why reading stopped early (a file cut short by a crash)
 
 A file cut short (no summary, last chunk half written) is read up to its last complete
@@ -98,6 +102,35 @@ def scene_sample(msg, index):
     return {"index": index, "entities": entities}
 
 
+def step3_sample(msg):
+    """What the report shows of a 3D run's /sim/step message (gripsim.Step3, protobuf)."""
+    return {
+        "step": int(msg.step),
+        "t": msg.t,
+        "dt": msg.dt,
+        "rods": [
+            {"x": list(r.x), "theta": list(r.theta), "twist": list(r.twist), "m1": list(r.m1)}
+            for r in msg.rods
+        ],
+        "bodies": [
+            {"shape": int(b.shape), "position": list(b.position), "rotation": list(b.rotation)}
+            for b in msg.bodies
+        ],
+        "contacts": [
+            {
+                "rod": int(c.rod),
+                "node": int(c.node),
+                "shape": int(c.shape),
+                "normal_force": c.normal_force,
+                "reaction": list(c.reaction),
+                "friction": list(c.friction),
+                "stuck": c.stuck,
+            }
+            for c in msg.contacts
+        ],
+    }
+
+
 # What the report shows of each active contact of a sampled step.
 CONTACT_FIELDS = [
     "node",
@@ -118,6 +151,7 @@ def main(path):
     seen, validated, error = {}, 0, None
     protobuf, decoders, samples = DecoderFactory(), {}, []
     scene_samples, scene_static = [], None
+    last_step3 = None
     with open(path, "rb") as f:
         try:
             for record in StreamReader(f, validate_crcs=True).records:
@@ -157,7 +191,14 @@ def main(path):
                         if n < 20 or n % 250 == 0:
                             validators[record.channel_id].validate(msg)
                             validated += 1
-                    if topic == "/sim/step":
+                    schema = schemas.get(channel.schema_id)
+                    if topic == "/sim/step" and schema is not None and schema.name == "gripsim.Step3":
+                        # A 3D run (dimension = 3): its own step message.
+                        steps.append(int(msg.step))
+                        last_step3 = step3_sample(msg)
+                        if n < 20 or n % 250 == 0:
+                            samples.append(last_step3)
+                    elif topic == "/sim/step":
                         step = msg["step"] if isinstance(msg, dict) else msg.step
                         steps.append(int(step))
                         if n < 20 or n % 250 == 0:
@@ -169,6 +210,8 @@ def main(path):
                             scene_samples.append(scene_sample(msg, n))
                     elif topic == "/scene/static" and not isinstance(msg, dict):
                         scene_static = [{"id": e.id, "lines": len(e.lines)} for e in msg.entities]
+                    elif topic == "/sim/meta" and isinstance(msg, dict) and msg.get("dimension") == 3:
+                        report["meta3"] = {"rods": [r["name"] for r in msg["rods"]], "shapes": msg["shapes"]}
                 elif isinstance(record, Metadata):
                     metadata[record.name] = dict(record.metadata)
                 elif isinstance(record, Statistics):
@@ -197,6 +240,7 @@ def main(path):
         step_samples=samples,
         scene_samples=scene_samples,
         scene_static=scene_static,
+        last_step3=last_step3,
         error=error,
     )
     json.dump(report, sys.stdout)

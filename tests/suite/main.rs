@@ -15,6 +15,7 @@ mod frictionless_golden;
 mod integrator;
 mod pick_and_place;
 mod properties;
+mod rec3d;
 mod recordings;
 mod regressions;
 mod replay;

@@ -1,0 +1,732 @@
+//! Replay of 3D runs (`dimension = 3`): `replay check`, `diff` and `show` on the MCAP of
+//! `gripsim run --mcap` (src/record/mcap3.rs, `/sim/step` of schema `gripsim.Step3`), and the
+//! detector behind `run --check` on a 3D scenario.
+//!
+//! The rules are the planar ones ([`super::detect`]) with three components:
+//! * **Spike** (per free node and step): e = Δv − Δt f(q_{k+1})/m, f the elastic force (the
+//!   3D rod's energy gradient at the recorded configuration, with the reference frames carried
+//!   along the recorded steps exactly as the solver carries them) plus gravity. A node in
+//!   contact explains, along its contact normal, support (up to what the forces push into the
+//!   surface) and impact (up to the normal velocity it brought into the step), and tangentially
+//!   up to μ_s times that (the Coulomb cone); `impact` is flagged when the impact jump is
+//!   ≥ `spike_floor` and jump × Δt ≥ `spike_displacement`, `unexplained` when the rest is
+//!   ≥ `spike_floor` and ≥ `spike_accel_ratio` × max(a, |f|/m) × Δt.
+//! * **Sticking** (`toggling`): ≥ `stick_toggles` contact changes of one node within
+//!   `stick_window` seconds.
+//!
+//! Scales: L the largest of the prong length and the shapes' sizes (sphere and ellipsoid
+//! diameters, box diagonals); a = |g| (else L/t_end²), v = √(aL), time √(L/a), dt the
+//! scenario's.
+
+use super::detect::{Effective, Scales, Sticking, Thresholds};
+use super::ReplayError;
+use crate::obstacle3::Shape3;
+use crate::record::mcap3::Step3;
+use crate::rod3d::rod::{angle, pos};
+use crate::rod3d::solver::assemble;
+use crate::rod3d::Sim3;
+use crate::scenario::three::Scenario3;
+use prost::Message as _;
+use serde::Serialize;
+use std::collections::VecDeque;
+use std::path::Path;
+
+/// One velocity spike of a 3D run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Spike3 {
+    /// `impact` or `unexplained`.
+    pub kind: &'static str,
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    pub step: u64,
+    pub t: f64,
+    pub dt: f64,
+    /// Δv (m/s).
+    pub dv: [f64; 3],
+    /// |Δt f/m| (m/s).
+    pub force_dv: f64,
+    /// The flagged jump (m/s).
+    pub jump: f64,
+    pub impact_jump: f64,
+    pub unexplained_jump: f64,
+    /// |jump| / dt over the scale it is compared with.
+    pub accel_ratio: f64,
+    /// |jump| × dt (m).
+    pub displacement: f64,
+    pub in_contact: bool,
+}
+
+/// What `replay check` (and `run --check`) finds in a 3D run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Check3Report {
+    pub file: String,
+    pub scenario: String,
+    pub dimension: u32,
+    pub steps: u64,
+    pub t_end: f64,
+    pub scales: Scales,
+    pub thresholds: Effective,
+    pub flagged: bool,
+    pub spikes: Vec<Spike3>,
+    pub sticking: Vec<Sticking>,
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn axpy(a: f64, x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
+    [y[0] + a * x[0], y[1] + a * x[1], y[2] + a * x[2]]
+}
+
+/// The scales of a 3D scene (module documentation).
+pub fn scales(sc: &Scenario3) -> Scales {
+    let mut length: f64 = sc
+        .prong
+        .points
+        .windows(2)
+        .map(|w| norm(sub(w[1], w[0])))
+        .sum();
+    let size = |s: &Shape3| match s {
+        Shape3::Sphere { radius } => 2.0 * radius,
+        Shape3::Ellipsoid { semi_axes } => 2.0 * semi_axes.iter().fold(0.0f64, |a, b| a.max(*b)),
+        Shape3::Box { half } => 2.0 * norm(*half),
+        Shape3::Mesh(m) => 2.0 * m.radius,
+        Shape3::Plane => 0.0,
+    };
+    for o in &sc.obstacles {
+        length = length.max(size(&o.shape));
+    }
+    if let Some(f) = &sc.fruit {
+        length = length.max(size(&f.shape));
+    }
+    if !(length > 0.0) {
+        length = 1.0;
+    }
+    let mut accel = norm(sc.gravity);
+    if !(accel > 0.0) {
+        let t = sc.t_end.unwrap_or(1.0);
+        accel = length / (t * t);
+    }
+    Scales {
+        length,
+        acceleration: accel,
+        velocity: (accel * length).sqrt(),
+        time: (length / accel).sqrt(),
+        dt: sc.dt,
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+struct NodeState {
+    changes: VecDeque<(u64, f64)>,
+    open: Option<Sticking>,
+}
+
+/// The spike and sticking rules over the steps of a 3D run.
+pub struct Detector3 {
+    pub scales: Scales,
+    pub th: Effective,
+    sims: Vec<Sim3>,
+    names: Vec<String>,
+    mu: f64,
+    prev_v: Vec<Vec<f64>>,
+    have_prev: bool,
+    grad: Vec<f64>,
+    q: Vec<f64>,
+    nodes: Vec<Vec<NodeState>>,
+    pub spikes: Vec<Spike3>,
+    pub sticking: Vec<Sticking>,
+    pub steps: u64,
+    pub t_end: f64,
+}
+
+impl Detector3 {
+    pub fn new(sc: &Scenario3, th: &Thresholds) -> Result<Detector3, String> {
+        let (w, _) = crate::rod3d::run3::build(sc)?;
+        let scales = scales(sc);
+        let mut sims = w.rods;
+        for s in &mut sims {
+            s.gravity = sc.gravity;
+        }
+        // The largest static friction coefficient of any prong-surface pair (the cone that
+        // bounds the tangential part of an impact).
+        let mut mu = 0.0f64;
+        for r in &w.rod_names {
+            for o in w
+                .obstacles
+                .iter()
+                .chain(w.bodies.iter().map(|b| &b.obstacle))
+            {
+                mu = mu.max(sc.friction.between(r, &o.name).mu_s);
+            }
+        }
+        Ok(Detector3 {
+            scales,
+            th: Effective::for_scene(th, &scales),
+            names: w.rod_names,
+            mu,
+            // The initial velocities: the first step's jump is judged against them.
+            prev_v: sims
+                .iter()
+                .map(|s| {
+                    (0..s.rod.n)
+                        .flat_map(|i| [0, 1, 2].map(|a| s.v[pos(i) + a]))
+                        .collect()
+                })
+                .collect(),
+            have_prev: true,
+            grad: Vec::new(),
+            q: Vec::new(),
+            nodes: sims
+                .iter()
+                .map(|s| vec![NodeState::default(); s.rod.n])
+                .collect(),
+            sims,
+            spikes: vec![],
+            sticking: vec![],
+            steps: 0,
+            t_end: 0.0,
+        })
+    }
+
+    /// The reference frames of rod r as the solver carries them (after the last step fed).
+    pub fn sim(&self, r: usize) -> &Sim3 {
+        &self.sims[r]
+    }
+
+    /// One recorded step.
+    pub fn step(&mut self, m: &Step3) {
+        self.changes(m);
+        for (r, rod) in m.rods.iter().enumerate().take(self.sims.len()) {
+            let n = self.sims[r].rod.n;
+            if rod.x.len() != 3 * n || rod.theta.len() + 1 != n {
+                continue;
+            }
+            self.q.clear();
+            self.q.resize(self.sims[r].q.len(), 0.0);
+            for i in 0..n {
+                self.q[pos(i)..pos(i) + 3].copy_from_slice(&rod.x[3 * i..3 * i + 3]);
+                if i + 1 < n {
+                    self.q[angle(i)] = rod.theta[i];
+                }
+            }
+            if self.have_prev && m.dt > 0.0 && rod.v.len() == 3 * n {
+                self.spikes_of(r, m, &rod.v);
+            }
+            // Carry the frames to this step's configuration, as the solver does on accepting it.
+            let sim = &mut self.sims[r];
+            sim.q.copy_from_slice(&self.q);
+            sim.advance_frames();
+            self.prev_v[r].clear();
+            self.prev_v[r].extend_from_slice(&rod.v);
+        }
+        self.close_stale(m.t);
+        self.have_prev = true;
+        self.steps += 1;
+        self.t_end = m.t;
+    }
+
+    fn changes(&mut self, m: &Step3) {
+        let (window, need) = (self.th.stick_window, self.th.stick_toggles);
+        for c in &m.changes {
+            let (r, i) = (c.rod as usize, c.node as usize);
+            let Some(n) = self.nodes.get_mut(r).and_then(|v| v.get_mut(i)) else {
+                continue;
+            };
+            n.changes.push_back((m.step, m.t));
+            while n.changes.front().is_some_and(|&(_, t0)| m.t - t0 >= window) {
+                n.changes.pop_front();
+            }
+            if n.changes.len() as u64 >= need {
+                let (s0, t0) = n.changes[0];
+                let ep = n.open.get_or_insert(Sticking {
+                    rule: "toggling",
+                    rod: r,
+                    rod_name: self.names[r].clone(),
+                    node: i,
+                    step: s0,
+                    t: t0,
+                    last_step: m.step,
+                    last_t: m.t,
+                    count: n.changes.len() as u64 - 1,
+                });
+                ep.last_step = m.step;
+                ep.last_t = m.t;
+                ep.count += 1;
+            }
+        }
+    }
+
+    fn close_stale(&mut self, t: f64) {
+        let sw = self.th.stick_window;
+        for nodes in &mut self.nodes {
+            for n in nodes.iter_mut() {
+                if n.open.as_ref().is_some_and(|ep| t - ep.last_t >= sw) {
+                    self.sticking.push(n.open.take().expect("checked"));
+                }
+            }
+        }
+    }
+
+    fn spikes_of(&mut self, r: usize, m: &Step3, v: &[f64]) {
+        let sim = &self.sims[r];
+        self.grad.resize(sim.q.len(), 0.0);
+        assemble(
+            &sim.rod,
+            &sim.frames,
+            &sim.ref_twist,
+            &self.q,
+            &mut self.grad,
+            None,
+            &[],
+        );
+        let (th, dt, a_scene) = (self.th, m.dt, self.scales.acceleration);
+        for i in 0..sim.rod.n {
+            let k = pos(i);
+            if sim.fixed[k] {
+                continue;
+            }
+            let mass = sim.rod.mass[k];
+            let f = [0, 1, 2].map(|a| sim.external(k + a) - self.grad[k + a]);
+            let prev = [0, 1, 2].map(|a| self.prev_v[r][3 * i + a]);
+            let dv = sub([v[3 * i], v[3 * i + 1], v[3 * i + 2]], prev);
+            let fdv = f.map(|x| dt * x / mass);
+            let e = sub(dv, fdv);
+            let node_ref = a_scene.max(norm(f) / mass);
+            let normal = m
+                .contacts
+                .iter()
+                .find(|c| c.rod as usize == r && c.node as usize == i && c.normal.len() == 3)
+                .map(|c| [c.normal[0], c.normal[1], c.normal[2]]);
+            let (impact, rest) = match normal {
+                Some(n) => {
+                    let (en, fnn, un) = (dot(e, n), dot(fdv, n), dot(prev, n));
+                    let support = en.clamp(0.0, (-fnn).max(0.0));
+                    let impact = (en - support).clamp(0.0, (-un).max(0.0));
+                    let held = support + impact;
+                    let r0 = axpy(-held, n, e);
+                    (impact, within_cone(r0, n, self.mu * held))
+                }
+                None => (0.0, e),
+            };
+            let unexplained = norm(rest);
+            let flag_unexplained = unexplained >= th.spike_floor
+                && unexplained / dt >= th.spike_accel_ratio * node_ref
+                && unexplained * dt >= 1e-9 * self.scales.length;
+            let flag_impact = impact >= th.spike_floor && impact * dt >= th.spike_displacement;
+            let make = |kind, jump: f64, scale: f64| Spike3 {
+                kind,
+                rod: r,
+                rod_name: self.names[r].clone(),
+                node: i,
+                step: m.step,
+                t: m.t,
+                dt,
+                dv,
+                force_dv: norm(fdv),
+                jump,
+                impact_jump: impact,
+                unexplained_jump: unexplained,
+                accel_ratio: jump / dt / scale,
+                displacement: jump * dt,
+                in_contact: normal.is_some(),
+            };
+            if flag_unexplained {
+                let s = make("unexplained", unexplained, node_ref);
+                self.spikes.push(s);
+            } else if flag_impact {
+                let s = make("impact", impact, a_scene);
+                self.spikes.push(s);
+            }
+        }
+    }
+
+    /// The report; open episodes are closed at the last step.
+    pub fn finish(mut self, file: &str, scenario: &str) -> Check3Report {
+        for nodes in &mut self.nodes {
+            for n in nodes.iter_mut() {
+                if let Some(ep) = n.open.take() {
+                    self.sticking.push(ep);
+                }
+            }
+        }
+        self.sticking
+            .sort_by(|a, b| (a.step, a.rod, a.node).cmp(&(b.step, b.rod, b.node)));
+        Check3Report {
+            file: file.to_string(),
+            scenario: scenario.to_string(),
+            dimension: 3,
+            steps: self.steps,
+            t_end: self.t_end,
+            scales: self.scales,
+            thresholds: self.th,
+            flagged: !(self.spikes.is_empty() && self.sticking.is_empty()),
+            spikes: self.spikes,
+            sticking: self.sticking,
+        }
+    }
+}
+
+/// The tangential part of `r` beyond `cone` (the Coulomb cone of the contact).
+fn within_cone(r: [f64; 3], n: [f64; 3], cone: f64) -> [f64; 3] {
+    if !(cone > 0.0) {
+        return r;
+    }
+    let rn = dot(r, n);
+    let t = axpy(-rn, n, r);
+    let tl = norm(t);
+    let k = if tl > 0.0 {
+        (tl - cone).max(0.0) / tl
+    } else {
+        0.0
+    };
+    axpy(rn, n, t.map(|x| k * x))
+}
+
+/// A 3D run read back from its MCAP.
+pub struct Run3 {
+    pub scenario: Scenario3,
+    pub name: String,
+    pub steps: Vec<Step3>,
+}
+
+#[derive(serde::Deserialize)]
+struct MetaIn {
+    scenario_name: String,
+    scenario_text: String,
+    #[serde(default)]
+    sets: Vec<String>,
+}
+
+/// Whether `path` is the MCAP of a 3D run (its `/sim/step` carries `gripsim.Step3`): the
+/// summary section's schema records are looked at (found through the footer), so a planar
+/// recording is not read whole to find out.
+pub fn is_3d_mcap(path: &Path) -> bool {
+    use std::io::{Read as _, Seek as _, SeekFrom};
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return false;
+    };
+    let Ok(len) = f.seek(SeekFrom::End(0)) else {
+        return false;
+    };
+    // The footer: opcode, length, summary_start (u64), summary_offset_start, crc; then magic.
+    if len < 8 + 29 + 8 {
+        return false;
+    }
+    let mut start = [0u8; 8];
+    if f.seek(SeekFrom::Start(len - 28)).is_err() || f.read_exact(&mut start).is_err() {
+        return false;
+    }
+    let start = u64::from_le_bytes(start);
+    if start == 0 || start >= len || len - start > (64 << 20) {
+        return false;
+    }
+    let mut summary = Vec::new();
+    if f.seek(SeekFrom::Start(start)).is_err() || f.read_to_end(&mut summary).is_err() {
+        return false;
+    }
+    let needle = b"gripsim.Step3";
+    summary.windows(needle.len()).any(|w| w == needle)
+}
+
+impl Run3 {
+    pub fn load(path: &Path) -> Result<Run3, ReplayError> {
+        let err = |m: String| ReplayError::file(path, m);
+        let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read: {e}")))?;
+        let mut meta = None;
+        let mut steps = Vec::new();
+        for m in mcap::MessageStream::new(&bytes).map_err(|e| err(e.to_string()))? {
+            let m = m.map_err(|e| err(format!("unreadable message: {e}")))?;
+            match (m.channel.topic.as_str(), m.channel.schema.as_ref()) {
+                ("/sim/meta", _) => {
+                    let v: MetaIn = serde_json::from_slice(&m.data)
+                        .map_err(|e| err(format!("/sim/meta: {e}")))?;
+                    meta = Some(v);
+                }
+                ("/sim/step", Some(s)) if s.name == "gripsim.Step3" => {
+                    steps.push(Step3::decode(&*m.data).map_err(|e| err(format!("/sim/step: {e}")))?)
+                }
+                _ => {}
+            }
+        }
+        let meta = meta.ok_or_else(|| err("no /sim/meta message: not a gripsim 3D run".into()))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let scenario = Scenario3::from_str_with(
+            &meta.scenario_text,
+            &format!("{} (/sim/meta)", path.display()),
+            dir,
+            &meta.sets,
+        )
+        .map_err(|e| err(format!("the recorded scenario: {e}")))?;
+        Ok(Run3 {
+            scenario,
+            name: meta.scenario_name,
+            steps,
+        })
+    }
+}
+
+/// `replay check` on a 3D run.
+pub fn check(path: &Path, th: &Thresholds) -> Result<Check3Report, ReplayError> {
+    th.validate().map_err(ReplayError::new)?;
+    let run = Run3::load(path)?;
+    let mut d = Detector3::new(&run.scenario, th).map_err(|e| ReplayError::file(path, e))?;
+    for s in &run.steps {
+        d.step(s);
+    }
+    Ok(d.finish(&path.display().to_string(), &run.name))
+}
+
+/// The text report of a 3D check.
+pub fn format_check(r: &Check3Report) -> String {
+    let mut s = format!(
+        "{} (3D, {}): {} steps to t = {} s; {} spike(s), {} sticking episode(s)\n",
+        r.file,
+        r.scenario,
+        r.steps,
+        r.t_end,
+        r.spikes.len(),
+        r.sticking.len()
+    );
+    for k in &r.spikes {
+        s += &format!(
+            "  spike {}: {} node {} step {} t = {:.6} s: jump {:.3e} m/s (impact {:.3e}, unexplained {:.3e}), displacement {:.3e} m, accel ratio {:.3}\n",
+            k.kind, k.rod_name, k.node, k.step, k.t, k.jump, k.impact_jump, k.unexplained_jump, k.displacement, k.accel_ratio
+        );
+    }
+    for k in &r.sticking {
+        s += &format!(
+            "  sticking {}: {} node {} steps {}..{} (t = {:.6}..{:.6} s), {} changes\n",
+            k.rule, k.rod_name, k.node, k.step, k.last_step, k.t, k.last_t, k.count
+        );
+    }
+    s += if r.flagged { "FLAGGED\n" } else { "clean\n" };
+    s
+}
+
+/// The comparison of two 3D runs: the largest node distance, aligned on simulated time (run
+/// B interpolated linearly at run A's step times).
+#[derive(Debug, Clone, Serialize)]
+pub struct Diff3Report {
+    pub a: String,
+    pub b: String,
+    pub compared_steps: u64,
+    pub max_distance: f64,
+    pub rod: usize,
+    pub rod_name: String,
+    pub node: usize,
+    pub t: f64,
+    /// The largest node distance at A's last compared step.
+    pub final_distance: f64,
+    pub tol_position: f64,
+    pub within_tolerance: bool,
+}
+
+/// `replay diff` on two 3D runs.
+pub fn diff(a: &Path, b: &Path, tol_position: f64) -> Result<Diff3Report, ReplayError> {
+    let (ra, rb) = (Run3::load(a)?, Run3::load(b)?);
+    let shape = |r: &Run3| -> Vec<usize> {
+        r.steps
+            .first()
+            .map(|s| s.rods.iter().map(|r| r.x.len()).collect())
+            .unwrap_or_default()
+    };
+    if shape(&ra) != shape(&rb) {
+        return Err(ReplayError::new(format!(
+            "{} and {}: the runs' rods differ (nodes per rod {:?} vs {:?}): not comparable",
+            a.display(),
+            b.display(),
+            shape(&ra).iter().map(|x| x / 3).collect::<Vec<_>>(),
+            shape(&rb).iter().map(|x| x / 3).collect::<Vec<_>>()
+        )));
+    }
+    let mut rep = Diff3Report {
+        a: a.display().to_string(),
+        b: b.display().to_string(),
+        compared_steps: 0,
+        max_distance: 0.0,
+        rod: 0,
+        rod_name: String::new(),
+        node: 0,
+        t: 0.0,
+        final_distance: 0.0,
+        tol_position,
+        within_tolerance: true,
+    };
+    let mut j = 0;
+    for sa in &ra.steps {
+        // B's steps around sa.t.
+        while j + 1 < rb.steps.len() && rb.steps[j + 1].t <= sa.t {
+            j += 1;
+        }
+        let Some(b0) = rb.steps.get(j) else { break };
+        if sa.t < b0.t - 1e-12 * sa.t.abs() {
+            continue;
+        }
+        let b1 = rb.steps.get(j + 1).unwrap_or(b0);
+        let w = if b1.t > b0.t {
+            ((sa.t - b0.t) / (b1.t - b0.t)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        if b1.t == b0.t && (sa.t - b0.t).abs() > 1e-9 * sa.t.abs().max(1e-12) {
+            break;
+        }
+        let mut step_max = 0.0f64;
+        for (r, (xa, (x0, x1))) in sa.rods.iter().zip(b0.rods.iter().zip(&b1.rods)).enumerate() {
+            for i in 0..xa.x.len() / 3 {
+                let d = norm([0, 1, 2].map(|k| {
+                    let xb = (1.0 - w) * x0.x[3 * i + k] + w * x1.x[3 * i + k];
+                    xa.x[3 * i + k] - xb
+                }));
+                step_max = step_max.max(d);
+                if d > rep.max_distance {
+                    rep.max_distance = d;
+                    rep.rod = r;
+                    rep.node = i;
+                    rep.t = sa.t;
+                }
+            }
+        }
+        rep.final_distance = step_max;
+        rep.compared_steps += 1;
+    }
+    rep.rod_name = crate::rod3d::run3::build(&ra.scenario)
+        .map(|(w, _)| w.rod_names.get(rep.rod).cloned().unwrap_or_default())
+        .unwrap_or_default();
+    rep.within_tolerance = rep.max_distance <= tol_position;
+    Ok(rep)
+}
+
+pub fn format_diff(r: &Diff3Report) -> String {
+    format!(
+        "{} vs {} (3D): {} steps compared; largest node distance {:.6e} m ({} node {} at t = {:.6} s), {:.6e} m at the last step; tolerance {:e} m: {}\n",
+        r.a,
+        r.b,
+        r.compared_steps,
+        r.max_distance,
+        r.rod_name,
+        r.node,
+        r.t,
+        r.final_distance,
+        r.tol_position,
+        if r.within_tolerance { "within" } else { "DIFFERENT" }
+    )
+}
+
+/// `run --check` on a 3D scenario: the detector fed from the live events.
+pub struct Detect3Observer {
+    pub detector: Detector3,
+}
+
+impl crate::rod3d::events::Observer3 for Detect3Observer {
+    fn on_event(&mut self, e: &crate::rod3d::events::Event3<'_>) {
+        if let Some(m) = crate::record::mcap3::step_message(e) {
+            self.detector.step(&m);
+        }
+    }
+}
+
+/// `replay show` on a 3D run: the recording turned into the `.rrd` a live run writes
+/// (src/record/rerun3.rs), the material frames carried along the recorded steps.
+pub fn show(path: &Path, out: &Path) -> Result<u64, ReplayError> {
+    use crate::rod3d::events::{
+        BodyPose3, Contact3, ContactChange3, Emit3, Event3, Observer3, Rod3StepView,
+    };
+    let run = Run3::load(path)?;
+    let (mut w, _) =
+        crate::rod3d::run3::build(&run.scenario).map_err(|e| ReplayError::file(path, e))?;
+    let mut rrd = crate::record::rerun3::Rrd3::create(out, &run.name)
+        .map_err(|e| ReplayError::file(out, e))?;
+    w.start_observed(&mut Emit3::default(), &mut rrd);
+    let v3 = |v: &[f64]| -> [f64; 3] {
+        match v {
+            [a, b, c] => [*a, *b, *c],
+            _ => [0.0; 3],
+        }
+    };
+    for m in &run.steps {
+        for (sim, rod) in w.rods.iter_mut().zip(&m.rods) {
+            let n = sim.rod.n;
+            if rod.x.len() != 3 * n || rod.theta.len() + 1 != n || rod.v.len() != 3 * n {
+                let _ = rrd.abandon();
+                return Err(ReplayError::file(
+                    path,
+                    format!("step {}: a rod's arrays do not match the scenario", m.step),
+                ));
+            }
+            for i in 0..n {
+                sim.q[pos(i)..pos(i) + 3].copy_from_slice(&rod.x[3 * i..3 * i + 3]);
+                sim.v[pos(i)..pos(i) + 3].copy_from_slice(&rod.v[3 * i..3 * i + 3]);
+                if i + 1 < n {
+                    sim.q[angle(i)] = rod.theta[i];
+                }
+            }
+            sim.advance_frames();
+        }
+        let views: Vec<Rod3StepView<'_>> = w.rods.iter().map(|s| s.view()).collect();
+        let contacts: Vec<Contact3> = m
+            .contacts
+            .iter()
+            .map(|c| Contact3 {
+                rod: c.rod as usize,
+                node: c.node as usize,
+                point: v3(&c.point),
+                normal: v3(&c.normal),
+                reaction: v3(&c.reaction),
+                friction: v3(&c.friction),
+                gap: c.gap,
+                surface: c.shape as usize,
+                stick: c.stuck,
+                normal_reaction: c.normal_force,
+            })
+            .collect();
+        let bodies: Vec<BodyPose3> = m
+            .bodies
+            .iter()
+            .map(|b| BodyPose3 {
+                shape: b.shape as usize,
+                position: v3(&b.position),
+                rotation: match b.rotation[..] {
+                    [x, y, z, w] => [x, y, z, w],
+                    _ => [0.0, 0.0, 0.0, 1.0],
+                },
+                velocity: v3(&b.velocity),
+                angular_velocity: v3(&b.angular_velocity),
+            })
+            .collect();
+        let changes: Vec<ContactChange3> = m
+            .changes
+            .iter()
+            .map(|c| ContactChange3 {
+                rod: c.rod as usize,
+                node: c.node as usize,
+                added: c.added,
+            })
+            .collect();
+        rrd.on_event(&Event3::Step {
+            step: m.step,
+            time: m.t,
+            dt: m.dt,
+            newton_iterations: m.newton_iterations,
+            rods: &views,
+            contacts: &contacts,
+            bodies: &bodies,
+            changes: &changes,
+            passes: m.passes,
+            switches: 0,
+        });
+    }
+    rrd.finish().map_err(|e| ReplayError::file(out, e))?;
+    Ok(run.steps.len() as u64)
+}
