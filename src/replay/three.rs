@@ -290,6 +290,21 @@ impl Detector3 {
             None,
             &[],
         );
+        // The prong's Kelvin–Voigt damping force, from the recorded positions of this step and
+        // the last, as the solver adds it (its velocity jumps are the material's, not spikes).
+        if sim.damping_time > 0.0 && m.dt > 0.0 {
+            crate::rod3d::solver::damping_into::<crate::solver::banded::BandLu>(
+                &sim.rod,
+                &sim.frames,
+                &self.q,
+                &sim.q,
+                m.dt,
+                sim.damping_time,
+                &mut self.grad,
+                None,
+                &[],
+            );
+        }
         let (th, dt, a_scene) = (self.th, m.dt, self.scales.acceleration);
         for i in 0..sim.rod.n {
             let k = pos(i);
