@@ -532,29 +532,9 @@ pub fn file_descriptor_set() -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use prost::encoding::{decode_key, WireType};
+    use prost::encoding::WireType;
 
-    /// Every field of `bytes` (one message) as (number, wire type), in order.
-    fn wire_fields(mut bytes: &[u8]) -> Vec<(u32, WireType)> {
-        let mut out = Vec::new();
-        while !bytes.is_empty() {
-            let (tag, wt) = decode_key(&mut bytes).unwrap();
-            out.push((tag, wt));
-            match wt {
-                WireType::Varint => {
-                    prost::encoding::decode_varint(&mut bytes).unwrap();
-                }
-                WireType::SixtyFourBit => bytes = &bytes[8..],
-                WireType::ThirtyTwoBit => bytes = &bytes[4..],
-                WireType::LengthDelimited => {
-                    let n = prost::encoding::decode_varint(&mut bytes).unwrap() as usize;
-                    bytes = &bytes[n..];
-                }
-                _ => panic!("group wire type"),
-            }
-        }
-        out
-    }
+    use crate::record::proto::tests::wire_fields;
 
     fn expected_wire(kind: Kind, repeated: bool) -> WireType {
         match (kind, repeated) {

@@ -571,12 +571,12 @@ pub fn decode_json(schema: &str, encoding: &str, data: &[u8]) -> Option<serde_js
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use prost::encoding::{decode_key, WireType};
 
     /// Every field of `bytes` (one message) as (number, wire type), in order.
-    fn wire_fields(mut bytes: &[u8]) -> Vec<(u32, WireType)> {
+    pub(crate) fn wire_fields(mut bytes: &[u8]) -> Vec<(u32, WireType)> {
         let mut out = Vec::new();
         while !bytes.is_empty() {
             let (tag, wt) = decode_key(&mut bytes).unwrap();
