@@ -9,7 +9,7 @@
 //! also those gripsim never writes, so a reader sees the complete published type.
 
 use prost::Message as _;
-use prost_types::field_descriptor_proto::{Label, Type};
+use prost_types::field_descriptor_proto::Type;
 use prost_types::{
     DescriptorProto, EnumDescriptorProto, EnumValueDescriptorProto, FieldDescriptorProto,
     FileDescriptorProto, FileDescriptorSet,
@@ -451,20 +451,7 @@ fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto 
         K::Message(m) => (Type::Message, Some(m.to_string())),
         K::Enum(e) => (Type::Enum, Some(e.to_string())),
     };
-    let mut f = FieldDescriptorProto {
-        name: Some(name.to_string()),
-        number: Some(number),
-        type_name,
-        json_name: Some(name.to_string()),
-        ..Default::default()
-    };
-    f.set_label(if repeated {
-        Label::Repeated
-    } else {
-        Label::Optional
-    });
-    f.set_type(ty);
-    f
+    super::proto::describe_field(name, number, ty, type_name, repeated)
 }
 
 fn message_proto(name: &str, fields: &[Field], nested: Option<EnumDef>) -> DescriptorProto {

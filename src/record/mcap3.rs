@@ -21,8 +21,7 @@ use crate::rod3d::events::{
     BodyPose3, Contact3, Event3, Observer3, Rod3Info, Rod3StepView, Shape3Info,
 };
 use prost::Message as _;
-use prost_types::field_descriptor_proto::{Label, Type};
-use prost_types::{DescriptorProto, FieldDescriptorProto, FileDescriptorProto, FileDescriptorSet};
+use prost_types::{DescriptorProto, FileDescriptorProto, FileDescriptorSet};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -121,17 +120,7 @@ pub struct Change3 {
     pub added: bool,
 }
 
-#[derive(Clone, Copy)]
-enum K {
-    Double,
-    Bool,
-    Uint32,
-    Uint64,
-    Message(&'static str),
-}
-
-/// (name, number, kind, repeated)
-type Field = (&'static str, i32, K, bool);
+use super::proto::{field_proto, Field, Kind as K};
 
 /// The messages' fields: what the derives above say, for the descriptor.
 const MESSAGES: &[(&str, &[Field])] = &[
@@ -194,30 +183,6 @@ const MESSAGES: &[(&str, &[Field])] = &[
         ],
     ),
 ];
-
-fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto {
-    let (ty, type_name) = match kind {
-        K::Double => (Type::Double, None),
-        K::Bool => (Type::Bool, None),
-        K::Uint32 => (Type::Uint32, None),
-        K::Uint64 => (Type::Uint64, None),
-        K::Message(m) => (Type::Message, Some(format!(".gripsim.{m}"))),
-    };
-    let mut f = FieldDescriptorProto {
-        name: Some(name.to_string()),
-        number: Some(number),
-        type_name,
-        json_name: Some(name.to_string()),
-        ..Default::default()
-    };
-    f.set_label(if repeated {
-        Label::Repeated
-    } else {
-        Label::Optional
-    });
-    f.set_type(ty);
-    f
-}
 
 /// The `/sim/step` schema of a 3D run: `gripsim/recording3.proto` (proto3, package `gripsim`).
 pub fn file_descriptor_set() -> Vec<u8> {

@@ -271,7 +271,8 @@ pub const MESSAGES: [(&str, &[Field]); 5] = [
 /// The protobuf package of the messages.
 pub const PACKAGE: &str = "gripsim";
 
-fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto {
+/// The descriptor of one field of a `gripsim` message (also the 3D ones, src/record/mcap3.rs).
+pub(crate) fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto {
     let (ty, type_name) = match kind {
         K::Double => (Type::Double, None),
         K::Bool => (Type::Bool, None),
@@ -281,6 +282,17 @@ fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto 
         K::Str => (Type::String, None),
         K::Message(m) => (Type::Message, Some(format!(".{PACKAGE}.{m}"))),
     };
+    describe_field(name, number, ty, type_name, repeated)
+}
+
+/// One field of a descriptor (proto3: a scalar is `optional`-labelled, its JSON name its own).
+pub(crate) fn describe_field(
+    name: &str,
+    number: i32,
+    ty: Type,
+    type_name: Option<String>,
+    repeated: bool,
+) -> FieldDescriptorProto {
     let mut f = FieldDescriptorProto {
         name: Some(name.to_string()),
         number: Some(number),

@@ -423,23 +423,7 @@ impl Scenario {
                 None,
             )
         })?;
-        for s in sets {
-            overrides::apply(&mut root, s).map_err(|(key, value, message, hint)| {
-                // One line, whatever the --set text holds.
-                let shown = if s.contains(['\n', '\r']) {
-                    s.escape_debug().to_string()
-                } else {
-                    s.clone()
-                };
-                ScenarioError {
-                    file: format!("{file} (--set {shown})"),
-                    key,
-                    value,
-                    message,
-                    hint,
-                }
-            })?;
-        }
+        apply_sets(&mut root, sets, file)?;
         let text = toml::to_string(&root).unwrap_or_else(|_| text.to_string());
         let mut sc = parse_root(&root, file)?;
         sc.text = text;
@@ -455,6 +439,32 @@ impl Scenario {
 pub const MAX_SCENARIO_BYTES: u64 = 16 << 20;
 
 /// Read at most [`MAX_SCENARIO_BYTES`] + 1 bytes of `path` (so a longer one is detected).
+/// Apply `--set` overrides to a scenario's TOML table; an error names the file with the `--set`
+/// text (on one line, whatever it holds), the key and the value.
+pub(crate) fn apply_sets(
+    root: &mut toml::Table,
+    sets: &[String],
+    file: &str,
+) -> Result<(), ScenarioError> {
+    for s in sets {
+        overrides::apply(root, s).map_err(|(key, value, message, hint)| {
+            let shown = if s.contains(['\n', '\r']) {
+                s.escape_debug().to_string()
+            } else {
+                s.clone()
+            };
+            ScenarioError {
+                file: format!("{file} (--set {shown})"),
+                key,
+                value,
+                message,
+                hint,
+            }
+        })?;
+    }
+    Ok(())
+}
+
 pub fn read_capped(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
     use std::io::Read as _;
     let mut bytes = Vec::new();

@@ -311,22 +311,7 @@ impl Scenario3 {
         let Ok(mut root) = text.parse::<toml::Table>() else {
             return Self::from_str(text, file, dir);
         };
-        for s in sets {
-            super::overrides::apply(&mut root, s).map_err(|(key, value, message, hint)| {
-                let shown = if s.contains(['\n', '\r']) {
-                    s.escape_debug().to_string()
-                } else {
-                    s.clone()
-                };
-                ScenarioError {
-                    file: format!("{file} (--set {shown})"),
-                    key,
-                    value,
-                    message,
-                    hint,
-                }
-            })?;
-        }
+        super::apply_sets(&mut root, sets, file)?;
         let text = toml::to_string(&root).map_err(|e| ScenarioError {
             file: file.to_string(),
             key: String::new(),
