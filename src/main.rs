@@ -2,11 +2,12 @@
 
 use clap::{Parser, Subcommand, ValueEnum};
 use gripsim::events::{Fanout, Observer};
+use gripsim::record::auto::{AutoDetail, AutoStats};
 use gripsim::record::csv::CsvSink;
 use gripsim::record::mcap::McapSink;
 use gripsim::record::rerun::RerunSink;
 use gripsim::record::summary::SummaryCollector;
-use gripsim::record::{Detail, Finished, RecordOptions, Recording};
+use gripsim::record::{AutoRule, Detail, Finished, RecordOptions, Recording};
 use gripsim::{Scenario, Simulation};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -64,8 +65,11 @@ enum Command {
         /// Write one CSV row per step, rod and node to this file.
         #[arg(long, value_name = "FILE.csv")]
         csv: Option<PathBuf>,
-        /// What the recordings hold: every step, or also every Newton iteration.
-        #[arg(long, value_enum, default_value_t = DetailArg::Step)]
+        /// What the recordings hold: auto = every step with its Newton iterations in windows
+        /// around each event (contact change, stick/slip, dt change, Newton trouble, spike),
+        /// every k-th step elsewhere (k from the run's length, docs/recording-format.md);
+        /// step = every step; iteration = every step and every Newton iteration.
+        #[arg(long, value_enum, default_value_t = DetailArg::Auto)]
         detail: DetailArg,
         /// Make the recordings readable up to here every N steps [default: the scenario's
         /// [output] flush_every, else 100].
@@ -163,6 +167,8 @@ enum ArrowsArg {
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum DetailArg {
+    /// Full detail around events, every k-th step elsewhere, the first and last step.
+    Auto,
     /// Every step's state, contact changes and solver events.
     Step,
     /// Also every Newton iteration of every predictor and corrector pass.
@@ -265,6 +271,7 @@ fn main() -> ExitCode {
                 csv,
                 summary,
                 detail: match detail {
+                    DetailArg::Auto => Detail::Auto(Default::default()),
                     DetailArg::Step => Detail::Step,
                     DetailArg::Iteration => Detail::Iteration,
                 },
@@ -385,9 +392,14 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         out.rrd = Some(base.with_extension("rrd"));
         out.mcap = Some(base.with_extension("mcap"));
     }
+    let flush_every = out.flush_every.unwrap_or(sc.flush_every);
     let opts = RecordOptions {
-        detail: out.detail,
-        flush_every: out.flush_every.unwrap_or(sc.flush_every),
+        // `auto`: its numbers from the scenario.
+        detail: match out.detail {
+            Detail::Auto(_) => Detail::Auto(AutoRule::for_scenario(&sc, flush_every)),
+            d => d,
+        },
+        flush_every,
     };
     // Every output its own file, none of them an input, each one a path that can take a file:
     // checked before anything is created.
@@ -461,18 +473,39 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         .check
         .as_ref()
         .map(|(th, _)| gripsim::replay::detect::DetectObserver::new(&sc, th));
-    let result = {
+    let any_file = !sinks.is_empty();
+    let (result, auto_stats) = {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);
         if let Some(d) = detector.as_mut() {
             fan.push(d as &mut dyn Observer);
         }
+        let mut files = Fanout::new();
         for s in sinks.iter_mut() {
-            fan.push(s.as_mut() as &mut dyn Observer);
+            files.push(s.as_mut() as &mut dyn Observer);
+        }
+        // `--detail auto`: one layer in front of all the files chooses the steps they get; the
+        // live spike detector (with --check's thresholds) lets a spike open a window.
+        let mut auto = None;
+        let mut plain = None;
+        match opts.detail.auto().filter(|_| any_file) {
+            Some(rule) => {
+                let th = out
+                    .check
+                    .as_ref()
+                    .map_or(gripsim::replay::Thresholds::DEFAULT, |(th, _)| *th);
+                let spikes = gripsim::replay::detect::Detector::new(&sc, &th);
+                fan.push(
+                    auto.insert(AutoDetail::new(files, rule, Some(spikes))) as &mut dyn Observer
+                );
+            }
+            None => fan.push(plain.insert(files) as &mut dyn Observer),
         }
         // Only accepted steps' contact changes reach the sinks.
         let mut accepted = gripsim::record::accepted::AcceptedContacts::new(fan);
-        sim.run(&mut accepted)
+        let result = sim.run(&mut accepted);
+        drop(accepted);
+        (result, auto.map(|a| a.stats))
     };
     let mut failed = false;
     let mut files = Vec::new();
@@ -497,7 +530,7 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     }
     if !quiet {
         print_summary(&summary);
-        print_recordings(&files, opts);
+        print_recordings(&files, opts, auto_stats);
     }
     let mut check_code = 0u8;
     if let (Some(d), Some((_, json))) = (detector, &out.check) {
@@ -575,15 +608,25 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
 }
 
 /// Where the recordings are and how to open them.
-fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions) {
+fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions, auto: Option<AutoStats>) {
     if files.is_empty() {
         return;
     }
     say!(
         "recordings      ({} detail, readable up to the last multiple of {} steps if the run dies)",
-        opts.detail.as_str(),
+        opts.detail.describe(),
         opts.flush_every
     );
+    if let Some(a) = auto {
+        say!(
+            "                {} of {} steps recorded: {} in full around {} eventful step(s), {} sampled",
+            a.full + a.sampled,
+            a.full + a.sampled + a.dropped,
+            a.full,
+            a.eventful,
+            a.sampled
+        );
+    }
     for (format, f) in files {
         let size = std::fs::metadata(&f.path).map(|m| m.len()).unwrap_or(0);
         let how = match *format {

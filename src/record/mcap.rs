@@ -21,9 +21,9 @@
 //! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
 
 use super::{
-    error_chain, node_norm, obstacle_outline, Detail, Finished, OutputFile, RecordError,
-    RecordOptions, Recording, SceneStyle, ViewOptions, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR,
-    OBSTACLE_COLOR, PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
+    error_chain, node_norm, obstacle_outline, Finished, OutputFile, RecordError, RecordOptions,
+    Recording, SceneStyle, ViewOptions, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR,
+    PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
     BodyView, ContactChange, ContactView, Event, Observer, ReleaseReason, RodInfo, RodStepView,
@@ -260,6 +260,8 @@ impl McapSink {
             scenario_text: info.scenario_text,
             mode,
             detail: self.opts.detail.as_str(),
+            auto_every: self.opts.detail.auto().map(|a| a.every),
+            auto_window: self.opts.detail.auto().map(|a| a.window),
             flush_every: self.opts.flush_every,
             clock: if self.static_mode {
                 "load_step"
@@ -280,6 +282,15 @@ impl McapSink {
                 ("detail".into(), self.opts.detail.as_str().into()),
             ]),
         };
+        let mut record = record;
+        if let Some(a) = self.opts.detail.auto() {
+            record
+                .metadata
+                .insert("auto_every".into(), a.every.to_string());
+            record
+                .metadata
+                .insert("auto_window".into(), a.window.to_string());
+        }
         if let Some(w) = self.writer.as_mut() {
             if let Err(e) = w.write_metadata(&record) {
                 return self.fail(error_chain(&e));
@@ -409,7 +420,7 @@ struct StepEnd<'e, 'a> {
 
 impl Observer for McapSink {
     fn wants_iterations(&self) -> bool {
-        self.opts.detail == Detail::Iteration
+        self.opts.detail.iterations()
     }
 
     fn on_event(&mut self, event: &Event<'_>) {
@@ -430,7 +441,7 @@ impl Observer for McapSink {
                 update,
                 q,
             } => {
-                if self.opts.detail == Detail::Iteration {
+                if self.opts.detail.iterations() {
                     let time = self.time(step, self.step_start.min(t));
                     let msg = super::proto::iteration(
                         step, t, phase, pass, iteration, rod, residual, update, q,
@@ -602,6 +613,11 @@ struct Meta<'a> {
     scenario_text: &'a str,
     mode: &'a str,
     detail: &'a str,
+    /// `--detail auto`: every k-th step outside the windows, and the window (steps).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    auto_every: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    auto_window: Option<u64>,
     flush_every: u64,
     clock: &'a str,
     units: BTreeMap<&'a str, &'a str>,

@@ -10,6 +10,7 @@
 //! completed) and the [`Recording`] trait (finish the file and say where it is).
 
 pub mod accepted;
+pub mod auto;
 pub mod csv;
 pub mod csv3;
 pub mod foxglove;
@@ -96,6 +97,21 @@ pub enum Detail {
     Step,
     /// Also every Newton iteration of every predictor and corrector pass.
     Iteration,
+    /// What matters ([`auto`]): every step with its Newton iterations in windows around
+    /// every event (contact change, stick/slip switch, dt change, Newton trouble, warning,
+    /// actuation phase change, a flagged spike), every k-th step elsewhere, the first and the
+    /// last step. A sink given this detail records what it is given (iterations included);
+    /// the [`auto::AutoDetail`] layer in front of it decides what that is.
+    Auto(AutoRule),
+}
+
+/// The numbers of `--detail auto`: every `every`-th step outside the windows, windows of
+/// `window` steps before and after each event. `every` = 0: not chosen yet (chosen from the
+/// scenario by [`auto::AutoRule::for_scenario`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct AutoRule {
+    pub every: u64,
+    pub window: u64,
 }
 
 impl Detail {
@@ -103,7 +119,45 @@ impl Detail {
         match self {
             Detail::Step => "step",
             Detail::Iteration => "iteration",
+            Detail::Auto(_) => "auto",
         }
+    }
+
+    /// "step", "iteration", or "auto (every 100th step, windows of 20 steps around events)".
+    pub fn describe(self) -> String {
+        match self {
+            Detail::Auto(a) => format!(
+                "auto (every {}{} step, windows of {} steps around events)",
+                a.every,
+                ordinal_suffix(a.every),
+                a.window
+            ),
+            d => d.as_str().to_string(),
+        }
+    }
+
+    /// Whether a sink records the Newton iterations it is given.
+    pub fn iterations(self) -> bool {
+        !matches!(self, Detail::Step)
+    }
+
+    /// The rule of `--detail auto`, if that is the detail.
+    pub fn auto(self) -> Option<AutoRule> {
+        match self {
+            Detail::Auto(r) => Some(r),
+            _ => None,
+        }
+    }
+}
+
+/// "st", "nd", "rd" or "th" after a number.
+pub fn ordinal_suffix(n: u64) -> &'static str {
+    match (n % 10, n % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
     }
 }
 
@@ -113,7 +167,10 @@ impl std::str::FromStr for Detail {
         match s {
             "step" => Ok(Detail::Step),
             "iteration" => Ok(Detail::Iteration),
-            _ => Err(format!("unknown detail {s:?}: expected step or iteration")),
+            "auto" => Ok(Detail::Auto(AutoRule::default())),
+            _ => Err(format!(
+                "unknown detail {s:?}: expected auto, step or iteration"
+            )),
         }
     }
 }

@@ -42,9 +42,9 @@
 
 use super::summary::Window;
 use super::{
-    node_norm, obstacle_outline, phase_color, series_color, Detail, Finished, OutputFile,
-    RecordError, RecordOptions, Recording, RodStyle, SceneStyle, ViewOptions, CORRECTOR_COLOR,
-    DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR, PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
+    node_norm, obstacle_outline, phase_color, series_color, Finished, OutputFile, RecordError,
+    RecordOptions, Recording, RodStyle, SceneStyle, ViewOptions, CORRECTOR_COLOR, DRIVEN_COLOR,
+    NORMAL_COLOR, OBSTACLE_COLOR, PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
     BodyView, ContactChange, ContactView, Event, Observer, Phase, ReleaseReason, RodInfo,
@@ -90,6 +90,8 @@ pub struct RerunSink {
     /// Per rod and node: the impulse-consistent force's window.
     windows: Vec<Vec<Window>>,
     last_t: f64,
+    /// The last recorded step (a later one that is not its successor follows a gap).
+    last_step: Option<u64>,
     marks: Bookmarks,
     completed: bool,
     error: Option<RecordError>,
@@ -590,6 +592,7 @@ impl RerunSink {
             per_iteration: Vec::new(),
             windows: Vec::new(),
             last_t: 0.0,
+            last_step: None,
             marks: Bookmarks::default(),
             completed: false,
             error: None,
@@ -714,7 +717,7 @@ impl RerunSink {
                 info.rods.len(),
                 info.obstacles.len(),
                 format!("{:?}", info.mode).to_lowercase(),
-                self.opts.detail.as_str()
+                self.opts.detail.describe()
             ),
         );
     }
@@ -814,6 +817,12 @@ impl RerunSink {
         // Scalars: per rod and node, then the solver's.
         let t0 = if step == 0 { t } else { self.last_t };
         self.last_t = t;
+        // After a gap (`--detail auto`), the steps left out are taken to have had this step's
+        // impulse rate: the impulse-consistent force of a held contact stays its force.
+        let gap_scale = match self.last_step.replace(step) {
+            Some(s) if s + 1 != step && dt > 0.0 => (t - t0) / dt,
+            _ => 1.0,
+        };
         self.per_step.at(step, t, it);
         let mut k = 0;
         for pick in 0..4 {
@@ -827,8 +836,8 @@ impl RerunSink {
                             let f = self.windows[r][i].push(
                                 t0,
                                 t,
-                                v.impulse[2 * i],
-                                v.impulse[2 * i + 1],
+                                gap_scale * v.impulse[2 * i],
+                                gap_scale * v.impulse[2 * i + 1],
                                 FORCE_WINDOW,
                             );
                             if step > 0 {
@@ -2046,7 +2055,7 @@ struct IterationEvent<'a> {
 
 impl Observer for RerunSink {
     fn wants_iterations(&self) -> bool {
-        self.opts.detail == Detail::Iteration
+        self.opts.detail.iterations()
     }
 
     fn on_event(&mut self, event: &Event<'_>) {
@@ -2055,9 +2064,15 @@ impl Observer for RerunSink {
         }
         match *event {
             Event::RunStart(info) => self.run_start(info),
-            Event::StepBegin { dt, .. } => {
+            Event::StepBegin { step, dt, .. } => {
+                // After a gap (`--detail auto` left steps out) the last recorded state is not
+                // this step's start: no free-flight reference, so no magnified view.
+                let gap = self.last_step.is_some_and(|s| s + 1 != step);
                 for e in &mut self.rods {
                     e.step_begin(dt);
+                    if gap {
+                        e.reference.clear();
+                    }
                 }
             }
             Event::Iteration {
@@ -2071,7 +2086,7 @@ impl Observer for RerunSink {
                 q,
                 ..
             } => {
-                if self.opts.detail == Detail::Iteration {
+                if self.opts.detail.iterations() {
                     self.iteration(IterationEvent {
                         step,
                         t,

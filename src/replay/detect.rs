@@ -322,6 +322,19 @@ pub struct Sticking {
     pub count: u64,
 }
 
+/// A stretch of a recording that holds only some of its steps (`--detail auto`): recorded
+/// steps `from` and `to` with gaps between them, the largest `every` steps apart. No spike is
+/// judged across a gap (the velocity change over several steps is no one step's jump).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Decimated {
+    pub from: u64,
+    pub to: u64,
+    /// The largest step difference between two recorded steps of the stretch.
+    pub every: u64,
+    /// Gaps in the stretch (pairs of recorded steps more than one step apart).
+    pub gaps: u64,
+}
+
 /// Everything found in one run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Findings {
@@ -534,6 +547,10 @@ pub struct Detector {
     /// Steps seen (with step 0) and the last time.
     pub steps: u64,
     pub t_end: f64,
+    /// The last step seen.
+    last_step: Option<u64>,
+    /// The decimated stretches of the stream, in order.
+    pub decimated: Vec<Decimated>,
     /// The grasp rules, when the scenario has a free body.
     grasp: Option<super::grasp::GraspRule>,
     /// Per rod: the largest static friction coefficient of its contact pairs (the cone that
@@ -566,6 +583,8 @@ impl Detector {
             out: Findings::default(),
             steps: 0,
             t_end: 0.0,
+            last_step: None,
+            decimated: Vec::new(),
             grasp: super::grasp::GraspRule::of(sc),
             mu: sc
                 .rods
@@ -611,7 +630,14 @@ impl Detector {
     /// The end of an accepted step (step 0: the initial state).
     pub fn step(&mut self, step: u64, t: f64, dt: f64, rods: &[RodSample<'_>]) {
         self.flush_contacts(step, t);
-        if self.have_prev {
+        // A gap (a decimated recording): the previous step seen is not this step's start, so
+        // nothing is compared across it; the stretch is reported instead.
+        let gap = self.last_step.filter(|&s| step > s + 1);
+        if let Some(s) = gap {
+            self.note_gap(s, step);
+        }
+        self.last_step = Some(step);
+        if self.have_prev && gap.is_none() {
             for (r, cur) in rods.iter().enumerate().take(self.rods.len()) {
                 if self.dynamic && dt > 0.0 {
                     self.spikes(r, step, t, dt, cur);
@@ -625,6 +651,23 @@ impl Detector {
         self.have_prev = true;
         self.steps += 1;
         self.t_end = t;
+    }
+
+    /// A gap from recorded step `a` to `b`: a new decimated stretch, or the last one grown.
+    fn note_gap(&mut self, a: u64, b: u64) {
+        match self.decimated.last_mut() {
+            Some(d) if d.to == a => {
+                d.to = b;
+                d.every = d.every.max(b - a);
+                d.gaps += 1;
+            }
+            _ => self.decimated.push(Decimated {
+                from: a,
+                to: b,
+                every: b - a,
+                gaps: 1,
+            }),
+        }
     }
 
     /// Everything found; open episodes are closed at the last step.

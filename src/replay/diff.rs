@@ -206,8 +206,14 @@ pub struct DiffReport {
     pub within_tolerance: bool,
     pub parameters: Vec<ParamDiff>,
     pub span: Span,
-    /// Times compared (the union of both runs' step times up to `span.compared_to`).
+    /// Times compared (the union of both runs' step times up to `span.compared_to`, less those
+    /// inside a gap of a decimated recording).
     pub samples: usize,
+    /// Step times not compared because they fall in a gap of a `--detail auto` recording
+    /// (between two recorded steps more than one step apart): only the steps both runs
+    /// hold, or can interpolate between neighbouring steps, are compared.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub skipped_in_gaps: usize,
     pub first_divergence: Option<Divergence>,
     pub nodes: Vec<NodeDiff>,
     pub contact_event_counts: EventCounts,
@@ -601,6 +607,15 @@ impl<'a> Side<'a> {
         }
     }
 
+    /// True when `t` falls strictly inside a gap of a decimated recording: between two
+    /// recorded steps that are not consecutive steps of the run.
+    fn in_gap(&self, t: f64) -> bool {
+        match (&self.cur, &self.next) {
+            (Some(c), Some(n)) => n.t != t && n.step > c.step + 1,
+            _ => false,
+        }
+    }
+
     /// Node `i` of rod `r` of `field` at `t` (between `cur` and `next`, or at `next`).
     fn vec2(&self, t: f64, r: usize, i: usize, field: Field) -> [f64; 2] {
         let n = self
@@ -690,10 +705,23 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
     b.advance()?;
     let mut first: Option<Divergence> = None;
     let mut samples = 0usize;
+    let mut skipped_in_gaps = 0usize;
     // The union of both runs' step times, while both runs reach it.
     while let (Some(na), Some(nb)) = (&a.next, &b.next) {
         let t = na.t.min(nb.t);
         let (step_a, step_b) = (na.step, nb.step);
+        if a.in_gap(t) || b.in_gap(t) {
+            // A decimated recording has no state here: nothing to compare.
+            skipped_in_gaps += 1;
+            let (ta, tb) = (na.t, nb.t);
+            if ta == t {
+                a.advance()?;
+            }
+            if tb == t {
+                b.advance()?;
+            }
+            continue;
+        }
         samples += 1;
         let mut worst: Option<(f64, Divergence)> = None;
         let mut idx = 0;
@@ -803,6 +831,7 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
         parameters,
         span,
         samples,
+        skipped_in_gaps,
         first_divergence: first,
         nodes,
         contact_event_counts: counts,
@@ -1004,6 +1033,13 @@ pub fn format_diff(rep: &DiffReport) -> String {
         g(rep.span.compared_to),
         if rep.span.differs { "  DIFFERS" } else { "" }
     );
+    if rep.skipped_in_gaps > 0 {
+        let _ = writeln!(
+            s,
+            "decimated        {} step times fall in gaps of a --detail auto recording: not compared",
+            rep.skipped_in_gaps
+        );
+    }
     match &rep.first_divergence {
         None => {
             let _ = writeln!(s, "first divergence none");
@@ -1150,6 +1186,10 @@ pub fn format_diff(rep: &DiffReport) -> String {
         }
     );
     s
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 #[cfg(test)]

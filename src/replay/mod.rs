@@ -176,6 +176,10 @@ pub struct CheckReport {
     /// Contacts on a compliant fruit above its bruise threshold.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub bruise: Vec<bruise::BruiseFlag>,
+    /// Stretches of a `--detail auto` recording that hold only some steps: no spike is judged
+    /// across their gaps.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub decimated: Vec<detect::Decimated>,
 }
 
 impl CheckReport {
@@ -190,6 +194,7 @@ impl CheckReport {
     ) -> Self {
         let (steps, t_end, scales, thresholds) =
             (detector.steps, detector.t_end, detector.scales, detector.th);
+        let decimated = detector.decimated.clone();
         let found = detector.finish();
         Self {
             report_version: REPORT_VERSION,
@@ -210,6 +215,7 @@ impl CheckReport {
             grasp: found.grasp,
             grasp_expected: found.grasp_expected,
             bruise: found.bruise,
+            decimated,
         }
     }
 
@@ -302,6 +308,37 @@ fn g(x: f64) -> String {
     }
 }
 
+/// "decimated: steps 0..5960 recorded at most every 100th step (61 gaps); no spike is judged
+/// across a gap" (a few stretches named, the rest counted).
+pub fn describe_decimated(d: &[detect::Decimated]) -> String {
+    const SHOWN: usize = 6;
+    let parts: Vec<String> = d
+        .iter()
+        .take(SHOWN)
+        .map(|x| {
+            format!(
+                "steps {}..{} recorded at most every {}{} step ({} gap{})",
+                x.from,
+                x.to,
+                x.every,
+                crate::record::ordinal_suffix(x.every),
+                x.gaps,
+                if x.gaps == 1 { "" } else { "s" }
+            )
+        })
+        .collect();
+    let more = if d.len() > SHOWN {
+        format!(" and {} more stretches", d.len() - SHOWN)
+    } else {
+        String::new()
+    };
+    format!(
+        "decimated {:>5}  stretches: {}{more}; no spike is judged across a gap",
+        d.len(),
+        parts.join(", ")
+    )
+}
+
 /// The human form of a check report.
 pub fn format_check(rep: &CheckReport) -> String {
     use std::fmt::Write;
@@ -326,6 +363,9 @@ pub fn format_check(rep: &CheckReport) -> String {
         c.spikes, c.impact, c.unexplained
     );
     let _ = writeln!(s, "sticking  {:>5}  (toggling {})", c.sticking, c.toggling);
+    if !rep.decimated.is_empty() {
+        let _ = writeln!(s, "{}", describe_decimated(&rep.decimated));
+    }
     if c.slip + c.drop + c.held > 0 || !rep.grasp_expected.is_empty() {
         let _ = writeln!(
             s,

@@ -136,10 +136,16 @@ fn drive(
                 let sc = super::read::parse_scenario(path, &meta)?;
                 let s = (spec.take().expect("one /sim/meta"))(&meta);
                 let opts = RecordOptions {
-                    detail: if s.iterations {
-                        Detail::Iteration
-                    } else {
-                        Detail::Step
+                    detail: match (s.iterations, meta.auto_every) {
+                        // A decimated recording keeps its rule (the .rrd's text says it).
+                        (true, Some(every)) if meta.detail == "auto" => {
+                            Detail::Auto(crate::record::AutoRule {
+                                every,
+                                window: meta.auto_window.unwrap_or(0),
+                            })
+                        }
+                        (true, _) => Detail::Iteration,
+                        _ => Detail::Step,
                     },
                     flush_every: meta.flush_every.max(1),
                 };
@@ -366,7 +372,7 @@ pub fn show(path: &Path, out: &Path) -> Result<Shown, ReplayError> {
             name: meta.scenario_name.clone(),
             text: meta.scenario_text.clone(),
             blueprint: blueprint(&rod_names(meta)),
-            iterations: meta.detail == "iteration",
+            iterations: meta.detail == "iteration" || meta.detail == "auto",
         },
         |_, _, _| Ok(()),
     )

@@ -36,6 +36,11 @@ pub struct Meta {
     pub detail: String,
     #[serde(default)]
     pub flush_every: u64,
+    /// `detail` = auto: every k-th step outside the windows, and the window (steps).
+    #[serde(default)]
+    pub auto_every: Option<u64>,
+    #[serde(default)]
+    pub auto_window: Option<u64>,
     pub rods: Vec<RodMeta>,
 }
 
