@@ -71,6 +71,10 @@ enum Command {
         /// step = every step; iteration = every step and every Newton iteration.
         #[arg(long, value_enum, default_value_t = DetailArg::Auto)]
         detail: DetailArg,
+        /// With --detail auto: record every N-th step outside the windows [default: from the
+        /// run's length and node count]; N must divide the flush interval or be a multiple of it.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        auto_every: Option<u64>,
         /// Make the recordings readable up to here every N steps [default: the scenario's
         /// [output] flush_every, else 100].
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -236,6 +240,8 @@ struct Outputs {
     csv: Option<PathBuf>,
     summary: Option<PathBuf>,
     detail: Detail,
+    /// `--auto-every`.
+    auto_every: Option<u64>,
     flush_every: Option<u64>,
     /// `--check`: the thresholds and where to write the report.
     check: Option<(gripsim::replay::Thresholds, Option<PathBuf>)>,
@@ -251,6 +257,7 @@ fn main() -> ExitCode {
             mcap,
             csv,
             detail,
+            auto_every,
             flush_every,
             arrows,
             no_record,
@@ -275,6 +282,7 @@ fn main() -> ExitCode {
                     DetailArg::Step => Detail::Step,
                     DetailArg::Iteration => Detail::Iteration,
                 },
+                auto_every,
                 flush_every,
                 check: check.then_some((thresholds, check_json)),
                 arrows: match arrows {
@@ -393,12 +401,33 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         out.mcap = Some(base.with_extension("mcap"));
     }
     let flush_every = out.flush_every.unwrap_or(sc.flush_every);
+    let detail = match (out.detail, out.auto_every) {
+        // `auto`: its numbers from the scenario, or the step interval given.
+        (Detail::Auto(_), None) => Detail::Auto(AutoRule::for_scenario(&sc, flush_every)),
+        (Detail::Auto(_), Some(k)) => {
+            if gripsim::record::auto::align(k, flush_every) != k {
+                eprintln!(
+                    "error: --auto-every {k}: must divide the flush interval {flush_every} or be a \
+                     multiple of it (the steps where the files are made readable are recorded)"
+                );
+                return ExitCode::from(2);
+            }
+            Detail::Auto(AutoRule {
+                every: k,
+                window: gripsim::record::auto::WINDOW,
+            })
+        }
+        (d, None) => d,
+        (d, Some(_)) => {
+            eprintln!(
+                "error: --auto-every applies to --detail auto only (got --detail {})",
+                d.as_str()
+            );
+            return ExitCode::from(2);
+        }
+    };
     let opts = RecordOptions {
-        // `auto`: its numbers from the scenario.
-        detail: match out.detail {
-            Detail::Auto(_) => Detail::Auto(AutoRule::for_scenario(&sc, flush_every)),
-            d => d,
-        },
+        detail,
         flush_every,
     };
     // Every output its own file, none of them an input, each one a path that can take a file:

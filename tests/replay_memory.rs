@@ -51,7 +51,13 @@ fn record(path: &Path, t_end: &str) {
     let root = env!("CARGO_MANIFEST_DIR");
     let out = Command::new(env!("CARGO_BIN_EXE_gripsim"))
         .current_dir(root)
-        .args(["run", "scenarios/point-mass-plane-proximity.toml", "-q"])
+        .args([
+            "run",
+            "scenarios/point-mass-plane-proximity.toml",
+            "-q",
+            "--detail",
+            "step",
+        ])
         .args(["--set", &format!("solve.t_end={t_end}"), "--mcap"])
         .arg(path)
         .output()

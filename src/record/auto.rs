@@ -745,3 +745,189 @@ impl<O: Observer> Observer for AutoDetail<O> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::events::ReleaseReason;
+
+    /// Records the step numbers it gets and how many iterations came with each.
+    #[derive(Default)]
+    struct Steps {
+        got: Vec<(u64, usize)>,
+        iterations: usize,
+        contacts: Vec<u64>,
+        ended: bool,
+    }
+
+    impl Observer for Steps {
+        fn wants_iterations(&self) -> bool {
+            true
+        }
+        fn on_event(&mut self, e: &Event<'_>) {
+            match e {
+                Event::Iteration { .. } => self.iterations += 1,
+                Event::StepEnd { step, .. } => {
+                    self.got.push((*step, std::mem::take(&mut self.iterations)))
+                }
+                Event::ConstraintAdded(c) | Event::ConstraintReleased(c, _) => {
+                    self.contacts.push(c.step)
+                }
+                Event::RunEnd { .. } => self.ended = true,
+                _ => {}
+            }
+        }
+    }
+
+    fn change(step: u64) -> ContactChange {
+        ContactChange {
+            step,
+            t: step as f64,
+            pass: 1,
+            rod: 0,
+            node: 0,
+            obstacle: 0,
+            normal: [0.0, 1.0],
+            gap: 0.0,
+            reaction: [0.0; 2],
+            z: 0.0,
+        }
+    }
+
+    /// Steps 0..=last of one node, two Newton iterations each (step 0 none), a constraint
+    /// added in `added` and released in `released`.
+    fn feed(layer: &mut AutoDetail<Steps>, last: u64, added: u64, released: u64) {
+        let q = [0.0, 0.0];
+        let (b, i) = ([false], [usize::MAX]);
+        let rod = RodStepView {
+            q: &q,
+            u: &q,
+            reaction: &q,
+            impulse: &q,
+            drive_force: &q,
+            normal: &q,
+            contact_obstacle: &i,
+            normal2: &q,
+            contact_obstacle2: &i,
+            in_contact: &b,
+            bending_stress: &[0.0],
+            gap: &[1.0],
+            q_predictor: &q,
+        };
+        for step in 0..=last {
+            let t = step as f64;
+            layer.on_event(&Event::StepBegin { step, t, dt: 1.0 });
+            for iteration in 1..=(2 * u32::from(step > 0)) {
+                layer.on_event(&Event::Iteration {
+                    step,
+                    t,
+                    phase: Phase::Predictor,
+                    pass: 0,
+                    iteration,
+                    rod: 0,
+                    residual: 1.0,
+                    update: 1.0,
+                    q: &q,
+                });
+            }
+            if step == added {
+                layer.on_event(&Event::ConstraintAdded(change(step)));
+            }
+            if step == released {
+                layer.on_event(&Event::ConstraintReleased(
+                    change(step),
+                    ReleaseReason::Adhesive,
+                ));
+            }
+            layer.on_event(&Event::StepEnd {
+                step,
+                t,
+                dt: 1.0,
+                newton_iterations: 2 * u32::from(step > 0),
+                passes: 0,
+                rods: &[rod],
+                bodies: &[],
+                contacts: &[],
+            });
+        }
+        layer.on_event(&Event::RunEnd {
+            steps: last,
+            t: last as f64,
+            error: None,
+        });
+    }
+
+    #[test]
+    fn windows_around_events_every_kth_step_and_the_ends() {
+        let rule = AutoRule {
+            every: 25,
+            window: 3,
+        };
+        let mut layer = AutoDetail::new(Steps::default(), rule, None);
+        feed(&mut layer, 103, 40, 60);
+        let got = &layer.inner.got;
+        let full: Vec<u64> = (37..=43).chain(57..=63).collect();
+        let mut want: Vec<u64> = [0, 25, 50, 75, 100, 103].into();
+        want.extend(&full);
+        want.sort();
+        assert_eq!(got.iter().map(|g| g.0).collect::<Vec<_>>(), want);
+        for &(step, its) in got {
+            let expect = if full.contains(&step) { 2 } else { 0 };
+            assert_eq!(its, expect, "iterations of step {step}");
+        }
+        assert_eq!(layer.inner.contacts, [40, 60]);
+        assert!(layer.inner.ended);
+        assert_eq!(
+            layer.stats,
+            AutoStats {
+                full: 14,
+                sampled: 6,
+                dropped: 84,
+                eventful: 2
+            }
+        );
+    }
+
+    #[test]
+    fn newton_trouble_is_more_than_twice_the_mean_plus_one() {
+        let mut layer = AutoDetail::new(
+            Steps::default(),
+            AutoRule {
+                every: 1000,
+                window: 2,
+            },
+            None,
+        );
+        // Two iterations a step, then one step with six (> 2 x 2 + 1).
+        for (step, its) in [
+            (1u64, 2u32),
+            (2, 2),
+            (3, 2),
+            (4, 2),
+            (5, 6),
+            (6, 2),
+            (7, 2),
+            (8, 2),
+        ] {
+            assert_eq!(layer.trouble(step, its), step == 5, "step {step}");
+        }
+    }
+
+    #[test]
+    fn every_k_fits_the_flush_interval_and_the_budget() {
+        assert_eq!(align(6, 100), 10);
+        assert_eq!(align(30, 100), 50);
+        assert_eq!(align(100, 100), 100);
+        assert_eq!(align(101, 100), 200);
+        assert_eq!(align(1, 7), 1);
+        assert_eq!(align(3, 7), 7);
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two-prong-grasp.toml");
+        let sc = crate::Scenario::load(&path, &[]).unwrap();
+        // 6 000 steps x 20 nodes / 20 000 = 6 -> 10; at t_end = 1 s: 100 000 x 20 / 20 000 = 100.
+        assert_eq!(AutoRule::for_scenario(&sc, 100).every, 10);
+        let long = crate::Scenario::load(&path, &["solve.t_end=1".to_string()]).unwrap();
+        assert_eq!(AutoRule::for_scenario(&long, 100).every, 100);
+        assert_eq!(AutoRule::for_scenario(&long, 100).window, WINDOW);
+    }
+}

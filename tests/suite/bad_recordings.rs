@@ -60,7 +60,10 @@ fn refused(file: &Path, why: &str) {
 
 fn run_to(sc: &Path, mcap: &Path, sets: &[&str]) {
     let mut c = gripsim();
-    c.arg("run").arg(sc).args(["-q", "--mcap"]).arg(mcap);
+    c.arg("run")
+        .arg(sc)
+        .args(["-q", "--detail", "step", "--mcap"])
+        .arg(mcap);
     for s in sets {
         c.args(["--set", s]);
     }
@@ -180,7 +183,14 @@ fn other_files_than_a_recording() {
     let out = gripsim()
         .arg("run")
         .arg(scenario("point-mass-plane-dt1e-4"))
-        .args(["-q", "--set", "solve.t_end=0.002", "--rrd"])
+        .args([
+            "-q",
+            "--detail",
+            "step",
+            "--set",
+            "solve.t_end=0.002",
+            "--rrd",
+        ])
         .arg(&rrd)
         .arg("--csv")
         .arg(&csv)

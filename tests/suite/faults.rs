@@ -148,9 +148,13 @@ fn files_in(dir: &Path) -> Vec<String> {
 /// Seed grasp, short.
 fn short_run() -> Command {
     let mut c = gripsim();
-    c.arg("run")
-        .arg(scenario("seed-grasp-r5"))
-        .args(["-q", "--set", "solve.t_end=0.002"]);
+    c.arg("run").arg(scenario("seed-grasp-r5")).args([
+        "-q",
+        "--detail",
+        "step",
+        "--set",
+        "solve.t_end=0.002",
+    ]);
     c
 }
 
@@ -338,7 +342,15 @@ fn item2_a_full_disk_ends_the_run_with_an_error_and_closes_the_rest() {
             gripsim()
                 .arg("run")
                 .arg(scenario("seed-grasp-r5"))
-                .args(["-q", "--set", "solve.t_end=0.3", "--flush-every", "20"])
+                .args([
+                    "-q",
+                    "--detail",
+                    "step",
+                    "--set",
+                    "solve.t_end=0.3",
+                    "--flush-every",
+                    "20",
+                ])
                 .arg(flag)
                 .arg(&full)
                 .arg(other)
@@ -384,7 +396,7 @@ fn item3_memory_stays_flat_over_a_long_run() {
             gripsim()
                 .arg("run")
                 .arg(scenario("seed-grasp-r5"))
-                .args(["-q", "--set", &t_end, "--rrd"])
+                .args(["-q", "--detail", "step", "--set", &t_end, "--rrd"])
                 .arg(d.join(format!("{steps}.rrd")))
                 .arg("--mcap")
                 .arg(d.join(format!("{steps}.mcap")))
@@ -763,7 +775,7 @@ fn item8_sighup_closes_the_files_like_sigterm() {
     let mut child = gripsim()
         .arg("run")
         .arg(&sc)
-        .args(["-q", "--mcap"])
+        .args(["-q", "--detail", "step", "--mcap"])
         .arg(d.join("h.mcap"))
         .arg("--csv")
         .arg(d.join("h.csv"))
@@ -797,7 +809,7 @@ fn item8_a_killed_run_leaves_whole_csv_rows() {
         let mut child = gripsim()
             .arg("run")
             .arg(&sc)
-            .args(["-q", "--flush-every", "7", "--csv"])
+            .args(["-q", "--detail", "step", "--flush-every", "7", "--csv"])
             .arg(&csv)
             .stdout(Stdio::null())
             .spawn()

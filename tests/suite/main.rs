@@ -2,6 +2,7 @@
 //! copies of the Rerun SDK cost minutes and gigabytes). alloc.rs and replay_memory.rs stay
 //! separate: they install a counting global allocator.
 
+mod auto_detail;
 mod bad_input;
 mod bad_recordings;
 mod bench;

@@ -436,7 +436,15 @@ fn two_runs_give_identical_files() {
             gripsim()
                 .arg("run")
                 .arg(scenario("seed-grasp-r5"))
-                .args(["--set", "solve.t_end=0.045", "--flush-every", "250", "-q"])
+                .args([
+                    "--set",
+                    "solve.t_end=0.045",
+                    "--flush-every",
+                    "250",
+                    "-q",
+                    "--detail",
+                    "step",
+                ])
                 .arg("--mcap")
                 .arg(d.join(format!("{tag}.mcap")))
                 .arg("--csv")
@@ -550,7 +558,7 @@ fn sigkill_leaves_files_readable_up_to_the_last_flush() {
     let mut child = gripsim()
         .arg("run")
         .arg(&sc)
-        .args(["-q", "--flush-every", "40", "--mcap"])
+        .args(["-q", "--detail", "step", "--flush-every", "40", "--mcap"])
         .arg(&mcap)
         .arg("--rrd")
         .arg(&rrd)
@@ -603,7 +611,7 @@ fn sigint_and_sigterm_close_the_recordings() {
         let mut child = gripsim()
             .arg("run")
             .arg(&sc)
-            .args(["-q", "--flush-every", "50", "--mcap"])
+            .args(["-q", "--detail", "step", "--flush-every", "50", "--mcap"])
             .arg(&mcap)
             .arg("--rrd")
             .arg(&rrd)
@@ -655,6 +663,8 @@ fn a_diverged_run_exits_2_and_its_recordings_say_why() {
         .arg(scenario("seed-grasp-r5"))
         .args([
             "-q",
+            "--detail",
+            "step",
             "--set",
             "rod.0.E=1e11",
             "--set",
@@ -748,6 +758,8 @@ fn contact_pressure_reaches_the_mcap() {
             .arg(scenario("seed-grasp-r5"))
             .args([
                 "-q",
+                "--detail",
+                "step",
                 "--set",
                 "contact.surface=face",
                 "--set",

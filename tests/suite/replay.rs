@@ -14,7 +14,12 @@ use std::process::{Command, Output};
 
 fn run_to(sc: &Path, mcap: &Path, sets: &[&str]) {
     let mut c = gripsim();
-    c.arg("run").arg(sc).arg("-q").arg("--mcap").arg(mcap);
+    c.arg("run")
+        .arg(sc)
+        .arg("-q")
+        .args(["--detail", "step"])
+        .arg("--mcap")
+        .arg(mcap);
     for s in sets {
         c.args(["--set", s]);
     }
@@ -582,7 +587,7 @@ fn a_stiffer_rod_diverges_at_the_first_contact() {
         gripsim()
             .arg("run")
             .arg(&sc)
-            .args(["-q", "--mcap"])
+            .args(["-q", "--detail", "step", "--mcap"])
             .arg(&a)
             .arg("--summary")
             .arg(&summary),
@@ -901,6 +906,8 @@ fn a_file_cut_short_is_read_to_its_last_complete_chunk() {
             .arg(scenario("point-mass-plane-dt1e-4"))
             .args([
                 "-q",
+                "--detail",
+                "step",
                 "--set",
                 "solve.t_end=0.12",
                 "--flush-every",

@@ -17,7 +17,12 @@ fn write_scenario(dir: &Path, name: &str, text: &str) -> PathBuf {
 
 fn run_to(sc: &Path, mcap: &Path, sets: &[&str]) {
     let mut c = gripsim();
-    c.arg("run").arg(sc).arg("-q").arg("--mcap").arg(mcap);
+    c.arg("run")
+        .arg(sc)
+        .arg("-q")
+        .args(["--detail", "step"])
+        .arg("--mcap")
+        .arg(mcap);
     for s in sets {
         c.args(["--set", s]);
     }
@@ -426,7 +431,12 @@ fn run_check_finds_what_replay_check_finds() {
         let mcap = d.join("r.mcap");
         let live = d.join("live.json");
         let mut c = gripsim();
-        c.arg("run").arg(&sc).arg("-q").arg("--mcap").arg(&mcap);
+        c.arg("run")
+            .arg(&sc)
+            .arg("-q")
+            .args(["--detail", "step"])
+            .arg("--mcap")
+            .arg(&mcap);
         c.arg("--check").arg("--check-json").arg(&live);
         for s in &sets {
             c.args(["--set", s]);
@@ -479,6 +489,8 @@ fn a_damaged_chunk_is_named_and_read_up_to() {
             .arg(scenario("point-mass-plane-dt1e-4"))
             .args([
                 "-q",
+                "--detail",
+                "step",
                 "--set",
                 "solve.t_end=0.05",
                 "--flush-every",

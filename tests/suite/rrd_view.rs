@@ -305,6 +305,8 @@ fn a_compliant_grasp_shows_pressure_along_the_contact_and_the_indentation_to_sca
             .arg(scenario("seed-grasp-e1gpa"))
             .args([
                 "-q",
+                "--detail",
+                "step",
                 "--set",
                 "contact.surface=face",
                 "--set",
