@@ -72,7 +72,7 @@ enum Command {
         #[arg(long, value_enum, default_value_t = DetailArg::Auto)]
         detail: DetailArg,
         /// With --detail auto: record every N-th step outside the windows [default: from the
-        /// run's length and node count]; N must divide the flush interval or be a multiple of it.
+        /// run's length and node count].
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
         auto_every: Option<u64>,
         /// Make the recordings readable up to here every N steps [default: the scenario's
@@ -403,20 +403,11 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     let flush_every = out.flush_every.unwrap_or(sc.flush_every);
     let detail = match (out.detail, out.auto_every) {
         // `auto`: its numbers from the scenario, or the step interval given.
-        (Detail::Auto(_), None) => Detail::Auto(AutoRule::for_scenario(&sc, flush_every)),
-        (Detail::Auto(_), Some(k)) => {
-            if gripsim::record::auto::align(k, flush_every) != k {
-                eprintln!(
-                    "error: --auto-every {k}: must divide the flush interval {flush_every} or be a \
-                     multiple of it (the steps where the files are made readable are recorded)"
-                );
-                return ExitCode::from(2);
-            }
-            Detail::Auto(AutoRule {
-                every: k,
-                window: gripsim::record::auto::WINDOW,
-            })
-        }
+        (Detail::Auto(_), None) => Detail::Auto(AutoRule::for_scenario(&sc)),
+        (Detail::Auto(_), Some(k)) => Detail::Auto(AutoRule {
+            every: k,
+            window: gripsim::record::auto::WINDOW,
+        }),
         (d, None) => d,
         (d, Some(_)) => {
             eprintln!(
@@ -428,7 +419,12 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     };
     let opts = RecordOptions {
         detail,
-        flush_every,
+        // `auto`: the files are made readable every `flush_every` sampled steps (a multiple of
+        // k, so always a recorded step), as many recorded steps per chunk as at step detail.
+        flush_every: match detail {
+            Detail::Auto(a) => flush_every.saturating_mul(a.every),
+            _ => flush_every,
+        },
     };
     // Every output its own file, none of them an input, each one a path that can take a file:
     // checked before anything is created.

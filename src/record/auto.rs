@@ -40,10 +40,10 @@ pub const NODE_STEP_BUDGET: u64 = 20_000;
 impl AutoRule {
     /// The rule for a scenario: `every` so that the sampled steps hold at most
     /// [`NODE_STEP_BUDGET`] node-steps (at the scenario's nominal step `solve.dt`; static runs
-    /// count their load steps), made a divisor of `flush_every` when smaller than it and a
-    /// multiple of it when larger — so that the steps on which the sinks make the file
-    /// readable (multiples of `flush_every`) are recorded; `window` = [`WINDOW`].
-    pub fn for_scenario(sc: &crate::Scenario, flush_every: u64) -> AutoRule {
+    /// count their load steps), rounded up to 1, 2 or 5 × 10ⁿ (round step numbers);
+    /// `window` = [`WINDOW`]. (`gripsim run` then flushes the files every `flush_every × every`
+    /// steps, always a recorded step.)
+    pub fn for_scenario(sc: &crate::Scenario) -> AutoRule {
         let nodes: u64 = sc.rods.iter().map(|r| r.nodes as u64).sum::<u64>().max(1);
         let steps = match sc.solve.mode {
             crate::scenario::Mode::Dynamic if sc.solve.dt > 0.0 => {
@@ -61,21 +61,9 @@ impl AutoRule {
             .div_ceil(NODE_STEP_BUDGET)
             .max(1);
         AutoRule {
-            every: align(raw, flush_every.max(1)),
+            every: super::nice_up(raw as f64).round() as u64,
             window: WINDOW,
         }
-    }
-}
-
-/// The smallest divisor of `flush` at or above `raw` when `raw` ≤ `flush`, else the smallest
-/// multiple of `flush` at or above it.
-pub fn align(raw: u64, flush: u64) -> u64 {
-    if raw <= flush {
-        (raw..=flush)
-            .find(|d| flush.is_multiple_of(*d))
-            .unwrap_or(flush)
-    } else {
-        raw.div_ceil(flush).saturating_mul(flush)
     }
 }
 
@@ -914,20 +902,19 @@ mod tests {
     }
 
     #[test]
-    fn every_k_fits_the_flush_interval_and_the_budget() {
-        assert_eq!(align(6, 100), 10);
-        assert_eq!(align(30, 100), 50);
-        assert_eq!(align(100, 100), 100);
-        assert_eq!(align(101, 100), 200);
-        assert_eq!(align(1, 7), 1);
-        assert_eq!(align(3, 7), 7);
+    fn every_k_fits_the_budget() {
         let path =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two-prong-grasp.toml");
-        let sc = crate::Scenario::load(&path, &[]).unwrap();
-        // 6 000 steps x 20 nodes / 20 000 = 6 -> 10; at t_end = 1 s: 100 000 x 20 / 20 000 = 100.
-        assert_eq!(AutoRule::for_scenario(&sc, 100).every, 10);
-        let long = crate::Scenario::load(&path, &["solve.t_end=1".to_string()]).unwrap();
-        assert_eq!(AutoRule::for_scenario(&long, 100).every, 100);
-        assert_eq!(AutoRule::for_scenario(&long, 100).window, WINDOW);
+        let at = |t: &str| {
+            let sc = crate::Scenario::load(&path, &[format!("solve.t_end={t}")]).unwrap();
+            AutoRule::for_scenario(&sc)
+        };
+        // 20 nodes at dt = 1e-5: 6 000 steps x 20 / 20 000 = 6 -> 10; 1 s: 100 000 x 20 /
+        // 20 000 = 100; 0.3 s: 30 -> 50; 1 ms: 100 steps, every one.
+        assert_eq!(at("0.06").every, 10);
+        assert_eq!(at("1").every, 100);
+        assert_eq!(at("0.3").every, 50);
+        assert_eq!(at("0.001").every, 1);
+        assert_eq!(at("1").window, WINDOW);
     }
 }

@@ -118,10 +118,13 @@ fn auto_is_the_default_and_keeps_every_step_of_each_window_and_every_kth_elsewhe
     record("two-prong-grasp", &s, &["--detail", "step"]);
     record("two-prong-grasp", &i, &["--detail", "iteration"]);
     let (a, s, i) = (read(&a), read(&s), read(&i));
-    // 6 000 steps x 20 nodes / 20 000 node-steps = 6, the next divisor of flush_every 100: 10.
+    // 6 000 steps x 20 nodes / 20 000 node-steps = 6, rounded up to 1, 2, 5 x 10^n: 10.
     assert_eq!(a.meta["detail"], "auto");
     assert_eq!(a.meta["auto_every"], 10);
     assert_eq!(a.meta["auto_window"], 20);
+    // Made readable every 100 sampled steps (100 x k), as many recorded steps as at step detail.
+    assert_eq!(a.meta["flush_every"], 1000);
+    assert_eq!(s.meta["flush_every"], 100);
     assert_eq!(s.meta["detail"], "step");
     assert_eq!(s.meta.get("auto_every"), None);
     assert_eq!(s.steps.len(), 6001);
@@ -265,10 +268,12 @@ fn auto_files_are_smaller_and_read_by_the_independent_readers() {
         let len = |f: &Path| std::fs::metadata(f).unwrap().len() as f64;
         size.insert(detail, (len(&rrd), len(&mcap)));
     }
-    // Measured (docs/performance.md): .mcap 7.0x, .rrd + .mcap 3.5x smaller at auto.
+    // Measured (docs/performance.md): .mcap 7.2x, .rrd 4.9x, both 5.8x smaller at auto
+    // (750 of 6 001 steps, 166 of them with their iterations).
     let (a, s) = (size["auto"], size["step"]);
     assert!(s.1 / a.1 > 4.0, "mcap {s:?} / {a:?}");
-    assert!((s.0 + s.1) / (a.0 + a.1) > 2.0, "rrd + mcap {s:?} / {a:?}");
+    assert!(s.0 / a.0 > 2.5, "rrd {s:?} / {a:?}");
+    assert!((s.0 + s.1) / (a.0 + a.1) > 3.0, "rrd + mcap {s:?} / {a:?}");
 
     let out = Command::new(venv().join("bin/rerun"))
         .args(["rrd", "verify"])
@@ -320,17 +325,7 @@ fn auto_files_are_smaller_and_read_by_the_independent_readers() {
 }
 
 #[test]
-fn auto_every_must_fit_the_flush_interval() {
-    let out = gripsim()
-        .arg("run")
-        .arg(scenario("two-prong-grasp"))
-        .args(["-q", "--no-record", "--auto-every", "37"])
-        .output()
-        .unwrap();
-    // --no-record: nothing recorded, but the flag is still checked.
-    assert_eq!(out.status.code(), Some(2), "{out:?}");
-    let e = String::from_utf8_lossy(&out.stderr);
-    assert!(e.contains("--auto-every 37") && e.contains("100"), "{e}");
+fn auto_every_is_for_auto_only() {
     let out = gripsim()
         .arg("run")
         .arg(scenario("two-prong-grasp"))
@@ -345,5 +340,9 @@ fn auto_every_must_fit_the_flush_interval() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2), "{out:?}");
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--detail auto only"));
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("--auto-every applies to --detail auto only"),
+        "{e}"
+    );
 }
