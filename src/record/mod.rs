@@ -126,6 +126,10 @@ impl Detail {
     /// "step", "iteration", or "auto (every 100th step, windows of 20 steps around events)".
     pub fn describe(self) -> String {
         match self {
+            Detail::Auto(a) if a.every <= 1 => format!(
+                "auto (every step, windows of {} steps around events)",
+                a.window
+            ),
             Detail::Auto(a) => format!(
                 "auto (every {}{} step, windows of {} steps around events)",
                 a.every,
