@@ -646,6 +646,8 @@ impl Detector {
         let gap = self.last_step.filter(|&s| step > s + 1);
         if let Some(s) = gap {
             self.note_gap(s, step);
+            // Whether a node reached a surface unstopped is not known across a gap.
+            self.arrived.iter_mut().for_each(|a| a.fill(false));
         }
         self.last_step = Some(step);
         if self.have_prev && gap.is_none() {
