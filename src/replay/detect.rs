@@ -13,7 +13,8 @@
 //!   velocity the node brought into the step — impact) and the rest.
 //!   - `impact`: the impact part is ≥ `spike_floor` and the displacement it stands for,
 //!     jump × Δt, ≥ `spike_displacement` (its implied acceleration, jump / Δt, is no measure:
-//!     a coarser step makes it smaller and the impact worse).
+//!     a coarser step makes it smaller and the impact worse), unless the impact was located
+//!     at the step's start by a time-of-impact split (docs/replay.md).
 //!   - `unexplained`: the rest is ≥ `spike_floor` and ≥ `spike_accel_ratio` × the node's
 //!     acceleration scale, at any Δt.
 //! * **Sticking** (per free node): `toggling`, ≥ `stick_toggles` constraint changes of
@@ -539,6 +540,13 @@ pub struct Detector {
     dynamic: bool,
     /// Velocities of the previous step, per rod.
     prev_u: Vec<Vec<f64>>,
+    /// Positions and contact flags of the previous step, per rod (an impact located at the
+    /// step's start, see [`Detector::spikes`]).
+    prev_q: Vec<Vec<f64>>,
+    prev_contact: Vec<Vec<bool>>,
+    /// Per rod and node: held since the end of the last step, which it reached on its own path
+    /// (nothing stopped it yet), so its impact happens at the start of the next step.
+    arrived: Vec<Vec<bool>>,
     have_prev: bool,
     force: Vec<f64>,
     nodes: Vec<Vec<NodeState>>,
@@ -570,6 +578,9 @@ impl Detector {
             th: Effective::for_scene(th, &scales),
             names: sc.rods.iter().map(|r| r.name.clone()).collect(),
             prev_u: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
+            prev_q: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
+            prev_contact: rods.iter().map(|r| vec![false; r.n]).collect(),
+            arrived: rods.iter().map(|r| vec![false; r.n]).collect(),
             nodes: rods
                 .iter()
                 .map(|r| vec![NodeState::default(); r.n])
@@ -635,6 +646,8 @@ impl Detector {
         let gap = self.last_step.filter(|&s| step > s + 1);
         if let Some(s) = gap {
             self.note_gap(s, step);
+            // Whether a node reached a surface unstopped is not known across a gap.
+            self.arrived.iter_mut().for_each(|a| a.fill(false));
         }
         self.last_step = Some(step);
         if self.have_prev && gap.is_none() {
@@ -647,6 +660,8 @@ impl Detector {
         self.close_stale(t);
         for (r, cur) in rods.iter().enumerate().take(self.rods.len()) {
             self.prev_u[r].copy_from_slice(cur.u);
+            self.prev_q[r].copy_from_slice(cur.q);
+            self.prev_contact[r].copy_from_slice(cur.in_contact);
         }
         self.have_prev = true;
         self.steps += 1;
@@ -788,7 +803,25 @@ impl Detector {
                 large(unexplained, node_ref) && unexplained * dt >= 1e-9 * self.scales.length;
             // An impact is judged by the displacement it stands for, not by its implied
             // acceleration: 10× coarser steps make that 10× smaller and the impact worse.
-            let flag_impact = impact >= th.spike_floor && impact * dt >= th.spike_displacement;
+            // An impact located at the start of this step (a time-of-impact split ended the
+            // last step at the contact instant) stands for no displacement, as the step's
+            // length does not blur when the contact began: free at the end of the last step and not moving towards the
+            // surface in this one (−n·Δq within round-off: it began on the surface), or held
+            // since the end of the last step, which it reached unstopped.
+            let added = cur.in_contact[i] && !self.prev_contact[r][i];
+            let located = if added {
+                let n = cur.normal(i);
+                let dq = [
+                    cur.q[2 * i] - self.prev_q[r][2 * i],
+                    cur.q[2 * i + 1] - self.prev_q[r][2 * i + 1],
+                ];
+                -dot(n, dq) <= 1e-9 * self.scales.length
+            } else {
+                cur.in_contact[i] && self.arrived[r][i]
+            };
+            self.arrived[r][i] = added && impact < th.spike_floor;
+            let displacement = if located { 0.0 } else { impact * dt };
+            let flag_impact = impact >= th.spike_floor && displacement >= th.spike_displacement;
             let make = |kind: &'static str, jump: f64, accel_ref: f64| Spike {
                 kind,
                 rod: r,
