@@ -10,6 +10,7 @@
 //! back to [`BandLu`].
 
 use crate::solver::banded::BandLu;
+use nalgebra::{Matrix3, Vector6};
 
 /// Something the assembly can add Hessian entries to.
 pub trait BandSink {
@@ -75,6 +76,12 @@ impl SymBand {
         self.a[self.at(i, j)]
     }
 
+    /// Copy `other` (same dimension and bandwidth) into this storage.
+    pub fn copy_from(&mut self, other: &SymBand) {
+        debug_assert!(self.n == other.n && self.k == other.k);
+        self.a.copy_from_slice(&other.a);
+    }
+
     /// Load the lower band of `a` (before its factorisation), a symmetric matrix of the same
     /// dimension and half-bandwidth at most `k`.
     pub fn copy_lower(&mut self, a: &BandLu) {
@@ -83,6 +90,85 @@ impl SymBand {
             for j in i.saturating_sub(self.k)..=i {
                 let at = self.at(i, j);
                 self.a[at] = a.get(i, j);
+            }
+        }
+    }
+
+    /// Set A[i][j] = A[j][i] = v (inside the band).
+    #[inline(always)]
+    fn set(&mut self, i: usize, j: usize, v: f64) {
+        let (i, j) = if i >= j { (i, j) } else { (j, i) };
+        debug_assert!(i - j <= self.k, "({i},{j}) outside the band");
+        let at = self.at(i, j);
+        self.a[at] = v;
+    }
+
+    /// Rotate the position block `k0..k0+3` of a node into the basis whose rows are `q`
+    /// (A ← Q A Qᵀ on that block row and column). A node couples only with columns
+    /// k0 − 8 … k0 + 10 (three-node stencils, four DOFs per node), inside the band.
+    pub fn rotate_node(&mut self, k0: usize, q: &Matrix3<f64>) {
+        let (lo, hi) = (k0.saturating_sub(8), (k0 + 10).min(self.n - 1));
+        for l in (lo..=hi).filter(|l| !(k0..k0 + 3).contains(l)) {
+            let old = [self.get(k0, l), self.get(k0 + 1, l), self.get(k0 + 2, l)];
+            for r in 0..3 {
+                let v = q[(r, 0)] * old[0] + q[(r, 1)] * old[1] + q[(r, 2)] * old[2];
+                self.set(k0 + r, l, v);
+            }
+        }
+        let b: [[f64; 3]; 3] =
+            std::array::from_fn(|i| std::array::from_fn(|j| self.get(k0 + i, k0 + j)));
+        for r in 0..3 {
+            for c in 0..=r {
+                let mut v = 0.0;
+                for s in 0..3 {
+                    for t in 0..3 {
+                        v += q[(r, s)] * b[s][t] * q[(c, t)];
+                    }
+                }
+                self.set(k0 + r, k0 + c, v);
+            }
+        }
+    }
+
+    /// Make coordinate j prescribed: its column (= row) leaves the matrix, the rows `l` not in
+    /// `elim` adding A[l][j] × `p` to their border row when j follows a body (`follow`), and
+    /// its diagonal becomes 1. `rows` are the rows that can couple with j.
+    pub fn eliminate(
+        &mut self,
+        j: usize,
+        rows: std::ops::RangeInclusive<usize>,
+        follow: Option<(usize, Vector6<f64>)>,
+        elim: &[bool],
+        border: &mut [Vec<f64>],
+    ) {
+        for l in rows.filter(|&l| l != j) {
+            let v = self.get(l, j);
+            if v == 0.0 {
+                continue;
+            }
+            if let Some((b, p)) = follow {
+                if !elim[l] {
+                    for (c, pc) in p.iter().enumerate() {
+                        border[l][6 * b + c] += v * pc;
+                    }
+                }
+            }
+            self.set(l, j, 0.0);
+        }
+        self.set(j, j, 1.0);
+    }
+
+    /// The full (both triangles) matrix into `lu`, cleared first: the general band for an LU
+    /// factorisation when this one is not positive definite.
+    pub fn expand_into(&self, lu: &mut BandLu) {
+        lu.clear();
+        for i in 0..self.n {
+            for j in i.saturating_sub(self.k)..=i {
+                let v = self.a[self.at(i, j)];
+                lu.add(i, j, v);
+                if i != j {
+                    lu.add(j, i, v);
+                }
             }
         }
     }
