@@ -42,6 +42,9 @@ pub struct SymBand {
     n: usize,
     k: usize,
     a: Vec<f64>,
+    /// After [`SymBand::factor`]: the reciprocals of L's diagonal (multiplications instead
+    /// of divisions in the factorisation and the solves).
+    inv: Vec<f64>,
 }
 
 impl SymBand {
@@ -50,6 +53,7 @@ impl SymBand {
             n,
             k,
             a: vec![0.0; n * (k + 1)],
+            inv: vec![0.0; n],
         }
     }
 
@@ -188,12 +192,14 @@ impl SymBand {
                     s -= x * y;
                 }
                 if j < i {
-                    self.a[ri + j] = s / self.a[rj + j];
+                    self.a[ri + j] = s * self.inv[j];
                 } else {
                     if s.is_nan() || s <= 0.0 {
                         return Err(i);
                     }
-                    self.a[ri + i] = s.sqrt();
+                    let d = s.sqrt();
+                    self.a[ri + i] = d;
+                    self.inv[i] = 1.0 / d;
                 }
             }
         }
@@ -207,17 +213,48 @@ impl SymBand {
             let lo = i.saturating_sub(k);
             let ri = i * w + k - i;
             let mut s = b[i];
-            for j in lo..i {
-                s -= self.a[ri + j] * b[j];
+            for (l, x) in self.a[ri + lo..ri + i].iter().zip(&b[lo..i]) {
+                s -= l * x;
             }
-            b[i] = s / self.a[ri + i];
+            b[i] = s * self.inv[i];
         }
         for i in (0..n).rev() {
             let ri = i * w + k - i;
-            b[i] /= self.a[ri + i];
+            b[i] *= self.inv[i];
             let bi = b[i];
-            for j in i.saturating_sub(k)..i {
-                b[j] -= self.a[ri + j] * bi;
+            let lo = i.saturating_sub(k);
+            for (x, l) in b[lo..i].iter_mut().zip(&self.a[ri + lo..ri + i]) {
+                *x -= l * bi;
+            }
+        }
+    }
+
+    /// Solve A X = B for several right-hand sides in one pass over the factor, in place.
+    /// Rows before `first` must be zero in every column (the forward pass starts there).
+    pub fn solve_many(&self, cols: &mut [&mut [f64]], first: usize) {
+        let (n, k, w) = (self.n, self.k, self.k + 1);
+        for i in first..n {
+            let lo = i.saturating_sub(k).max(first);
+            let ri = i * w + k - i;
+            let row = &self.a[ri + lo..ri + i];
+            for b in cols.iter_mut() {
+                let mut s = b[i];
+                for (l, x) in row.iter().zip(&b[lo..i]) {
+                    s -= l * x;
+                }
+                b[i] = s * self.inv[i];
+            }
+        }
+        for i in (0..n).rev() {
+            let ri = i * w + k - i;
+            let lo = i.saturating_sub(k);
+            let row = &self.a[ri + lo..ri + i];
+            for b in cols.iter_mut() {
+                b[i] *= self.inv[i];
+                let bi = b[i];
+                for (x, l) in b[lo..i].iter_mut().zip(row) {
+                    *x -= l * bi;
+                }
             }
         }
     }

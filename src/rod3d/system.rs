@@ -124,14 +124,29 @@ impl RodBlock<'_> {
         Ok(())
     }
 
-    /// Solve A x = b in place with the factor: (S + U Vᵀ)⁻¹ b = S⁻¹b − Y (I + Vᵀ Y)⁻¹ Vᵀ S⁻¹b.
+    /// Solve A x = b in place with the factor.
     fn solve_in(&self, b: &mut [f64]) {
-        let f = &*self.factor;
-        if f.use_lu {
-            f.lu.solve(b);
+        if self.factor.use_lu {
+            self.factor.lu.solve(b);
             return;
         }
-        f.chol.solve(b);
+        self.factor.chol.solve(b);
+        self.woodbury(b);
+    }
+
+    /// Several columns at once (rows before `first` zero in all of them).
+    fn solve_many(&self, cols: &mut [&mut [f64]], first: usize) {
+        if self.factor.use_lu {
+            cols.iter_mut().for_each(|b| self.factor.lu.solve(b));
+            return;
+        }
+        self.factor.chol.solve_many(cols, first);
+        cols.iter_mut().for_each(|b| self.woodbury(b));
+    }
+
+    /// From x = S⁻¹b to A⁻¹b: (S + U Vᵀ)⁻¹ b = S⁻¹b − Y (I + Vᵀ Y)⁻¹ Vᵀ S⁻¹b.
+    fn woodbury(&self, b: &mut [f64]) {
+        let f = &*self.factor;
         let Some(cap) = &f.cap else { return };
         let vb = DVector::from_iterator(
             self.kinetic.len(),
@@ -175,19 +190,27 @@ pub fn solve_bordered(
     for r in rods.iter_mut() {
         let n = r.rhs.len();
         // Z = A⁻¹ B, column by column (into storage kept from step to step).
+        // The nonzero columns solved together, from their first nonzero row.
         let mut zr = std::mem::take(&mut *r.z);
         zr.resize_with(nx, Vec::new);
+        let mut first = n;
+        let mut active: Vec<&mut [f64]> = Vec::with_capacity(nx);
         for (c, col) in zr.iter_mut().enumerate() {
             col.resize(n, 0.0);
-            let mut any = false;
+            let mut top = n;
             for (l, row) in r.border.iter().enumerate() {
                 col[l] = row[c];
-                any |= row[c] != 0.0;
+                if row[c] != 0.0 && top == n {
+                    top = l;
+                }
             }
-            if any {
-                r.solve_in(col);
+            if top < n {
+                first = first.min(top);
+                active.push(col);
             }
         }
+        r.solve_many(&mut active, first);
+        drop(active);
         for &(row, l, v) in r.rows {
             f[row] -= v * r.rhs[l];
             for (c, col) in zr.iter().enumerate() {
