@@ -186,11 +186,8 @@ impl SymBand {
             let ri = i * w + k - i; // row i's storage origin: (i, j) at ri + j
             for j in lo..=i {
                 let rj = j * w + k - j;
-                let mut s = self.a[ri + j];
                 let (li, lj) = (&self.a[ri + lo..ri + j], &self.a[rj + lo..rj + j]);
-                for (x, y) in li.iter().zip(lj) {
-                    s -= x * y;
-                }
+                let s = self.a[ri + j] - dot(li, lj);
                 if j < i {
                     self.a[ri + j] = s * self.inv[j];
                 } else {
@@ -212,10 +209,7 @@ impl SymBand {
         for i in 0..n {
             let lo = i.saturating_sub(k);
             let ri = i * w + k - i;
-            let mut s = b[i];
-            for (l, x) in self.a[ri + lo..ri + i].iter().zip(&b[lo..i]) {
-                s -= l * x;
-            }
+            let s = b[i] - dot(&self.a[ri + lo..ri + i], &b[lo..i]);
             b[i] = s * self.inv[i];
         }
         for i in (0..n).rev() {
@@ -238,10 +232,7 @@ impl SymBand {
             let ri = i * w + k - i;
             let row = &self.a[ri + lo..ri + i];
             for b in cols.iter_mut() {
-                let mut s = b[i];
-                for (l, x) in row.iter().zip(&b[lo..i]) {
-                    s -= l * x;
-                }
+                let s = b[i] - dot(row, &b[lo..i]);
                 b[i] = s * self.inv[i];
             }
         }
@@ -258,6 +249,27 @@ impl SymBand {
             }
         }
     }
+}
+
+/// x·y of two short slices of equal length, in four independent sums (the band's dot
+/// products are at most k long: one chain of dependent additions would be latency-bound).
+#[inline(always)]
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let mut acc = [0.0; 4];
+    let mut i = 0;
+    while i + 4 <= n {
+        for (a, c) in acc.iter_mut().enumerate() {
+            *c += x[i + a] * y[i + a];
+        }
+        i += 4;
+    }
+    while i < n {
+        acc[0] += x[i] * y[i];
+        i += 1;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
 impl BandSink for SymBand {

@@ -281,16 +281,23 @@ fn body_rows(
             continue;
         }
         for l in band_range(w.rhs.len(), k0) {
-            for a in 0..3 {
-                let v = w.band.get(k0 + a, l);
+            let col = [0, 1, 2].map(|a| w.band.get(k0 + a, l));
+            if col == [0.0; 3] {
+                continue;
+            }
+            if !w.elim[l] {
+                // One entry per body row: Σₐ (Gᵀ Qᵀ)ₑₐ A[k0 + a][l].
+                for e in 0..6 {
+                    let v = wm[(e, 0)] * col[0] + wm[(e, 1)] * col[1] + wm[(e, 2)] * col[2];
+                    w.rows.push((6 * b + e, l, v));
+                }
+                continue;
+            }
+            for (a, &v) in col.iter().enumerate() {
                 if v == 0.0 {
                     continue;
                 }
-                if !w.elim[l] {
-                    for e in 0..6 {
-                        w.rows.push((6 * b + e, l, wm[(e, a)] * v));
-                    }
-                } else if let Some((b2, p)) = w.follow[l] {
+                if let Some((b2, p)) = w.follow[l] {
                     for e in 0..6 {
                         for f in 0..6 {
                             s[(6 * b + e, 6 * b2 + f)] += wm[(e, a)] * v * p[f];
