@@ -10,7 +10,9 @@
 //! Last, the shipped 3D two-finger grasp against the shipped planar two-prong grasp at the same
 //! nodes (10 per prong) and dt (1e-5 s): the ratio of their costs per step.
 //!
-//!     cargo bench --bench rod3d [-- --planar | --grasp]
+//!     cargo bench --bench rod3d [-- --planar | --grasp | --grasp3]
+//!
+//! (`--grasp3`: the undamped 3D grasp alone, for a profiler.)
 
 use gripsim::bench::SEED_R5;
 use gripsim::events::NullObserver;
@@ -255,6 +257,12 @@ fn main() {
     }
     if std::env::args().any(|a| a == "--grasp") {
         grasp_ratio();
+        return;
+    }
+    if std::env::args().any(|a| a == "--grasp3") {
+        // The undamped 3D grasp at dt = 1e-5 alone (for a profiler).
+        let (us, n, it, passes) = grasp3(1e-5, false, 3);
+        println!("3d-two-finger-sphere, undamped, dt 1e-5: {n} steps, {us:.2} µs/step, {it:.2} it/step, {passes:.3} passes/step");
         return;
     }
     let dt = 1e-4;

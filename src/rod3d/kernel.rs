@@ -44,8 +44,10 @@ const F: usize = 3;
 const TE: usize = 6;
 const TF: usize = 7;
 
-/// One edge of the stencil at the current iterate.
-struct Edge {
+/// One edge of a stencil at the current iterate: its frame and the derivatives of its
+/// reference twist. Each edge belongs to two stencils; the assembly computes it once.
+#[derive(Debug, Clone, Copy)]
+pub struct Edge {
     t: V,
     l: f64,
     a1: V,
@@ -63,8 +65,9 @@ fn unit(j: usize) -> V {
     u
 }
 
-/// The edge's frame at the iterate; with `jv` also ∂v/∂e (Hessians only).
-fn edge(e: V, old: &EdgeFrame, theta: f64, jv: bool) -> Edge {
+/// Edge vector `e` with material angle `theta`, its reference frame transported from `old`;
+/// with `jv` also ∂v/∂e (Hessians only).
+pub fn edge(e: V, old: &EdgeFrame, theta: f64, jv: bool) -> Edge {
     let want_jv = jv;
     let l = dot(e, e).sqrt();
     let t = mul(1.0 / l, e);
@@ -296,6 +299,7 @@ pub fn strain_gradients(x: &[f64; 11], old: [&EdgeFrame; 2]) -> [[f64; 11]; 3] {
 }
 
 /// Energy, gradient and Hessian of one node over the local variables (e, f, θₑ, θ_f).
+#[allow(clippy::too_many_arguments)]
 pub fn local(
     e: V,
     f: V,
@@ -309,6 +313,20 @@ pub fn local(
     let want_h = h.is_some();
     let a = edge(e, old[0], th[0], want_h);
     let b = edge(f, old[1], th[1], want_h);
+    stencil(&a, &b, th, rt_old, p, g, h)
+}
+
+/// [`local`] from the stencil's two edges ([`edge`], with ∂v/∂e when `h` is wanted) and
+/// their material angles.
+pub fn stencil(
+    a: &Edge,
+    b: &Edge,
+    th: [f64; 2],
+    rt_old: f64,
+    p: &NodeElastic,
+    g: &mut G8,
+    h: Option<&mut H8>,
+) -> f64 {
     let Strains {
         chi,
         kb,
@@ -318,7 +336,7 @@ pub fn local(
         g1,
         g2,
         gm,
-    } = strains(&a, &b);
+    } = strains(a, b);
     let mref = signed_angle(transport(a.a1, a.t, b.t), b.a1, b.t, rt_old);
     let m = th[1] - th[0] + mref;
     let (d1, d2, dm) = (k1 - p.kappa_bar[0], k2 - p.kappa_bar[1], m - p.twist_bar);
@@ -341,9 +359,9 @@ pub fn local(
     let upa = sub(mul(w1, a.m2), mul(w2, a.m1));
     let ub = add(mul(w1, b.m1), mul(w2, b.m2));
     let upb = sub(mul(w1, b.m2), mul(w2, b.m1));
-    dot_hess(&a, E, TE, ua, upa, &b, F, 1.0 / chi, h);
-    dot_hess(&b, F, TF, ub, upb, &a, E, -1.0 / chi, h);
-    chi_hess(&a, &b, -(w1 * k1 + w2 * k2) / chi, h);
+    dot_hess(a, E, TE, ua, upa, b, F, 1.0 / chi, h);
+    dot_hess(b, F, TF, ub, upb, a, E, -1.0 / chi, h);
+    chi_hess(a, b, -(w1 * k1 + w2 * k2) / chi, h);
     for i in 0..8 {
         let ci = w1 * g1[i] + w2 * g2[i];
         for j in 0..8 {
@@ -351,8 +369,36 @@ pub fn local(
             h[i][j] -= (gc[i] * cj + ci * gc[j]) / chi;
         }
     }
-    twist_hess(&a, &b, kb, chi, wm, h);
+    twist_hess(a, b, kb, chi, wm, h);
     energy
+}
+
+/// Energy, gradient and (with `hess`) Hessian over the DOFs (x₀, θₑ, x₁, θ_f, x₂) of the
+/// stencil of edges `a`, `b` with material angles `th`: [`node_derivatives`] /
+/// [`node_gradient`] with the edges computed by the caller.
+pub fn stencil_dofs(
+    a: &Edge,
+    b: &Edge,
+    th: [f64; 2],
+    rt_old: f64,
+    p: &NodeElastic,
+    grad: &mut [f64; 11],
+    hess: Option<&mut [[f64; 11]; 11]>,
+) -> f64 {
+    let mut g = [0.0; 8];
+    match hess {
+        Some(hess) => {
+            let mut h = [[0.0; 8]; 8];
+            let en = stencil(a, b, th, rt_old, p, &mut g, Some(&mut h));
+            to_dofs(&g, &h, grad, hess);
+            en
+        }
+        None => {
+            let en = stencil(a, b, th, rt_old, p, &mut g, None);
+            map_to_dofs(&g, grad);
+            en
+        }
+    }
 }
 
 /// Energy, gradient and Hessian (bending + twisting) of the stencil with DOFs `x`

@@ -72,11 +72,15 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     Ok((w, g))
 }
 
-/// Depth of the deepest node below its offset on any surface (m).
+/// Depth of the deepest node below its offset on any surface (m). A node's offset is at most
+/// its section's reach, so a surface that cannot beat the deepest depth so far by the reach is
+/// skipped without querying it (by its cheap lower bound on the distance) or without the
+/// offset (by the distance): the same maximum, at a fraction of the queries.
 pub fn worst_penetration(w: &World3) -> f64 {
     let mut worst = f64::NEG_INFINITY;
     for r in 0..w.rods.len() {
         let q = &w.rods[r].q;
+        let reach = w.reach(r);
         for i in 0..w.rods[r].rod.n {
             let x = V3::new(q[pos(i)], q[pos(i) + 1], q[pos(i) + 2]);
             for o in w
@@ -84,11 +88,16 @@ pub fn worst_penetration(w: &World3) -> f64 {
                 .iter()
                 .chain(w.bodies.iter().map(|b| &b.obstacle))
             {
+                let contact = w.contacts[r][i].map(|c| c.offset);
+                let most = contact.unwrap_or(reach);
+                if most - o.lower_bound(&x) <= worst {
+                    continue;
+                }
                 let p = o.query(&x);
-                let off = match w.contacts[r][i] {
-                    Some(c) => c.offset,
-                    None => w.offset(r, i, &p.normal),
-                };
+                if most - p.distance <= worst {
+                    continue;
+                }
+                let off = contact.unwrap_or_else(|| w.offset(r, i, &p.normal));
                 worst = worst.max(off - p.distance);
             }
         }

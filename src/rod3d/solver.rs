@@ -357,17 +357,22 @@ pub fn assemble_into<S: BandSink>(
         scatter(a, &g7, &h7, grad, band.as_deref_mut(), &free);
     }
     let (mut g11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
+    // Each edge belongs to two stencils: its frame is computed once, carried to the next.
+    let jac = band.is_some();
+    let edge = |i: usize| {
+        let (a, b) = (pos(i), pos(i + 1));
+        let e = [q[b] - q[a], q[b + 1] - q[a + 1], q[b + 2] - q[a + 2]];
+        kernel::edge(e, &frames[i], q[angle(i)], jac)
+    };
+    let mut prev = edge(0);
     for i in 1..rod.n - 1 {
         let base = pos(i - 1);
-        let x: [f64; 11] = q[base..base + 11].try_into().unwrap();
-        let old = [&frames[i - 1], &frames[i]];
-        let p = &rod.elastic[i];
-        if band.is_some() {
-            energy += kernel::node_derivatives(&x, old, ref_twist[i], p, &mut g11, &mut h11);
-        } else {
-            energy += kernel::node_gradient(&x, old, ref_twist[i], p, &mut g11);
-        }
+        let next = edge(i);
+        let th = [q[angle(i - 1)], q[angle(i)]];
+        let (p, h) = (&rod.elastic[i], jac.then_some(&mut h11));
+        energy += kernel::stencil_dofs(&prev, &next, th, ref_twist[i], p, &mut g11, h);
         scatter(base, &g11, &h11, grad, band.as_deref_mut(), &free);
+        prev = next;
     }
     if let Some(b) = band {
         for (k, f) in fixed.iter().enumerate() {

@@ -10,6 +10,7 @@
 //! back to [`BandLu`].
 
 use crate::solver::banded::BandLu;
+use nalgebra::{Matrix3, Vector6};
 
 /// Something the assembly can add Hessian entries to.
 pub trait BandSink {
@@ -41,6 +42,9 @@ pub struct SymBand {
     n: usize,
     k: usize,
     a: Vec<f64>,
+    /// After [`SymBand::factor`]: the reciprocals of L's diagonal (multiplications instead
+    /// of divisions in the factorisation and the solves).
+    inv: Vec<f64>,
 }
 
 impl SymBand {
@@ -49,6 +53,7 @@ impl SymBand {
             n,
             k,
             a: vec![0.0; n * (k + 1)],
+            inv: vec![0.0; n],
         }
     }
 
@@ -75,6 +80,12 @@ impl SymBand {
         self.a[self.at(i, j)]
     }
 
+    /// Copy `other` (same dimension and bandwidth) into this storage.
+    pub fn copy_from(&mut self, other: &SymBand) {
+        debug_assert!(self.n == other.n && self.k == other.k);
+        self.a.copy_from_slice(&other.a);
+    }
+
     /// Load the lower band of `a` (before its factorisation), a symmetric matrix of the same
     /// dimension and half-bandwidth at most `k`.
     pub fn copy_lower(&mut self, a: &BandLu) {
@@ -83,6 +94,85 @@ impl SymBand {
             for j in i.saturating_sub(self.k)..=i {
                 let at = self.at(i, j);
                 self.a[at] = a.get(i, j);
+            }
+        }
+    }
+
+    /// Set A[i][j] = A[j][i] = v (inside the band).
+    #[inline(always)]
+    fn set(&mut self, i: usize, j: usize, v: f64) {
+        let (i, j) = if i >= j { (i, j) } else { (j, i) };
+        debug_assert!(i - j <= self.k, "({i},{j}) outside the band");
+        let at = self.at(i, j);
+        self.a[at] = v;
+    }
+
+    /// Rotate the position block `k0..k0+3` of a node into the basis whose rows are `q`
+    /// (A ← Q A Qᵀ on that block row and column). A node couples only with columns
+    /// k0 − 8 … k0 + 10 (three-node stencils, four DOFs per node), inside the band.
+    pub fn rotate_node(&mut self, k0: usize, q: &Matrix3<f64>) {
+        let (lo, hi) = (k0.saturating_sub(8), (k0 + 10).min(self.n - 1));
+        for l in (lo..=hi).filter(|l| !(k0..k0 + 3).contains(l)) {
+            let old = [self.get(k0, l), self.get(k0 + 1, l), self.get(k0 + 2, l)];
+            for r in 0..3 {
+                let v = q[(r, 0)] * old[0] + q[(r, 1)] * old[1] + q[(r, 2)] * old[2];
+                self.set(k0 + r, l, v);
+            }
+        }
+        let b: [[f64; 3]; 3] =
+            std::array::from_fn(|i| std::array::from_fn(|j| self.get(k0 + i, k0 + j)));
+        for r in 0..3 {
+            for c in 0..=r {
+                let mut v = 0.0;
+                for s in 0..3 {
+                    for t in 0..3 {
+                        v += q[(r, s)] * b[s][t] * q[(c, t)];
+                    }
+                }
+                self.set(k0 + r, k0 + c, v);
+            }
+        }
+    }
+
+    /// Make coordinate j prescribed: its column (= row) leaves the matrix, the rows `l` not in
+    /// `elim` adding A[l][j] × `p` to their border row when j follows a body (`follow`), and
+    /// its diagonal becomes 1. `rows` are the rows that can couple with j.
+    pub fn eliminate(
+        &mut self,
+        j: usize,
+        rows: std::ops::RangeInclusive<usize>,
+        follow: Option<(usize, Vector6<f64>)>,
+        elim: &[bool],
+        border: &mut [Vec<f64>],
+    ) {
+        for l in rows.filter(|&l| l != j) {
+            let v = self.get(l, j);
+            if v == 0.0 {
+                continue;
+            }
+            if let Some((b, p)) = follow {
+                if !elim[l] {
+                    for (c, pc) in p.iter().enumerate() {
+                        border[l][6 * b + c] += v * pc;
+                    }
+                }
+            }
+            self.set(l, j, 0.0);
+        }
+        self.set(j, j, 1.0);
+    }
+
+    /// The full (both triangles) matrix into `lu`, cleared first: the general band for an LU
+    /// factorisation when this one is not positive definite.
+    pub fn expand_into(&self, lu: &mut BandLu) {
+        lu.clear();
+        for i in 0..self.n {
+            for j in i.saturating_sub(self.k)..=i {
+                let v = self.a[self.at(i, j)];
+                lu.add(i, j, v);
+                if i != j {
+                    lu.add(j, i, v);
+                }
             }
         }
     }
@@ -96,18 +186,17 @@ impl SymBand {
             let ri = i * w + k - i; // row i's storage origin: (i, j) at ri + j
             for j in lo..=i {
                 let rj = j * w + k - j;
-                let mut s = self.a[ri + j];
                 let (li, lj) = (&self.a[ri + lo..ri + j], &self.a[rj + lo..rj + j]);
-                for (x, y) in li.iter().zip(lj) {
-                    s -= x * y;
-                }
+                let s = self.a[ri + j] - dot(li, lj);
                 if j < i {
-                    self.a[ri + j] = s / self.a[rj + j];
+                    self.a[ri + j] = s * self.inv[j];
                 } else {
                     if s.is_nan() || s <= 0.0 {
                         return Err(i);
                     }
-                    self.a[ri + i] = s.sqrt();
+                    let d = s.sqrt();
+                    self.a[ri + i] = d;
+                    self.inv[i] = 1.0 / d;
                 }
             }
         }
@@ -120,21 +209,67 @@ impl SymBand {
         for i in 0..n {
             let lo = i.saturating_sub(k);
             let ri = i * w + k - i;
-            let mut s = b[i];
-            for j in lo..i {
-                s -= self.a[ri + j] * b[j];
-            }
-            b[i] = s / self.a[ri + i];
+            let s = b[i] - dot(&self.a[ri + lo..ri + i], &b[lo..i]);
+            b[i] = s * self.inv[i];
         }
         for i in (0..n).rev() {
             let ri = i * w + k - i;
-            b[i] /= self.a[ri + i];
+            b[i] *= self.inv[i];
             let bi = b[i];
-            for j in i.saturating_sub(k)..i {
-                b[j] -= self.a[ri + j] * bi;
+            let lo = i.saturating_sub(k);
+            for (x, l) in b[lo..i].iter_mut().zip(&self.a[ri + lo..ri + i]) {
+                *x -= l * bi;
             }
         }
     }
+
+    /// Solve A X = B for several right-hand sides in one pass over the factor, in place.
+    /// Rows before `first` must be zero in every column (the forward pass starts there).
+    pub fn solve_many(&self, cols: &mut [&mut [f64]], first: usize) {
+        let (n, k, w) = (self.n, self.k, self.k + 1);
+        for i in first..n {
+            let lo = i.saturating_sub(k).max(first);
+            let ri = i * w + k - i;
+            let row = &self.a[ri + lo..ri + i];
+            for b in cols.iter_mut() {
+                let s = b[i] - dot(row, &b[lo..i]);
+                b[i] = s * self.inv[i];
+            }
+        }
+        for i in (0..n).rev() {
+            let ri = i * w + k - i;
+            let lo = i.saturating_sub(k);
+            let row = &self.a[ri + lo..ri + i];
+            for b in cols.iter_mut() {
+                b[i] *= self.inv[i];
+                let bi = b[i];
+                for (x, l) in b[lo..i].iter_mut().zip(row) {
+                    *x -= l * bi;
+                }
+            }
+        }
+    }
+}
+
+/// x·y of two short slices of equal length, in four independent sums (the band's dot
+/// products are at most k long: one chain of dependent additions would be latency-bound).
+#[inline(always)]
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    let (x, y) = (&x[..n], &y[..n]);
+    let mut acc = [0.0; 4];
+    let mut i = 0;
+    while i + 4 <= n {
+        for (a, c) in acc.iter_mut().enumerate() {
+            *c += x[i + a] * y[i + a];
+        }
+        i += 4;
+    }
+    while i < n {
+        acc[0] += x[i] * y[i];
+        i += 1;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
 impl BandSink for SymBand {

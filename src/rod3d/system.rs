@@ -8,32 +8,12 @@
 //!
 //! δX = (S − Σ C_r A_r⁻¹ B_r)⁻¹ (f_b − Σ C_r A_r⁻¹ f_r), then y_r = A_r⁻¹ (f_r − B_r δX).
 //! A body's contacts with fixed obstacles add Lagrange multipliers to the small dense system.
+//! A_r is symmetric but for the kinetic friction rows of sliding nodes ([`KineticRow`]): its
+//! symmetric part is factored by banded Cholesky and the rows enter by the Woodbury identity.
 
 use super::symband::SymBand;
 use crate::solver::banded::BandLu;
-use nalgebra::{DMatrix, DVector, Matrix3, Vector6};
-
-/// Rotate node block `k0..k0+3` of band `a` into the basis whose rows are `q`: rows, then
-/// columns (A ← Q A Qᵀ on that block row and column). Node blocks couple only with columns
-/// k0 − 8 … k0 + 10 (three-node stencils, four DOFs per node), so the result stays in the band.
-pub fn rotate_node(a: &mut BandLu, k0: usize, q: &Matrix3<f64>) {
-    let n = a.dim();
-    let (lo, hi) = (k0.saturating_sub(8), (k0 + 10).min(n - 1));
-    for l in lo..=hi {
-        let old = [a.get(k0, l), a.get(k0 + 1, l), a.get(k0 + 2, l)];
-        for r in 0..3 {
-            let v = q[(r, 0)] * old[0] + q[(r, 1)] * old[1] + q[(r, 2)] * old[2];
-            a.add(k0 + r, l, v - old[r]);
-        }
-    }
-    for l in lo..=hi {
-        let old = [a.get(l, k0), a.get(l, k0 + 1), a.get(l, k0 + 2)];
-        for c in 0..3 {
-            let v = q[(c, 0)] * old[0] + q[(c, 1)] * old[1] + q[(c, 2)] * old[2];
-            a.add(l, k0 + c, v - old[c]);
-        }
-    }
-}
+use nalgebra::{DMatrix, DVector};
 
 /// The rows around `k` that can couple with it (the band of a node block).
 #[inline]
@@ -42,56 +22,50 @@ pub fn band_range(n: usize, k: usize) -> std::ops::RangeInclusive<usize> {
     k0.saturating_sub(8)..=(k0 + 10).min(n - 1)
 }
 
-/// Add `f` × row `from` to row `to` (a kinetic friction row), within the node's band.
-pub fn add_row(a: &mut BandLu, to: usize, from: usize, f: f64) {
-    for l in band_range(a.dim(), to) {
-        let v = a.get(from, l);
-        if v != 0.0 {
-            a.add(to, l, f * v);
+/// A kinetic friction row of a sliding node: the node's t₁ row `row` of the rod's equations
+/// becomes t₁·R + μ_k n·R, i.e. gains μ × `n`, the node's normal row of the Jacobian on the
+/// free columns (its prescribed columns are in the border already). The only unsymmetric
+/// part of a rod block: it stays out of the banded matrix, which keeps its Cholesky factor,
+/// and enters as a low-rank update (Woodbury).
+#[derive(Debug, Clone, Default)]
+pub struct KineticRow {
+    pub row: usize,
+    pub mu: f64,
+    pub n: Vec<(usize, f64)>,
+}
+
+/// The factors of one rod block, storage kept from call to call.
+#[derive(Debug, Clone)]
+pub struct BlockFactor {
+    chol: SymBand,
+    lu: BandLu,
+    use_lu: bool,
+    /// Y = S⁻¹ U for the kinetic rows (U's columns μ e_row, S the symmetric part) and the LU
+    /// of the capacitance matrix I + Vᵀ Y (V's columns the rows' `n`).
+    y: Vec<Vec<f64>>,
+    cap: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+}
+
+impl BlockFactor {
+    /// Storage for a rod block of dimension n (half-bandwidth 10).
+    pub fn new(n: usize) -> BlockFactor {
+        BlockFactor {
+            chol: SymBand::new(n, 10),
+            lu: BandLu::new(n, 10, 10),
+            use_lu: false,
+            y: Vec::new(),
+            cap: None,
         }
     }
 }
 
-/// Make coordinate j prescribed: its column goes to the border (× `p`, when it follows a
-/// body, for rows not in `elim`), then row and column become the identity's.
-pub fn eliminate(
-    a: &mut BandLu,
-    j: usize,
-    follow: Option<(usize, Vector6<f64>)>,
-    elim: &[bool],
-    border: &mut [Vec<f64>],
-) {
-    for l in band_range(a.dim(), j) {
-        if l == j {
-            continue;
-        }
-        let v = a.get(l, j);
-        if v != 0.0 {
-            if let Some((b, p)) = follow {
-                if !elim[l] {
-                    for c in 0..6 {
-                        border[l][6 * b + c] += v * p[c];
-                    }
-                }
-            }
-            a.add(l, j, -v);
-        }
-        let w = a.get(j, l);
-        if w != 0.0 {
-            a.add(j, l, -w);
-        }
-    }
-    let d = a.get(j, j);
-    a.add(j, j, 1.0 - d);
-}
-
-/// One rod's part of the bordered system, factored.
+/// One rod's part of the bordered system.
 pub struct RodBlock<'a> {
-    pub a: &'a mut BandLu,
-    /// Storage for the Cholesky factor of `a`, used when `symmetric` (no kinetic friction
-    /// row) and `a` is positive definite; else `a` is factored by LU with pivoting.
-    pub chol: &'a mut SymBand,
-    pub symmetric: bool,
+    /// The symmetric part S of the rod's matrix A (lower band).
+    pub a: &'a SymBand,
+    /// A's kinetic rows: A = S + Σ μ e_row nᵀ.
+    pub kinetic: &'a [KineticRow],
+    pub factor: &'a mut BlockFactor,
     pub rhs: &'a mut [f64],
     pub border: &'a [Vec<f64>],
     /// Storage for Z = A⁻¹ B (one column per body unknown), kept between calls.
@@ -101,25 +75,90 @@ pub struct RodBlock<'a> {
 }
 
 impl RodBlock<'_> {
-    /// Factor A: by banded Cholesky when it is symmetric and positive definite (about a
-    /// quarter of the work), else by LU.
+    /// Factor A: S by banded Cholesky (about a quarter of the work of LU), the kinetic rows
+    /// by the Woodbury identity (one solve each); LU of the whole of A when S is not
+    /// positive definite.
     fn factor(&mut self) -> Result<(), &'static str> {
-        if self.symmetric {
-            self.chol.copy_lower(self.a);
-            if self.chol.factor().is_ok() {
-                return Ok(());
-            }
-            self.symmetric = false;
+        let f = &mut *self.factor;
+        f.use_lu = false;
+        f.cap = None;
+        f.chol.copy_from(self.a);
+        if f.chol.factor().is_err() {
+            return self.factor_lu();
         }
-        self.a.factor().map_err(|_| "singular Jacobian")
+        let m = self.kinetic.len();
+        if m == 0 {
+            return Ok(());
+        }
+        f.y.resize_with(m, Vec::new);
+        for (y, k) in f.y.iter_mut().zip(self.kinetic) {
+            y.clear();
+            y.resize(self.a.dim(), 0.0);
+            y[k.row] = k.mu;
+            f.chol.solve(y);
+        }
+        let cap = DMatrix::from_fn(m, m, |i, j| {
+            let vy: f64 = self.kinetic[i].n.iter().map(|&(l, v)| v * f.y[j][l]).sum();
+            vy + if i == j { 1.0 } else { 0.0 }
+        })
+        .lu();
+        if !cap.is_invertible() {
+            return self.factor_lu();
+        }
+        f.cap = Some(cap);
+        Ok(())
+    }
+
+    /// The whole of A (S and the kinetic rows) by LU with pivoting.
+    fn factor_lu(&mut self) -> Result<(), &'static str> {
+        let f = &mut *self.factor;
+        self.a.expand_into(&mut f.lu);
+        for k in self.kinetic {
+            for &(l, v) in &k.n {
+                f.lu.add(k.row, l, k.mu * v);
+            }
+        }
+        f.lu.factor().map_err(|_| "singular Jacobian")?;
+        f.use_lu = true;
+        f.cap = None;
+        Ok(())
     }
 
     /// Solve A x = b in place with the factor.
     fn solve_in(&self, b: &mut [f64]) {
-        if self.symmetric {
-            self.chol.solve(b);
-        } else {
-            self.a.solve(b);
+        if self.factor.use_lu {
+            self.factor.lu.solve(b);
+            return;
+        }
+        self.factor.chol.solve(b);
+        self.woodbury(b);
+    }
+
+    /// Several columns at once (rows before `first` zero in all of them).
+    fn solve_many(&self, cols: &mut [&mut [f64]], first: usize) {
+        if self.factor.use_lu {
+            cols.iter_mut().for_each(|b| self.factor.lu.solve(b));
+            return;
+        }
+        self.factor.chol.solve_many(cols, first);
+        cols.iter_mut().for_each(|b| self.woodbury(b));
+    }
+
+    /// From x = S⁻¹b to A⁻¹b: (S + U Vᵀ)⁻¹ b = S⁻¹b − Y (I + Vᵀ Y)⁻¹ Vᵀ S⁻¹b.
+    fn woodbury(&self, b: &mut [f64]) {
+        let f = &*self.factor;
+        let Some(cap) = &f.cap else { return };
+        let vb = DVector::from_iterator(
+            self.kinetic.len(),
+            self.kinetic
+                .iter()
+                .map(|k| k.n.iter().map(|&(l, v)| v * b[l]).sum::<f64>()),
+        );
+        let w = cap.solve(&vb).expect("invertible capacitance");
+        for (y, wi) in f.y.iter().zip(w.iter()) {
+            for (bj, yj) in b.iter_mut().zip(y) {
+                *bj -= wi * yj;
+            }
         }
     }
 }
@@ -151,19 +190,27 @@ pub fn solve_bordered(
     for r in rods.iter_mut() {
         let n = r.rhs.len();
         // Z = A⁻¹ B, column by column (into storage kept from step to step).
+        // The nonzero columns solved together, from their first nonzero row.
         let mut zr = std::mem::take(&mut *r.z);
         zr.resize_with(nx, Vec::new);
+        let mut first = n;
+        let mut active: Vec<&mut [f64]> = Vec::with_capacity(nx);
         for (c, col) in zr.iter_mut().enumerate() {
             col.resize(n, 0.0);
-            let mut any = false;
+            let mut top = n;
             for (l, row) in r.border.iter().enumerate() {
                 col[l] = row[c];
-                any |= row[c] != 0.0;
+                if row[c] != 0.0 && top == n {
+                    top = l;
+                }
             }
-            if any {
-                r.solve_in(col);
+            if top < n {
+                first = first.min(top);
+                active.push(col);
             }
         }
+        r.solve_many(&mut active, first);
+        drop(active);
         for &(row, l, v) in r.rows {
             f[row] -= v * r.rhs[l];
             for (c, col) in zr.iter().enumerate() {

@@ -14,12 +14,11 @@ use super::contact3::{decide, BodyContact3, Change3, Contact3, Grip3, Surface3};
 use super::energy::material_frame;
 use super::rod::{angle, pos};
 use super::section::Section3;
-use super::solver::{assemble, Sim3, Solve3Error};
+use super::solver::{Sim3, Solve3Error};
 use super::symband::SymBand;
-use super::system::{add_row, eliminate, rotate_node, solve_bordered, RodBlock};
+use super::system::{solve_bordered, BlockFactor, KineticRow, RodBlock};
 use crate::contact::friction::FrictionTable;
 use crate::obstacle3::{Obstacle3, Proximity3, V3};
-use crate::solver::banded::BandLu;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector6};
 
 /// Which surface of a prong touches.
@@ -42,10 +41,11 @@ pub struct StepReport3 {
 }
 
 struct Work3 {
-    band: BandLu,
-    /// The Cholesky factor of `band` when it is symmetric (no kinetic friction row).
-    chol: SymBand,
-    symmetric: bool,
+    /// The rod's Jacobian in its contact bases, symmetric part (lower band).
+    band: SymBand,
+    /// The kinetic friction rows of its sliding nodes (the unsymmetric part).
+    kinetic: Vec<KineticRow>,
+    factor: BlockFactor,
     /// The contact nodes of the rod and their local bases (rows n, t₁, t₂).
     bases: Vec<(usize, Matrix3<f64>)>,
     /// Z = A⁻¹ B of the bordered solve.
@@ -113,9 +113,9 @@ impl World3 {
         let n = sim.rod.n;
         let nd = sim.rod.dofs();
         self.work.push(Work3 {
-            band: BandLu::new(nd, 10, 10),
-            chol: SymBand::new(nd, 10),
-            symmetric: true,
+            band: SymBand::new(nd, 10),
+            kinetic: Vec::new(),
+            factor: BlockFactor::new(nd),
             bases: Vec::new(),
             z: Vec::new(),
             grad: vec![0.0; nd],
@@ -170,6 +170,16 @@ impl World3 {
             count += 1.0;
         }
         sum / count
+    }
+
+    /// The largest thickness offset rod r can have (its section's reach; 0 for centreline
+    /// contact): [`World3::offset`] never exceeds it.
+    pub fn reach(&self, r: usize) -> f64 {
+        match (self.side, self.sections[r]) {
+            (ContactSide3::Centreline, _) => 0.0,
+            (_, Section3::Circle { r }) => r,
+            (_, Section3::Rect { b, h }) => 0.5 * (b + h),
+        }
     }
 
     fn node(q: &[f64], i: usize) -> V3 {

@@ -1,7 +1,9 @@
 //! Newton on every rod and body of the world at once, with the current contact sets.
 
 use super::*;
-use crate::rod3d::solver::damping_into;
+use crate::rod3d::solver::{assemble_into, damping_into};
+use crate::rod3d::symband::BandSink;
+use crate::rod3d::system::band_range;
 
 /// The constraint rows of the bodies' own contacts: (J row, force column, right-hand side).
 type Kkt = Vec<(Vec<f64>, Vec<f64>, f64)>;
@@ -64,28 +66,20 @@ impl World3 {
         inertia_and_elasticity(&self.rods[r], w, dt, fb.len(), jac);
         contact_bases(w, contacts, &mut self.reactions[r], jac);
         body_rows(w, contacts, s, fb, jac);
-        w.symmetric = true;
-        for &(i, _) in &w.bases {
-            let ct = contacts[i].as_ref().unwrap();
-            let mu = ct.kinetic();
-            if mu > 0.0 {
-                // The kinetic row t₁·R + μ_k n·R = 0: the only unsymmetric rows.
-                let k0 = pos(i);
-                if jac {
-                    add_row(&mut w.band, k0 + 1, k0, mu);
-                }
-                w.rhs[k0 + 1] += mu * w.rhs[k0];
-                w.symmetric = false;
-            }
-        }
+        kinetic_rows(w, contacts, jac);
         for &(i, _) in &w.bases {
             for a in 0..contacts[i].as_ref().unwrap().held() {
                 let j = pos(i) + a;
                 if jac {
-                    eliminate(&mut w.band, j, w.follow[j], &w.elim, &mut w.border);
+                    let rows = band_range(w.rhs.len(), j);
+                    w.band
+                        .eliminate(j, rows, w.follow[j], &w.elim, &mut w.border);
                 }
                 w.rhs[j] = 0.0;
             }
+        }
+        if jac {
+            finish_kinetic_rows(w);
         }
         (0..w.rhs.len())
             .filter(|&k| !w.elim[k])
@@ -201,7 +195,7 @@ fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, nx: usize, jac: bo
         None
     };
     let (rod, f, b) = (&sim.rod, &sim.frames, &sim.ref_twist);
-    assemble(rod, f, b, &w.qn, &mut w.grad, band, &sim.fixed);
+    assemble_into(rod, f, b, &w.qn, &mut w.grad, band, &sim.fixed);
     if sim.damping_time > 0.0 {
         let band = jac.then_some(&mut w.band);
         let tau = sim.damping_time;
@@ -231,7 +225,7 @@ fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, nx: usize, jac: bo
         let m = sim.rod.mass[k];
         w.rhs[k] = -(c * m * (w.qn[k] - sim.q[k] - dt * sim.v[k]) + w.grad[k] - sim.external(k));
         if jac {
-            w.band.add(k, k, c * m);
+            BandSink::add(&mut w.band, k, k, c * m);
         }
     }
 }
@@ -246,7 +240,7 @@ fn contact_bases(w: &mut Work3, contacts: &[Option<Contact3>], reactions: &mut [
         let rw = -V3::new(w.rhs[k0], w.rhs[k0 + 1], w.rhs[k0 + 2]);
         reactions[i] = rw;
         if jac {
-            rotate_node(&mut w.band, k0, &q);
+            w.band.rotate_node(k0, &q);
         }
         let rl = -(q * rw);
         w.rhs[k0..k0 + 3].copy_from_slice(rl.as_slice());
@@ -286,17 +280,24 @@ fn body_rows(
         if !jac {
             continue;
         }
-        for l in super::super::system::band_range(w.rhs.len(), k0) {
-            for a in 0..3 {
-                let v = w.band.get(k0 + a, l);
+        for l in band_range(w.rhs.len(), k0) {
+            let col = [0, 1, 2].map(|a| w.band.get(k0 + a, l));
+            if col == [0.0; 3] {
+                continue;
+            }
+            if !w.elim[l] {
+                // One entry per body row: Σₐ (Gᵀ Qᵀ)ₑₐ A[k0 + a][l].
+                for e in 0..6 {
+                    let v = wm[(e, 0)] * col[0] + wm[(e, 1)] * col[1] + wm[(e, 2)] * col[2];
+                    w.rows.push((6 * b + e, l, v));
+                }
+                continue;
+            }
+            for (a, &v) in col.iter().enumerate() {
                 if v == 0.0 {
                     continue;
                 }
-                if !w.elim[l] {
-                    for e in 0..6 {
-                        w.rows.push((6 * b + e, l, wm[(e, a)] * v));
-                    }
-                } else if let Some((b2, p)) = w.follow[l] {
+                if let Some((b2, p)) = w.follow[l] {
                     for e in 0..6 {
                         for f in 0..6 {
                             s[(6 * b + e, 6 * b2 + f)] += wm[(e, a)] * v * p[f];
@@ -305,6 +306,49 @@ fn body_rows(
                 }
             }
         }
+    }
+}
+
+/// The kinetic rows t₁·R + μ_k n·R = 0 of rod r's sliding nodes: their right-hand sides and,
+/// with `jac`, each node's normal row of the Jacobian (before the eliminations, which take
+/// its prescribed columns out) into `w.kinetic`.
+fn kinetic_rows(w: &mut Work3, contacts: &[Option<Contact3>], jac: bool) {
+    if jac {
+        w.kinetic.clear();
+    }
+    for &(i, _) in &w.bases {
+        let mu = contacts[i].as_ref().unwrap().kinetic();
+        if mu <= 0.0 {
+            continue;
+        }
+        let k0 = pos(i);
+        w.rhs[k0 + 1] += mu * w.rhs[k0];
+        if jac {
+            let n = band_range(w.rhs.len(), k0)
+                .map(|l| (l, w.band.get(k0, l)))
+                .filter(|&(_, v)| v != 0.0)
+                .collect();
+            w.kinetic.push(KineticRow { row: k0 + 1, mu, n });
+        }
+    }
+}
+
+/// After the eliminations: a kinetic row keeps its free columns; a prescribed column that
+/// follows a body goes to the border of the t₁ row (× μ P), as the symmetric part's did.
+fn finish_kinetic_rows(w: &mut Work3) {
+    for k in &mut w.kinetic {
+        let (elim, follow, border) = (&w.elim, &w.follow, &mut w.border);
+        k.n.retain(|&(l, v)| {
+            if !elim[l] {
+                return true;
+            }
+            if let Some((b, p)) = follow[l] {
+                for c in 0..6 {
+                    border[k.row][6 * b + c] += k.mu * v * p[c];
+                }
+            }
+            false
+        });
     }
 }
 
@@ -320,9 +364,9 @@ impl World3 {
             .work
             .iter_mut()
             .map(|w| RodBlock {
-                a: &mut w.band,
-                chol: &mut w.chol,
-                symmetric: w.symmetric,
+                a: &w.band,
+                kinetic: &w.kinetic,
+                factor: &mut w.factor,
                 rhs: &mut w.rhs,
                 border: &w.border,
                 z: &mut w.z,

@@ -79,6 +79,9 @@ impl World3 {
                 continue;
             }
             let prox = o.query(&x);
+            if prox.distance - reach >= -eps {
+                continue; // deeper than −eps needs an offset above the reach
+            }
             let depth = prox.distance - self.offset(r, i, &prox.normal);
             if depth < -eps && best.is_none_or(|b| depth < b.0) {
                 best = Some((depth, s, prox));
