@@ -39,6 +39,7 @@ pub struct Summary3 {
 pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     let mut w = World3::new(sc.gravity);
     w.side = sc.side;
+    w.edge_contact = sc.points == crate::scenario::contact::ContactPoints::Edges;
     w.friction = sc.friction.clone();
     w.force_tol = sc.force_tol;
     w.step_tol = sc.step_tol;
