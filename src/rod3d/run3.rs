@@ -29,7 +29,8 @@ pub struct Summary3 {
     pub squeezed_at: Option<f64>,
     pub fruit_start: Option<[f64; 3]>,
     pub fruit_end: Option<[f64; 3]>,
-    /// Largest depth of a node below its thickness offset after any step (m; ≤ 0: none).
+    /// Largest depth of a node (with edge contact, of any point of a segment) below its
+    /// thickness offset after any step (m; ≤ 0: none).
     pub worst_penetration: f64,
     /// Largest twist angle of any edge (rad).
     pub max_twist: f64,
@@ -73,10 +74,14 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     Ok((w, g))
 }
 
-/// Depth of the deepest node below its offset on any surface (m).
+/// Depth of the deepest node below its offset on any surface (m); with edge contact, of the
+/// deepest point between the nodes too.
 pub fn worst_penetration(w: &World3) -> f64 {
     let mut worst = f64::NEG_INFINITY;
     for r in 0..w.rods.len() {
+        if w.edge_contact {
+            worst = worst.max(w.segment_penetration(r));
+        }
         let q = &w.rods[r].q;
         for i in 0..w.rods[r].rod.n {
             let x = V3::new(q[pos(i)], q[pos(i) + 1], q[pos(i) + 2]);

@@ -412,3 +412,70 @@ fn edge_points_are_read_from_a_3d_scenario() {
     );
     assert!(!e.contains('\n'), "{e}");
 }
+
+#[test]
+fn the_shipped_berry_scenario_is_held_by_edges_and_slips_between_nodes_without_them() {
+    use gripsim::scenario::three::Scenario3;
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/3d-berry-edges.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let dir = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios"));
+    let sc = Scenario3::from_str(&text, "3d-berry-edges.toml", dir).unwrap();
+    let mut seen = EdgeEvents::default();
+    let s = gripsim::rod3d::run3::run_observed(&sc, None, &mut seen).unwrap();
+    println!(
+        "recorded: {} steps with edge contacts, last {:?}",
+        seen.steps, seen.last
+    );
+    // The events carry each finger's edge contact: its point on the berry (3 mm from the
+    // centre), its weight inside the segment, and the finger force as its normal reaction.
+    let last = seen.last.expect("edge contacts in the step events");
+    let c = V3::new(0.0, 0.0, -0.035);
+    assert!(seen.steps > 0 && last.len() == 2, "{last:?}");
+    for e in &last {
+        assert!(e.weight > 0.0 && e.weight < 1.0, "{e:?}");
+        assert!(
+            ((V3::from(e.point) - c).norm() - 0.003).abs() < 1e-12,
+            "{e:?}"
+        );
+        assert_eq!(e.friction, [0.0; 3]);
+    }
+    println!(
+        "edges: {} steps, squeezed at {:?} s, finger forces {:?} N, {} contacts added, worst penetration {:.2e} m",
+        s.steps, s.squeezed_at, s.finger_forces, s.contacts_added, s.worst_penetration
+    );
+    let f = &s.finger_forces;
+    assert!(f[0] >= 0.05 && (f[0] - f[1]).abs() <= 1e-9 * f[0], "{f:?}");
+    assert!(s.contacts_added >= 2, "{}", s.contacts_added);
+    assert!(s.worst_penetration <= 1e-9, "{}", s.worst_penetration);
+    let nodes = text.replace("points = \"edges\"", "points = \"nodes\"");
+    let sc = Scenario3::from_str(&nodes, "3d-berry-edges.toml", dir).unwrap();
+    let s = gripsim::rod3d::run3::run(&sc, None).unwrap();
+    println!(
+        "nodes only: finger forces {:?} N, {} contacts added",
+        s.finger_forces, s.contacts_added
+    );
+    assert_eq!((s.contacts_added, s.max_grip_force), (0, 0.0));
+}
+
+/// Collects the edge contacts (weight > 0) of the step events.
+#[derive(Default)]
+struct EdgeEvents {
+    steps: usize,
+    last: Option<Vec<gripsim::rod3d::events::Contact3>>,
+}
+
+impl gripsim::rod3d::events::Observer3 for EdgeEvents {
+    fn on_event(&mut self, e: &gripsim::rod3d::events::Event3<'_>) {
+        if let gripsim::rod3d::events::Event3::Step { contacts, .. } = e {
+            let edges: Vec<_> = contacts
+                .iter()
+                .filter(|c| c.weight > 0.0)
+                .copied()
+                .collect();
+            if !edges.is_empty() {
+                self.steps += 1;
+                self.last = Some(edges);
+            }
+        }
+    }
+}
