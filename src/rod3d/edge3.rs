@@ -30,6 +30,10 @@ use nalgebra::Vector6;
 /// nodes is that node's contact, not the segment's (the planar rule).
 pub const END: f64 = crate::contact::edge::END;
 
+/// How often an edge contact may be re-linearised in one step (its deepest point moved along
+/// the segment); after that it is kept as it is until the next step re-linearises it.
+pub const MAX_RELINEARISED: u8 = 4;
+
 /// Whether a weight lies far enough inside the segment to be the segment's contact.
 #[inline]
 pub fn interior(s: f64) -> bool {
@@ -56,8 +60,10 @@ pub struct EdgeContact3 {
     pub point: V3,
     /// The multiplier λ: the normal force on the segment (N, positive when pressing).
     pub force: f64,
-    /// Released once in this step and re-added: kept for the rest of the step.
+    /// Released (or dropped) once in this step and re-added: kept for the rest of the step.
     pub locked: bool,
+    /// Re-linearisations in this step (at most [`MAX_RELINEARISED`]).
+    pub relinearised: u8,
 }
 
 impl EdgeContact3 {
@@ -112,6 +118,7 @@ mod tests {
             point: V3::zeros(),
             force: 2.0,
             locked: false,
+            relinearised: 0,
         };
         let mut q = vec![0.0; 11];
         q[pos(1)..pos(1) + 3].copy_from_slice(&[-0.01, 0.0, -0.002]);

@@ -12,7 +12,11 @@
 
 use super::*;
 use crate::obstacle3::segment;
-use crate::rod3d::edge3::{interior, EdgeContact3};
+use crate::rod3d::edge3::{interior, EdgeContact3, MAX_RELINEARISED};
+
+/// Node contacts whose normals are within this angle (rad) of a segment's contact normal make
+/// the segment's penetration the faceting of their surface ([`World3::nodes_follow`]).
+pub const FACET: f64 = std::f64::consts::FRAC_PI_6;
 
 impl World3 {
     /// Edge contacts of every rod, in the order of their unknowns.
@@ -47,6 +51,18 @@ impl World3 {
         !(whole(i) && whole(i + 1))
     }
 
+    /// Whether both nodes of segment i already follow surface `s` with normals within
+    /// [`FACET`] of the segment's contact normal n: then the segment's penetration is the
+    /// faceting of a surface the nodes follow (depth ≈ L²κ/8 on a curvature κ), which node
+    /// contact accepts; an edge row there would nearly repeat the nodes' rows (and pull them
+    /// off). A corner between the nodes (a box's or mesh's edge, where the normals turn by
+    /// more) is held.
+    fn nodes_follow(&self, r: usize, i: usize, s: Surface3, n: &V3) -> bool {
+        (i..=i + 1).all(|j| {
+            self.contacts[r][j].is_some_and(|c| c.surface == s && c.normal.dot(n) > FACET.cos())
+        })
+    }
+
     /// The edge contact of segment i of rod r (configuration `q`) at weight s on surface `s`
     /// as `prox` sees it at the current body displacement.
     fn edge_at(&self, r: usize, i: usize, w: f64, s: Surface3, prox: &Proximity3) -> EdgeContact3 {
@@ -68,6 +84,7 @@ impl World3 {
             point: prox.closest,
             force: 0.0,
             locked: false,
+            relinearised: 0,
         }
     }
 
@@ -132,22 +149,29 @@ impl World3 {
                 changed += 1;
                 continue;
             }
-            if !self.segment_open(r, i) {
+            if !self.segment_open(r, i) || self.nodes_follow(r, i, e.surface, &e.normal) {
+                self.work[r].edge_released.push((i, e.surface));
                 changed += 1;
                 continue;
             }
             let (w, prox, depth) = self.deepest(r, i, e.surface, &self.work[r].qn);
-            if depth >= -tol {
+            if depth >= -tol || e.locked && !interior(w) || e.relinearised >= MAX_RELINEARISED {
+                // Held, or dropped or re-linearised as often as a step allows: kept as it
+                // is for the rest of the step (the next step re-linearises it).
                 out.push(e);
             } else if interior(w) {
                 let ne = EdgeContact3 {
                     force: e.force,
                     locked: e.locked,
+                    relinearised: e.relinearised + 1,
                     ..self.edge_at(r, i, w, e.surface, &prox)
                 };
                 changed += u32::from(ne != e);
                 out.push(ne);
             } else {
+                // The deepest point reached a node: the node's. Caught again in this step, it
+                // is kept (locked).
+                self.work[r].edge_released.push((i, e.surface));
                 changed += 1;
             }
         }
@@ -192,7 +216,7 @@ impl World3 {
                     continue;
                 }
                 let (w, prox, depth) = self.deepest(r, i, s, q);
-                if interior(w) && depth < -eps {
+                if interior(w) && depth < -eps && !self.nodes_follow(r, i, s, &prox.normal) {
                     out.push((i, s, w, prox));
                 }
             }
@@ -204,9 +228,17 @@ impl World3 {
     /// the nodes (m; ≤ 0: none): what node contact misses between the nodes.
     pub fn segment_penetration(&self, r: usize) -> f64 {
         let q = &self.rods[r].q;
+        let reach = match self.sections[r] {
+            Section3::Circle { r } => r,
+            Section3::Rect { b, h } => 0.5 * (b + h),
+        };
         let mut worst = f64::NEG_INFINITY;
         for i in 0..self.rods[r].rod.n.saturating_sub(1) {
+            let (a, b) = (Self::node(q, i), Self::node(q, i + 1));
             for s in self.surfaces() {
+                if segment::lower_bound(self.surface(s), &a, &b) >= reach {
+                    continue;
+                }
                 let (w, _, depth) = self.deepest(r, i, s, q);
                 if interior(w) {
                     worst = worst.max(-depth);
