@@ -9,6 +9,7 @@
 
 pub mod mass;
 pub mod mesh;
+pub mod segment;
 
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 

@@ -107,6 +107,9 @@ pub struct ContactState3 {
     pub stuck: bool,
     #[prost(double, tag = "10")]
     pub normal_force: f64,
+    /// 0: a node contact; else an edge contact's weight on the segment from `node`.
+    #[prost(double, tag = "11")]
+    pub weight: f64,
 }
 
 /// `gripsim.Change3`: a node that came into contact (added) or left it.
@@ -172,6 +175,7 @@ const MESSAGES: &[(&str, &[Field])] = &[
             ("gap", 8, K::Double, false),
             ("stuck", 9, K::Bool, false),
             ("normal_force", 10, K::Double, false),
+            ("weight", 11, K::Double, false),
         ],
     ),
     (
@@ -279,6 +283,7 @@ fn contact_message(c: &Contact3) -> ContactState3 {
         gap: c.gap,
         stuck: c.stick,
         normal_force: c.normal_force(),
+        weight: c.weight,
     }
 }
 

@@ -321,7 +321,11 @@ impl Detector3 {
             let normal = m
                 .contacts
                 .iter()
-                .find(|c| c.rod as usize == r && c.node as usize == i && c.normal.len() == 3)
+                .find(|c| {
+                    // A node's own contact, or an edge contact on a segment it ends.
+                    let (k, edge) = (c.node as usize, c.weight > 0.0);
+                    c.rod as usize == r && (k == i || (edge && k + 1 == i)) && c.normal.len() == 3
+                })
                 .map(|c| [c.normal[0], c.normal[1], c.normal[2]]);
             let (impact, rest) = match normal {
                 Some(n) => {
@@ -704,6 +708,7 @@ pub fn show(path: &Path, out: &Path) -> Result<u64, ReplayError> {
                 surface: c.shape as usize,
                 stick: c.stuck,
                 normal_reaction: c.normal_force,
+                weight: c.weight,
             })
             .collect();
         let bodies: Vec<BodyPose3> = m

@@ -5,6 +5,7 @@
 //! compiles away and a run pays nothing for the interface.
 
 use super::contact3::{Grip3, Surface3};
+use super::edge3::EdgeContact3;
 use super::energy::{material_frame, EdgeFrame};
 use super::rod::{angle, pos};
 use super::section::Section3;
@@ -33,6 +34,10 @@ pub struct Contact3 {
     /// n·R, the normal part of the reaction as the solver has it (N; `reaction` is n (n·R),
     /// whose projection on n can differ from it in the last bit).
     pub normal_reaction: f64,
+    /// 0 for a node contact; for an edge contact (src/rod3d/edge3.rs) the weight s ∈ (0, 1) of
+    /// its point (1 − s) x_node + s x_node+1 on the segment from `node`, whose reaction the two
+    /// nodes share as (1 − s) and s (frictionless: `friction` is zero).
+    pub weight: f64,
 }
 
 impl Contact3 {
@@ -324,6 +329,31 @@ impl World3 {
         });
     }
 
+    /// An edge contact at the end of a step: the surface point under its held point.
+    fn edge_view(&self, r: usize, e: &EdgeContact3, nobs: usize) -> Contact3 {
+        let o = match e.surface {
+            Surface3::Obstacle(k) => &self.obstacles[k],
+            Surface3::Body(b) => &self.bodies[b].obstacle,
+        };
+        let prox = o.query(&e.held_point(&self.rods[r].q));
+        Contact3 {
+            rod: r,
+            node: e.segment,
+            point: prox.closest.into(),
+            normal: e.normal.into(),
+            reaction: (e.normal * e.force).into(),
+            friction: [0.0; 3],
+            gap: prox.distance - e.offset,
+            surface: match e.surface {
+                Surface3::Obstacle(k) => k,
+                Surface3::Body(b) => nobs + b,
+            },
+            stick: false,
+            normal_reaction: e.force,
+            weight: e.weight,
+        }
+    }
+
     /// The contacts, bodies and changes of the step just taken, into `emit`'s buffers.
     fn fill(&self, emit: &mut Emit3) {
         emit.contacts.clear();
@@ -370,7 +400,11 @@ impl World3 {
                     },
                     stick: matches!(c.grip, Grip3::Stick { .. }),
                     normal_reaction: rn,
+                    weight: 0.0,
                 });
+            }
+            for e in &self.edges[r] {
+                emit.contacts.push(self.edge_view(r, e, nobs));
             }
         }
         for (b, body) in self.bodies.iter().enumerate() {

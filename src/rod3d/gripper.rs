@@ -154,11 +154,13 @@ impl Gripper3 {
         self.fingers
             .iter()
             .map(|f| {
+                let edges: f64 = world.edges[f.rod].iter().map(|e| e.force).sum();
                 world.contacts[f.rod]
                     .iter()
                     .zip(&world.reactions[f.rod])
                     .filter_map(|(c, r)| c.map(|c| c.normal.dot(r)))
-                    .sum()
+                    .sum::<f64>()
+                    + edges
             })
             .collect()
     }

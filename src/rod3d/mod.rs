@@ -20,6 +20,7 @@ pub use solver::{Sim3, Solve3Error};
 pub use world::{ContactSide3, StepReport3, World3};
 pub mod body3;
 pub mod contact3;
+pub mod edge3;
 pub mod gripper;
 pub mod run3;
 pub mod system;

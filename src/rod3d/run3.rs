@@ -29,7 +29,8 @@ pub struct Summary3 {
     pub squeezed_at: Option<f64>,
     pub fruit_start: Option<[f64; 3]>,
     pub fruit_end: Option<[f64; 3]>,
-    /// Largest depth of a node below its thickness offset after any step (m; ≤ 0: none).
+    /// Largest depth of a node (with edge contact, of any point of a segment) below its
+    /// thickness offset after any step (m; ≤ 0: none).
     pub worst_penetration: f64,
     /// Largest twist angle of any edge (rad).
     pub max_twist: f64,
@@ -39,6 +40,7 @@ pub struct Summary3 {
 pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     let mut w = World3::new(sc.gravity);
     w.side = sc.side;
+    w.edge_contact = sc.points == crate::scenario::contact::ContactPoints::Edges;
     w.friction = sc.friction.clone();
     w.force_tol = sc.force_tol;
     w.step_tol = sc.step_tol;
@@ -72,13 +74,17 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     Ok((w, g))
 }
 
-/// Depth of the deepest node below its offset on any surface (m). A node's offset is at most
+/// Depth of the deepest node below its offset on any surface (m); with edge contact, of the
+/// deepest point between the nodes too. A node's offset is at most
 /// its section's reach, so a surface that cannot beat the deepest depth so far by the reach is
 /// skipped without querying it (by its cheap lower bound on the distance) or without the
 /// offset (by the distance): the same maximum, at a fraction of the queries.
 pub fn worst_penetration(w: &World3) -> f64 {
     let mut worst = f64::NEG_INFINITY;
     for r in 0..w.rods.len() {
+        if w.edge_contact {
+            worst = worst.max(w.segment_penetration(r));
+        }
         let q = &w.rods[r].q;
         let reach = w.reach(r);
         for i in 0..w.rods[r].rod.n {

@@ -11,6 +11,7 @@
 
 use super::body3::{lever_map, Body3, G3};
 use super::contact3::{decide, BodyContact3, Change3, Contact3, Grip3, Surface3};
+use super::edge3::EdgeContact3;
 use super::energy::material_frame;
 use super::rod::{angle, pos};
 use super::section::Section3;
@@ -58,6 +59,8 @@ struct Work3 {
     border: Vec<Vec<f64>>,
     rows: Vec<(usize, usize, f64)>,
     released: Vec<bool>,
+    /// (segment, surface) pairs whose edge contact was released in this step.
+    edge_released: Vec<(usize, Surface3)>,
 }
 
 pub struct World3 {
@@ -69,6 +72,11 @@ pub struct World3 {
     pub gravity: V3,
     pub friction: FrictionTable,
     pub side: ContactSide3,
+    /// Edge contact (`[contact] points = "edges"`): segments are held too, between their
+    /// nodes ([`super::edge3`]).
+    pub edge_contact: bool,
+    /// Per rod, its edge contacts (empty unless `edge_contact`).
+    pub edges: Vec<Vec<EdgeContact3>>,
     /// Per rod, per node.
     pub contacts: Vec<Vec<Option<Contact3>>>,
     /// Reaction on every contact node at the end of the last step (world, zero elsewhere).
@@ -96,6 +104,8 @@ impl World3 {
             gravity: V3::from(gravity),
             friction: FrictionTable::default(),
             side: ContactSide3::Face,
+            edge_contact: false,
+            edges: Vec::new(),
             contacts: Vec::new(),
             reactions: Vec::new(),
             body_contacts: Vec::new(),
@@ -126,11 +136,13 @@ impl World3 {
             border: vec![Vec::new(); nd],
             rows: Vec::new(),
             released: vec![false; n],
+            edge_released: Vec::new(),
         });
         self.rods.push(sim);
         self.rod_names.push(name.to_string());
         self.sections.push(section);
         self.contacts.push(vec![None; n]);
+        self.edges.push(Vec::new());
         self.reactions.push(vec![V3::zeros(); n]);
         self.rods.len() - 1
     }
@@ -275,6 +287,7 @@ impl World3 {
                 bc.stuck = Some(-prox.normal * prox.distance);
             }
         }
+        self.relinearise_edges();
     }
 
     /// One implicit Euler step of size dt. Fixed DOFs end the step on their targets.
@@ -341,5 +354,6 @@ impl World3 {
     }
 }
 
+mod edges3;
 mod newton3;
 mod update3;

@@ -27,6 +27,7 @@
 //! sensor_tau = 0.01                # grip force sensor time constant (s), default 0.01
 //! [contact]
 //! surface = "face"                 # or "centreline"
+//! points = "nodes"                 # or "edges": segments are held between their nodes too
 //! [friction]
 //! mu_s = 0.5
 //! mu_k = 0.4
@@ -51,6 +52,7 @@
 //! duration = 0.1
 //! ```
 
+use super::contact::ContactPoints;
 use super::reader::{ScenarioError, TableReader};
 use crate::contact::friction::{Coulomb, FrictionTable};
 use crate::obstacle3::{Obstacle3, Pose3, Shape3, TriMesh};
@@ -153,6 +155,8 @@ pub struct Scenario3 {
     /// Time constant of the grip force sensor (s).
     pub sensor_tau: f64,
     pub side: ContactSide3,
+    /// `[contact] points`: nodes only (default) or edges too (src/rod3d/edge3.rs).
+    pub points: ContactPoints,
     pub friction: FrictionTable,
     pub fruit: Option<Fruit3>,
     pub obstacles: Vec<Obstacle3>,
@@ -261,7 +265,7 @@ impl Scenario3 {
         solve.finish()?;
         let (prong, clamped_edges, damping_time) = parse_prong(&top.table("prong", PRONG)?)?;
         let (fingers, radius, centre, sensor_tau) = parse_gripper(&top)?;
-        let side = parse_contact(&top)?;
+        let (side, points) = parse_contact(&top)?;
         let friction = parse_friction(&top)?;
         let fruit = match top.opt_table("fruit", FRUIT)? {
             None => None,
@@ -288,6 +292,7 @@ impl Scenario3 {
             centre,
             sensor_tau,
             side,
+            points,
             friction,
             fruit,
             obstacles,
@@ -406,28 +411,38 @@ fn parse_gripper(top: &TableReader<'_>) -> Result<(usize, f64, [f64; 3], f64), S
     Ok((fingers, radius, centre, sensor_tau))
 }
 
-/// `[contact] surface`: the face (default) or the centreline.
-fn parse_contact(top: &TableReader<'_>) -> Result<ContactSide3, ScenarioError> {
-    let side = match top.opt_table("contact", &["surface"])? {
-        None => ContactSide3::Face,
-        Some(c) => {
-            let s = match c.opt_str("surface")? {
-                None | Some("face") => ContactSide3::Face,
-                Some("centreline" | "centerline") => ContactSide3::Centreline,
-                Some(other) => {
-                    return Err(c.err_hint(
-                        "surface",
-                        c.get("surface"),
-                        format!("unknown contact surface {other:?}"),
-                        "use \"face\" or \"centreline\"",
-                    ))
-                }
-            };
-            c.finish()?;
-            s
+/// `[contact] surface`: the face (default) or the centreline; `points`: the nodes (default)
+/// or the edges too, spelled as in the planar format ([`super::contact`]).
+fn parse_contact(top: &TableReader<'_>) -> Result<(ContactSide3, ContactPoints), ScenarioError> {
+    let Some(c) = top.opt_table("contact", &["surface", "points"])? else {
+        return Ok((ContactSide3::Face, ContactPoints::Nodes));
+    };
+    let side = match c.opt_str("surface")? {
+        None | Some("face") => ContactSide3::Face,
+        Some("centreline" | "centerline") => ContactSide3::Centreline,
+        Some(other) => {
+            return Err(c.err_hint(
+                "surface",
+                c.get("surface"),
+                format!("unknown contact surface {other:?}"),
+                "use \"face\" or \"centreline\"",
+            ))
         }
     };
-    Ok(side)
+    let points = match c.opt_str("points")? {
+        None | Some("nodes") => ContactPoints::Nodes,
+        Some("edges") => ContactPoints::Edges,
+        Some(other) => {
+            return Err(c.err_hint(
+                "points",
+                c.get("points"),
+                format!("unknown contact points {other:?}"),
+                "use \"edges\" (segments too) or \"nodes\"",
+            ))
+        }
+    };
+    c.finish()?;
+    Ok((side, points))
 }
 
 /// The prong's nodes in its finger frame: `points`, or `nodes` along a `shape`.

@@ -9,6 +9,7 @@ mod bench;
 mod common;
 mod contact3d;
 mod contact_geometry;
+mod edge3d;
 mod faults;
 mod first_contact;
 mod friction_bodies;

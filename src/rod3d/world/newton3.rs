@@ -64,6 +64,7 @@ impl World3 {
         let w = &mut self.work[r];
         let contacts = &self.contacts[r];
         inertia_and_elasticity(&self.rods[r], w, dt, fb.len(), jac);
+        super::edges3::add_edge_forces(w, &self.edges[r]);
         contact_bases(w, contacts, &mut self.reactions[r], jac);
         body_rows(w, contacts, s, fb, jac);
         kinetic_rows(w, contacts, jac);
@@ -81,6 +82,8 @@ impl World3 {
         if jac {
             finish_kinetic_rows(w);
         }
+        self.edge_rows(r, s, fb, jac);
+        let w = &self.work[r];
         (0..w.rhs.len())
             .filter(|&k| !w.elim[k])
             .fold(0.0, |m, k| m.max(w.rhs[k].abs()))
@@ -89,7 +92,8 @@ impl World3 {
     /// The bodies' own equations (without contact forces) and their contacts' constraint rows;
     /// also Σ Gᵀ f of their last forces (for the convergence test).
     fn body_system(&self, dt: f64) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, Kkt) {
-        let nx = 6 * self.bodies.len();
+        // The bodies' unknowns, then one per edge contact (src/rod3d/world/edges3.rs).
+        let nx = 6 * self.bodies.len() + self.edge_count();
         let mut s = DMatrix::zeros(nx, nx);
         let mut fb = DVector::zeros(nx);
         for (b, body) in self.bodies.iter().enumerate() {
@@ -141,7 +145,8 @@ impl World3 {
             res = res.max(self.linearise_rod(r, dt, &mut s, &mut fb, jac));
         }
         // fb = −(r_b + Σ Gᵀ R_node); the bodies' own contacts add their last forces.
-        res = res.max((&fb + &forces).amax());
+        let nb = 6 * self.bodies.len();
+        res = res.max((&fb + &forces).rows(0, nb).amax());
         (s, fb, kkt, res)
     }
 
@@ -161,7 +166,7 @@ impl World3 {
             if !res.is_finite() {
                 return Err(fail(res, it, "non-finite residual"));
             }
-            if res <= tol && (it > 0 || kkt.is_empty()) {
+            if res <= tol && (it > 0 || (kkt.is_empty() && self.edge_count() == 0)) {
                 return Ok(it);
             }
             if it >= self.max_iterations {
@@ -413,6 +418,7 @@ impl World3 {
             body.dx += dx.fixed_rows::<6>(6 * b);
             body.place();
         }
+        self.update_edge_forces(&dx);
         let mut k = 0;
         for bc in &mut self.body_contacts {
             if bc.stuck.is_some() {

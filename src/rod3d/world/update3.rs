@@ -19,6 +19,9 @@ impl World3 {
                 };
             }
         }
+        for r in 0..self.rods.len() {
+            changed += self.update_edges(r, report);
+        }
         changed + self.update_body_contacts(dt, report)
     }
 
@@ -57,7 +60,7 @@ impl World3 {
     }
 
     /// Every surface a node can touch: fixed obstacles, then bodies.
-    fn surfaces(&self) -> impl Iterator<Item = Surface3> {
+    pub(super) fn surfaces(&self) -> impl Iterator<Item = Surface3> {
         (0..self.obstacles.len())
             .map(Surface3::Obstacle)
             .chain((0..self.bodies.len()).map(Surface3::Body))

@@ -1,0 +1,358 @@
+//! Edge contacts ([`crate::rod3d::edge3`]) in the world's step: detection, re-linearisation
+//! and release after each pass, and their rows in the Newton system.
+//!
+//! Each edge contact j is one more unknown of the small dense system the bodies already use
+//! (after the bodies' 6 unknowns each, before their own contacts' multipliers): its increment
+//! δλ_j. With A_j = (w₀ n, w₁ n) on its segment's two nodes, the rod's equations gain the
+//! border column −A_jᵀ (in each node's contact basis, with a sliding node's kinetic row
+//! combination), and the row A_j δx − a·δX = −(violation) joins the dense system, through the
+//! rod's free coordinates (the `rows` of the Schur complement) and the body motion that a
+//! node's prescribed coordinates follow. The current force λ_j A_jᵀ is in the rods' residual,
+//! so node contacts' reactions leave it out. On a body, λ a enters the body's equations.
+
+use super::*;
+use crate::obstacle3::segment;
+use crate::rod3d::edge3::{interior, EdgeContact3, MAX_RELINEARISED};
+
+/// Node contacts whose normals are within this angle (rad) of a segment's contact normal make
+/// the segment's penetration the faceting of their surface ([`World3::nodes_follow`]).
+pub const FACET: f64 = std::f64::consts::FRAC_PI_6;
+
+impl World3 {
+    /// Edge contacts of every rod, in the order of their unknowns.
+    pub(super) fn edge_count(&self) -> usize {
+        self.edges.iter().map(Vec::len).sum()
+    }
+
+    /// The thickness offset of segment i of rod r towards a surface with outward normal n:
+    /// its own section's support (from its material frame at the start of the step).
+    pub fn edge_offset(&self, r: usize, i: usize, n: &V3) -> f64 {
+        if self.side == ContactSide3::Centreline {
+            return 0.0;
+        }
+        let sim = &self.rods[r];
+        match self.sections[r] {
+            Section3::Circle { r } => r,
+            Section3::Rect { b, h } => {
+                let (m1, m2) = material_frame(&sim.frames[i], sim.q[angle(i)]);
+                0.5 * h * n.dot(&V3::from(m1)).abs() + 0.5 * b * n.dot(&V3::from(m2)).abs()
+            }
+        }
+    }
+
+    /// Whether segment i of rod r may hold an edge contact: no prescribed (clamped) DOF on its
+    /// nodes, and not both nodes held whole (stuck), which leaves its row no freedom.
+    fn segment_open(&self, r: usize, i: usize) -> bool {
+        let fixed = &self.rods[r].fixed;
+        if (pos(i)..pos(i + 1) + 3).any(|k| k % 4 != 3 && fixed[k]) {
+            return false;
+        }
+        let whole = |j: usize| self.contacts[r][j].is_some_and(|c| c.held() == 3);
+        !(whole(i) && whole(i + 1))
+    }
+
+    /// Whether both nodes of segment i already follow surface `s` with normals within
+    /// [`FACET`] of the segment's contact normal n: then the segment's penetration is the
+    /// faceting of a surface the nodes follow (depth ≈ L²κ/8 on a curvature κ), which node
+    /// contact accepts; an edge row there would nearly repeat the nodes' rows (and pull them
+    /// off). A corner between the nodes (a box's or mesh's edge, where the normals turn by
+    /// more) is held.
+    fn nodes_follow(&self, r: usize, i: usize, s: Surface3, n: &V3) -> bool {
+        (i..=i + 1).all(|j| {
+            self.contacts[r][j].is_some_and(|c| c.surface == s && c.normal.dot(n) > FACET.cos())
+        })
+    }
+
+    /// The edge contact of segment i of rod r (configuration `q`) at weight s on surface `s`
+    /// as `prox` sees it at the current body displacement.
+    fn edge_at(&self, r: usize, i: usize, w: f64, s: Surface3, prox: &Proximity3) -> EdgeContact3 {
+        let n = prox.normal;
+        let offset = self.edge_offset(r, i, &n);
+        let lever = match s {
+            Surface3::Body(_) => prox.closest - self.centre(s),
+            Surface3::Obstacle(_) => V3::zeros(),
+        };
+        let a = lever_map(&lever).transpose() * n;
+        EdgeContact3 {
+            surface: s,
+            segment: i,
+            weight: w,
+            normal: n,
+            target: n.dot(&prox.closest) + offset - a.dot(&self.body_dx(s)),
+            lever,
+            offset,
+            point: prox.closest,
+            force: 0.0,
+            locked: false,
+            relinearised: 0,
+        }
+    }
+
+    /// Segment i's deepest point on surface `s` at configuration `q`: (weight, proximity,
+    /// depth below the offset).
+    fn deepest(&self, r: usize, i: usize, s: Surface3, q: &[f64]) -> (f64, Proximity3, f64) {
+        let (a, b) = (Self::node(q, i), Self::node(q, i + 1));
+        let (w, prox) = segment::deepest(self.surface(s), &a, &b);
+        let depth = prox.distance - self.edge_offset(r, i, &prox.normal);
+        (w, prox, depth)
+    }
+
+    /// The edge contact segment i of rod r would get on surface `s` now (its deepest point
+    /// there, at the current body displacement), whether or not it is inside; `None` when the
+    /// deepest point is a node's.
+    pub fn edge_contact_at(&self, r: usize, i: usize, s: Surface3) -> Option<EdgeContact3> {
+        let (w, prox, _) = self.deepest(r, i, s, &self.rods[r].q);
+        interior(w).then(|| self.edge_at(r, i, w, s, &prox))
+    }
+
+    /// Carried edge contacts re-linearised at the start of the step (ΔX = 0); a deepest point
+    /// that moved onto a node is left to the node.
+    pub(super) fn relinearise_edges(&mut self) {
+        for r in 0..self.rods.len() {
+            self.work[r].edge_released.clear();
+            let old = std::mem::take(&mut self.edges[r]);
+            let mut out = Vec::with_capacity(old.len());
+            for e in old {
+                let i = e.segment;
+                if !self.edge_contact || !self.segment_open(r, i) {
+                    continue;
+                }
+                let (w, prox, _) = self.deepest(r, i, e.surface, &self.rods[r].q);
+                if interior(w) {
+                    let ne = self.edge_at(r, i, w, e.surface, &prox);
+                    out.push(EdgeContact3 {
+                        force: e.force,
+                        ..ne
+                    });
+                }
+            }
+            self.edges[r] = out;
+        }
+    }
+
+    /// Rod r's edge contacts after a converged pass: released when the multiplier pulls,
+    /// re-linearised where the pass left the segment inside, dropped when the deepest point
+    /// moved onto a node; new interior penetrations added. Returns how many changed.
+    pub(super) fn update_edges(&mut self, r: usize, report: &mut StepReport3) -> u32 {
+        if !self.edge_contact || self.rods[r].rod.n < 2 {
+            return 0;
+        }
+        let tol = 1e-10 * self.rods[r].rod.length;
+        let mut changed = 0;
+        let old = std::mem::take(&mut self.edges[r]);
+        let mut out = Vec::with_capacity(old.len());
+        for e in old {
+            let i = e.segment;
+            if e.force < 0.0 && !e.locked {
+                self.work[r].edge_released.push((i, e.surface));
+                report.released += 1;
+                changed += 1;
+                continue;
+            }
+            if !self.segment_open(r, i) || self.nodes_follow(r, i, e.surface, &e.normal) {
+                self.work[r].edge_released.push((i, e.surface));
+                changed += 1;
+                continue;
+            }
+            let (w, prox, depth) = self.deepest(r, i, e.surface, &self.work[r].qn);
+            if depth >= -tol || e.locked && !interior(w) || e.relinearised >= MAX_RELINEARISED {
+                // Held, or dropped or re-linearised as often as a step allows: kept as it
+                // is for the rest of the step (the next step re-linearises it).
+                out.push(e);
+            } else if interior(w) {
+                let ne = EdgeContact3 {
+                    force: e.force,
+                    locked: e.locked,
+                    relinearised: e.relinearised + 1,
+                    ..self.edge_at(r, i, w, e.surface, &prox)
+                };
+                changed += u32::from(ne != e);
+                out.push(ne);
+            } else {
+                // The deepest point reached a node: the node's. Caught again in this step, it
+                // is kept (locked).
+                self.work[r].edge_released.push((i, e.surface));
+                changed += 1;
+            }
+        }
+        let fresh = self.edge_candidates(r, &out);
+        for (i, s, w, prox) in fresh {
+            let locked = self.work[r].edge_released.contains(&(i, s));
+            out.push(EdgeContact3 {
+                locked,
+                ..self.edge_at(r, i, w, s, &prox)
+            });
+            report.added += 1;
+            changed += 1;
+        }
+        self.edges[r] = out;
+        changed
+    }
+
+    /// The segments of rod r whose deepest point on a surface ended inside it (deeper than
+    /// the segment's offset) away from their nodes: (segment, surface, weight, proximity),
+    /// skipping pairs in `held`.
+    fn edge_candidates(
+        &self,
+        r: usize,
+        held: &[EdgeContact3],
+    ) -> Vec<(usize, Surface3, f64, Proximity3)> {
+        let q = &self.work[r].qn;
+        let reach = match self.sections[r] {
+            Section3::Circle { r } => r,
+            Section3::Rect { b, h } => 0.5 * (b + h),
+        };
+        let eps = 1e-10 * self.rods[r].rod.length;
+        let mut out = Vec::new();
+        for i in 0..self.rods[r].rod.n - 1 {
+            if !self.segment_open(r, i) {
+                continue;
+            }
+            let (a, b) = (Self::node(q, i), Self::node(q, i + 1));
+            for s in self.surfaces() {
+                if held.iter().any(|e| e.segment == i && e.surface == s)
+                    || segment::lower_bound(self.surface(s), &a, &b) >= reach
+                {
+                    continue;
+                }
+                let (w, prox, depth) = self.deepest(r, i, s, q);
+                if interior(w) && depth < -eps && !self.nodes_follow(r, i, s, &prox.normal) {
+                    out.push((i, s, w, prox));
+                }
+            }
+        }
+        out
+    }
+
+    /// The deepest any segment point of rod r sits below its offset on any surface, away from
+    /// the nodes (m; ≤ 0: none): what node contact misses between the nodes.
+    pub fn segment_penetration(&self, r: usize) -> f64 {
+        let q = &self.rods[r].q;
+        let reach = match self.sections[r] {
+            Section3::Circle { r } => r,
+            Section3::Rect { b, h } => 0.5 * (b + h),
+        };
+        let mut worst = f64::NEG_INFINITY;
+        for i in 0..self.rods[r].rod.n.saturating_sub(1) {
+            let (a, b) = (Self::node(q, i), Self::node(q, i + 1));
+            for s in self.surfaces() {
+                if segment::lower_bound(self.surface(s), &a, &b) >= reach {
+                    continue;
+                }
+                let (w, _, depth) = self.deepest(r, i, s, q);
+                if interior(w) {
+                    worst = worst.max(-depth);
+                }
+            }
+        }
+        worst
+    }
+
+    /// The reaction of rod r's edge contacts shared to its nodes by the weights (world, N).
+    pub fn edge_reactions(&self, r: usize) -> Vec<V3> {
+        let mut out = vec![V3::zeros(); self.rods[r].rod.n];
+        for e in &self.edges[r] {
+            out[e.segment] += e.node_force(0);
+            out[e.segment + 1] += e.node_force(1);
+        }
+        out
+    }
+
+    /// Rod r's edge rows of the Newton system (after its node contacts are eliminated): the
+    /// constraint right-hand sides and, on a body, λ a in its equations; with `jac` the border
+    /// columns, the Schur rows and the dense entries.
+    pub(super) fn edge_rows(
+        &mut self,
+        r: usize,
+        s: &mut DMatrix<f64>,
+        fb: &mut DVector<f64>,
+        jac: bool,
+    ) {
+        let base = 6 * self.bodies.len() + self.edges[..r].iter().map(Vec::len).sum::<usize>();
+        for (j, e) in self.edges[r].iter().enumerate() {
+            let col = base + j;
+            let dxb = self.body_dx(e.surface);
+            fb[col] = -e.violation(&self.work[r].qn, &dxb);
+            if let Surface3::Body(b) = e.surface {
+                let a = e.body_row();
+                for f in 0..6 {
+                    fb[6 * b + f] -= e.force * a[f];
+                    if jac {
+                        s[(6 * b + f, col)] += a[f];
+                        s[(col, 6 * b + f)] -= a[f];
+                    }
+                }
+            }
+            if jac {
+                for (k, wt) in e.weights().into_iter().enumerate() {
+                    let ct = self.contacts[r][e.segment + k];
+                    node_column(&mut self.work[r], e.segment + k, e.normal * wt, ct, col, s);
+                }
+            }
+        }
+    }
+
+    /// After a solve: each edge contact's multiplier takes its increment.
+    pub(super) fn update_edge_forces(&mut self, dx: &DVector<f64>) {
+        let mut k = 6 * self.bodies.len();
+        for e in self.edges.iter_mut().flatten() {
+            e.force += dx[k];
+            k += 1;
+        }
+    }
+}
+
+/// The current edge forces λ A_jᵀ into rod r's right-hand side (−residual), world frame,
+/// before the node contacts rotate it.
+pub(super) fn add_edge_forces(w: &mut Work3, edges: &[EdgeContact3]) {
+    for e in edges {
+        for k in 0..2 {
+            let (k0, f) = (pos(e.segment + k), e.node_force(k));
+            for c in 0..3 {
+                if !w.elim[k0 + c] {
+                    w.rhs[k0 + c] += f[c];
+                }
+            }
+        }
+    }
+}
+
+/// Node i's part of edge column `col`: the unit force `fw` (world) it takes per unit λ, in
+/// its contact basis when it has one. Free coordinates get the border entry −f (a sliding
+/// node's t₁ row also −μ_k f_n, its kinetic combination) and the row entry f; prescribed
+/// coordinates that follow a body put f P into the edge's row of the dense system; a node
+/// touching a body passes −Gᵀ Qᵀ f of λ to the body's equations (its reaction changes).
+fn node_column(
+    w: &mut Work3,
+    i: usize,
+    fw: V3,
+    ct: Option<Contact3>,
+    col: usize,
+    s: &mut DMatrix<f64>,
+) {
+    let (f, mu) = match &ct {
+        Some(c) => (c.basis() * fw, c.kinetic()),
+        None => (fw, 0.0),
+    };
+    for c in 0..3 {
+        let l = pos(i) + c;
+        if !w.elim[l] {
+            let kinetic = if c == 1 { mu * f[0] } else { 0.0 };
+            w.border[l][col] -= f[c] + kinetic;
+            w.rows.push((col, l, f[c]));
+        } else if let Some((b, p)) = w.follow[l] {
+            for e in 0..6 {
+                s[(col, 6 * b + e)] += f[c] * p[e];
+            }
+        }
+    }
+    if let Some(ct) = ct {
+        if let Surface3::Body(b) = ct.surface {
+            let wm = lever_map(&ct.lever).transpose() * ct.basis().transpose();
+            let add = wm * f;
+            for e in 0..6 {
+                s[(6 * b + e, col)] -= add[e];
+            }
+        }
+    }
+}
