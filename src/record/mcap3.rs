@@ -559,14 +559,31 @@ const META: usize = 0;
 const STEP: usize = 1;
 const SCENE_STATIC: usize = 2;
 const SCENE: usize = 3;
+const EVENT: usize = 4;
+
+/// The 3D recording format: 2 adds step 0 (the initial state) on `/sim/step` and `/scene`,
+/// and the run's end (`/sim/event` `run_end`, metadata `gripsim.run_end`).
+pub const FORMAT_VERSION3: u32 = 2;
 
 /// (topic, schema name) of every channel.
-pub const CHANNELS3: [(&str, &str); 4] = [
+pub const CHANNELS3: [(&str, &str); 5] = [
     ("/sim/meta", "gripsim.Meta3"),
     ("/sim/step", "gripsim.Step3"),
     ("/scene/static", "foxglove.SceneUpdate"),
     ("/scene", "foxglove.SceneUpdate"),
+    ("/sim/event", "gripsim.Event"),
 ];
+
+/// The run-end message on `/sim/event` (the planar `gripsim.Event` schema, kind `run_end`).
+#[derive(Serialize)]
+struct RunEnd3 {
+    kind: &'static str,
+    step: u64,
+    t: f64,
+    message: String,
+    completed: bool,
+    error: Option<String>,
+}
 
 type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 
@@ -575,8 +592,10 @@ pub struct Mcap3 {
     path: PathBuf,
     partial: PathBuf,
     writer: Option<Writer>,
-    channels: [u16; 4],
-    sequence: [u32; 4],
+    channels: [u16; 5],
+    sequence: [u32; 5],
+    /// The `gripsim.run_end` metadata, written at [`Mcap3::finish`] (empty: no run end seen).
+    end: BTreeMap<String, String>,
     buf: Vec<u8>,
     name: String,
     text: String,
@@ -604,7 +623,7 @@ impl Mcap3 {
             .compression_threads(0)
             .create(BufWriter::with_capacity(1 << 16, file))
             .map_err(|e| fail(&e))?;
-        let mut channels = [0u16; 4];
+        let mut channels = [0u16; 5];
         let scene = include_str!("schemas/foxglove.SceneUpdate.json");
         for (k, (topic, schema)) in CHANNELS3.iter().enumerate() {
             let (sid, enc) = match k {
@@ -614,6 +633,14 @@ impl Mcap3 {
                 ),
                 META => (
                     w.add_schema(schema, "jsonschema", META3_SCHEMA.as_bytes()),
+                    "json",
+                ),
+                EVENT => (
+                    w.add_schema(
+                        schema,
+                        "jsonschema",
+                        include_str!("schemas/gripsim.Event.json").as_bytes(),
+                    ),
                     "json",
                 ),
                 _ => (w.add_schema(schema, "jsonschema", scene.as_bytes()), "json"),
@@ -628,7 +655,8 @@ impl Mcap3 {
             partial,
             writer: Some(w),
             channels,
-            sequence: [0; 4],
+            sequence: [0; 5],
+            end: BTreeMap::new(),
             buf: Vec::with_capacity(1 << 14),
             name: name.to_string(),
             text: text.to_string(),
@@ -674,12 +702,22 @@ impl Mcap3 {
     /// Close the file and move it into place.
     pub fn finish(mut self) -> Result<(), String> {
         if let Some(mut w) = self.writer.take() {
-            let closed = w.finish().map_err(|e| e.to_string()).and_then(|_| {
-                w.into_inner()
-                    .into_inner()
-                    .map(drop)
-                    .map_err(|e| e.error().to_string())
-            });
+            let mut closed = Ok(());
+            if !self.end.is_empty() {
+                let record = ::mcap::records::Metadata {
+                    name: "gripsim.run_end".into(),
+                    metadata: std::mem::take(&mut self.end),
+                };
+                closed = w.write_metadata(&record).map_err(|e| e.to_string());
+            }
+            let closed = closed
+                .and_then(|_| w.finish().map_err(|e| e.to_string()))
+                .and_then(|_| {
+                    w.into_inner()
+                        .into_inner()
+                        .map(drop)
+                        .map_err(|e| e.error().to_string())
+                });
             if let Err(e) = closed {
                 self.error.get_or_insert(e);
             }
@@ -708,7 +746,7 @@ impl Mcap3 {
             ("log_time", "ns"),
         ];
         let meta = Meta3 {
-            format_version: 1,
+            format_version: FORMAT_VERSION3,
             dimension: 3,
             gripsim_version: env!("CARGO_PKG_VERSION"),
             scenario_name: &self.name,
@@ -859,7 +897,25 @@ impl Observer3 for Mcap3 {
                 scene.entities.push(self.contacts_entity(stamp, contacts));
                 self.send(SCENE, t, &scene);
             }
-            Event3::End { .. } => {}
+            Event3::End { steps, time } => {
+                // A failed run's file is removed, so a run end in the file is a completed run.
+                self.end = BTreeMap::from([
+                    ("completed".into(), "true".into()),
+                    ("steps".into(), steps.to_string()),
+                    ("t".into(), time.to_string()),
+                    ("error".into(), String::new()),
+                ]);
+                let t = ((time * 1e9).round() as u64).max(self.last_time);
+                let msg = RunEnd3 {
+                    kind: "run_end",
+                    step: *steps,
+                    t: *time,
+                    message: format!("run completed: {steps} steps, t = {time} s"),
+                    completed: true,
+                    error: None,
+                };
+                self.send(EVENT, t, &msg);
+            }
         }
     }
 }
