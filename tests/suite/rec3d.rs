@@ -115,6 +115,58 @@ fn a_3d_grasp_recorded_as_rrd_and_mcap_agrees_with_csv_and_summary() {
     assert_eq!(end["step"].as_u64(), Some(steps));
     assert_eq!(f(&end["t"]), f(&s["t_end"]));
     assert_eq!(end["completed"], true);
+    // /scene is protobuf foxglove.SceneUpdate (3D format 3), decoded by Google's library from
+    // the file's descriptor: each sampled step's centre lines are its /sim/step positions in
+    // f32, the fruit's sphere is at its body's position (f32), the table a triangle list.
+    assert_eq!(r["meta3"]["format_version"].as_u64(), Some(3));
+    for topic in ["/scene", "/scene/static"] {
+        assert_eq!(r["topics"][topic]["schema_encoding"], "protobuf", "{topic}");
+        assert_eq!(
+            r["topics"][topic]["message_encoding"], "protobuf",
+            "{topic}"
+        );
+    }
+    assert_eq!(r["scene_static"][0]["triangles"], serde_json::json!([4]));
+    let f32s = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| f(x) as f32 as f64)
+            .collect()
+    };
+    let samples = r["step_samples"].as_array().unwrap();
+    let mut checked = 0;
+    for sc in r["scene_samples"].as_array().unwrap() {
+        let n = sc["index"].as_u64().unwrap();
+        let st = samples
+            .iter()
+            .find(|s| s["step"].as_u64() == Some(n))
+            .expect("the step of each scene sample is sampled");
+        let ents = sc["entities"].as_array().unwrap();
+        for (k, rod) in ["finger0", "finger1"].iter().enumerate() {
+            let e = ents
+                .iter()
+                .find(|e| e["id"] == format!("rod/{rod}"))
+                .unwrap();
+            let line: Vec<f64> = e["line_points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .flat_map(|p| p.as_array().unwrap().iter().map(f))
+                .collect();
+            assert_eq!(line, f32s(&st["rods"][k]["x"]), "step {n} {rod}");
+        }
+        let body = ents.iter().find(|e| e["id"] == "body/fruit").unwrap();
+        let centre: Vec<f64> = body["spheres"][0]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(f)
+            .collect();
+        assert_eq!(centre, f32s(&st["bodies"][0]["position"]), "step {n}");
+        checked += 1;
+    }
+    assert!(checked >= 20, "{checked}");
     let meta_end = &r["metadata"]["gripsim.run_end"];
     assert_eq!(meta_end["completed"], "true");
     assert_eq!(meta_end["steps"], steps.to_string());
