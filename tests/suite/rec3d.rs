@@ -558,7 +558,8 @@ fn without_file(mut v: serde_json::Value) -> serde_json::Value {
 /// nodes, slip beyond the fruit's hold tolerance during the lift, drop when no prong touches
 /// it): the shipped lift holds its sphere (no flag, live and replayed); with a tenth of its
 /// friction the sphere stays on the table while the hand rises and is flagged as slipping
-/// during the lift, at the same step live and replayed. A copy cut short has no run end:
+/// during the lift, at the same step live and replayed; a scenario that expects the slip
+/// (`[expect] grasp = "slipped"`) reports it unflagged. A copy cut short has no run end:
 /// `replay check` says so and exits 3, or reads what is there with `--allow-partial`.
 #[test]
 fn grasp_rules_on_3d_lifts_live_and_replayed() {
@@ -571,6 +572,18 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
             "slip",
             vec!["--set", "friction.mu_s=0.1", "--set", "friction.mu_k=0.08"],
             1,
+        ),
+        (
+            "expected",
+            vec![
+                "--set",
+                "friction.mu_s=0.1",
+                "--set",
+                "friction.mu_k=0.08",
+                "--set",
+                "expect.grasp=slipped",
+            ],
+            0,
         ),
     ] {
         let out = expect(
@@ -639,6 +652,11 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
         rise(slip_sum),
         flags.len()
     );
+    // `[expect] grasp = "slipped"`: the same slip is reported as expected, not flagged.
+    let (expected, _) = &reports[2];
+    assert_eq!(expected["flagged"], false, "{expected:#}");
+    assert!(expected.get("grasp").is_none(), "{expected:#}");
+    assert_eq!(expected["grasp_expected"][0], flags[0]);
     // A copy cut short: no run end, exit 3; --allow-partial reads the steps before the cut.
     let bytes = std::fs::read(d.join("held.mcap")).unwrap();
     std::fs::write(d.join("cut.mcap"), &bytes[..bytes.len() * 6 / 10]).unwrap();
