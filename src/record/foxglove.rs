@@ -61,6 +61,71 @@ pub struct SceneEntity {
     pub texts: Vec<TextPrimitive>,
 }
 
+/// `foxglove.SceneUpdate` of a 3D scene ([`SceneEntity3`]): the same message on the wire.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct SceneUpdate3 {
+    #[prost(message, repeated, tag = "1")]
+    pub deletions: Vec<SceneEntityDeletion>,
+    #[prost(message, repeated, tag = "2")]
+    pub entities: Vec<SceneEntity3>,
+}
+
+/// `foxglove.SceneEntity` with the primitives a 3D scene draws: [`SceneEntity`]'s and cubes
+/// (field 8) and triangle lists (field 12); metadata, cylinders and models are never written.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct SceneEntity3 {
+    #[prost(message, optional, tag = "1")]
+    pub timestamp: Option<Timestamp>,
+    #[prost(string, tag = "2")]
+    pub frame_id: String,
+    #[prost(string, tag = "3")]
+    pub id: String,
+    /// Zero (or absent): kept until replaced.
+    #[prost(message, optional, tag = "4")]
+    pub lifetime: Option<Duration>,
+    #[prost(bool, tag = "5")]
+    pub frame_locked: bool,
+    #[prost(message, repeated, tag = "7")]
+    pub arrows: Vec<ArrowPrimitive>,
+    #[prost(message, repeated, tag = "8")]
+    pub cubes: Vec<CubePrimitive>,
+    #[prost(message, repeated, tag = "9")]
+    pub spheres: Vec<SpherePrimitive>,
+    #[prost(message, repeated, tag = "11")]
+    pub lines: Vec<LinePrimitive>,
+    #[prost(message, repeated, tag = "12")]
+    pub triangles: Vec<TriangleListPrimitive>,
+    #[prost(message, repeated, tag = "13")]
+    pub texts: Vec<TextPrimitive>,
+}
+
+/// `foxglove.CubePrimitive`.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct CubePrimitive {
+    #[prost(message, optional, tag = "1")]
+    pub pose: Option<Pose>,
+    #[prost(message, optional, tag = "2")]
+    pub size: Option<Vector3>,
+    #[prost(message, optional, tag = "3")]
+    pub color: Option<Color>,
+}
+
+/// `foxglove.TriangleListPrimitive`: every three points (or indices) a triangle.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct TriangleListPrimitive {
+    #[prost(message, optional, tag = "1")]
+    pub pose: Option<Pose>,
+    /// `foxglove.Point3`.
+    #[prost(message, repeated, tag = "2")]
+    pub points: Vec<Vector3>,
+    #[prost(message, optional, tag = "3")]
+    pub color: Option<Color>,
+    #[prost(message, repeated, tag = "4")]
+    pub colors: Vec<Color>,
+    #[prost(fixed32, repeated, tag = "5")]
+    pub indices: Vec<u32>,
+}
+
 /// `google.protobuf.Timestamp`.
 #[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
 pub struct Timestamp {

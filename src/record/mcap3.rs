@@ -4,9 +4,10 @@
 //! | topic | schema | messages |
 //! |---|---|---|
 //! | `/sim/meta` | `gripsim.Meta3` (JSON) | one, first: scenario, rods, shapes, units |
-//! | `/sim/step` | `gripsim.Step3` (protobuf) | one per step: rods (x, y, z, velocity, material angle, twist, m₁, m₂), free bodies' poses, contacts, contact changes |
-//! | `/scene/static` | `foxglove.SceneUpdate` (JSON) | one, before the first step: the fixed obstacles |
-//! | `/scene` | `foxglove.SceneUpdate` (JSON) | one per step: rods, material frames, free bodies at their pose, contact normals, reactions and friction |
+//! | `/sim/step` | `gripsim.Step3` (protobuf) | step 0 (the initial state), then one per step: rods (x, y, z, velocity, material angle, twist, m₁, m₂), free bodies' poses, contacts, contact changes |
+//! | `/scene/static` | `foxglove.SceneUpdate` (protobuf) | one, before the first step: the fixed obstacles |
+//! | `/scene` | `foxglove.SceneUpdate` (protobuf) | one per step and step 0: rods, material frames, free bodies at their pose, contact normals, reactions and friction |
+//! | `/sim/event` | `gripsim.Event` (JSON) | one, last: `run_end` (also the metadata record `gripsim.run_end`) |
 //!
 //! The `gripsim.Step3` schema is a `FileDescriptorSet` built here ([`file_descriptor_set`]), so
 //! any protobuf library decodes the file without a `.proto` file. `/scene` draws spheres and
@@ -287,188 +288,91 @@ fn contact_message(c: &Contact3) -> ContactState3 {
     }
 }
 
-// ---- foxglove.SceneUpdate (JSON, the published schema the planar /scene carries) ---------
+// ---- foxglove.SceneUpdate (protobuf, as the planar /scene: super::foxglove) --------------
+// Numbers rounded to f32 (what the 3D panel draws with); the exact values are in /sim/step.
 
-#[derive(Serialize, Clone, Copy, Default)]
-struct Stamp {
-    sec: u64,
-    nsec: u32,
-}
+use super::foxglove as fx;
 
-#[derive(Serialize, Clone, Copy)]
-struct Vec3 {
-    x: f32,
-    y: f32,
-    z: f32,
-}
-
-fn v3(p: [f64; 3]) -> Vec3 {
-    Vec3 {
-        x: p[0] as f32,
-        y: p[1] as f32,
-        z: p[2] as f32,
+fn v3(p: [f64; 3]) -> fx::Vector3 {
+    fx::Vector3 {
+        x: p[0] as f32 as f64,
+        y: p[1] as f32 as f64,
+        z: p[2] as f32 as f64,
     }
 }
 
-#[derive(Serialize, Clone, Copy)]
-struct Quat {
-    x: f32,
-    y: f32,
-    z: f32,
-    w: f32,
+fn pose(p: [f64; 3], q: [f64; 4]) -> Option<fx::Pose> {
+    Some(fx::Pose {
+        position: Some(v3(p)),
+        orientation: Some(fx::Quaternion {
+            x: q[0] as f32 as f64,
+            y: q[1] as f32 as f64,
+            z: q[2] as f32 as f64,
+            w: q[3] as f32 as f64,
+        }),
+    })
 }
 
-#[derive(Serialize, Clone, Copy)]
-struct Pose {
-    position: Vec3,
-    orientation: Quat,
+const fn rgba(r: f64, g: f64, b: f64, a: f64) -> fx::Color {
+    fx::Color { r, g, b, a }
 }
 
-fn pose(p: [f64; 3], q: [f64; 4]) -> Pose {
-    Pose {
-        position: v3(p),
-        orientation: Quat {
-            x: q[0] as f32,
-            y: q[1] as f32,
-            z: q[2] as f32,
-            w: q[3] as f32,
-        },
+const ROD: fx::Color = rgba(0.1, 0.1, 0.1, 1.0);
+const M1: fx::Color = rgba(0.86, 0.16, 0.16, 1.0);
+const M2: fx::Color = rgba(0.16, 0.67, 0.16, 1.0);
+const NORMAL: fx::Color = rgba(0.24, 0.35, 0.9, 1.0);
+const REACTION: fx::Color = rgba(0.94, 0.59, 0.12, 1.0);
+const FRICTION: fx::Color = rgba(0.63, 0.24, 0.78, 1.0);
+const FRUIT: fx::Color = rgba(0.9, 0.47, 0.24, 0.8);
+const OBSTACLE: fx::Color = rgba(0.6, 0.6, 0.6, 0.45);
+
+/// A scene entity in frame "world", kept until replaced.
+fn entity(id: String, timestamp: fx::Timestamp) -> fx::SceneEntity3 {
+    fx::SceneEntity3 {
+        timestamp: Some(timestamp),
+        frame_id: "world".into(),
+        id,
+        ..Default::default()
     }
 }
 
-#[derive(Serialize, Clone, Copy)]
-struct Color {
-    r: f32,
-    g: f32,
-    b: f32,
-    a: f32,
-}
-
-const fn rgba(r: f32, g: f32, b: f32, a: f32) -> Color {
-    Color { r, g, b, a }
-}
-
-const ROD: Color = rgba(0.1, 0.1, 0.1, 1.0);
-const M1: Color = rgba(0.86, 0.16, 0.16, 1.0);
-const M2: Color = rgba(0.16, 0.67, 0.16, 1.0);
-const NORMAL: Color = rgba(0.24, 0.35, 0.9, 1.0);
-const REACTION: Color = rgba(0.94, 0.59, 0.12, 1.0);
-const FRICTION: Color = rgba(0.63, 0.24, 0.78, 1.0);
-const FRUIT: Color = rgba(0.9, 0.47, 0.24, 0.8);
-const OBSTACLE: Color = rgba(0.6, 0.6, 0.6, 0.45);
-
-#[derive(Serialize)]
-struct Arrow {
-    pose: Pose,
-    shaft_length: f32,
-    shaft_diameter: f32,
-    head_length: f32,
-    head_diameter: f32,
-    color: Color,
-}
-
-#[derive(Serialize)]
-struct Solid {
-    pose: Pose,
-    size: Vec3,
-    color: Color,
-}
-
-#[derive(Serialize)]
-struct Line {
-    /// 0 = LINE_STRIP, 2 = LINE_LIST.
-    #[serde(rename = "type")]
-    kind: u8,
-    pose: Pose,
-    thickness: f32,
-    scale_invariant: bool,
-    points: Vec<Vec3>,
-    color: Color,
-    colors: [Color; 0],
-    indices: [u32; 0],
-}
-
-#[derive(Serialize)]
-struct Triangles {
-    pose: Pose,
-    points: Vec<Vec3>,
-    color: Color,
-    colors: [Color; 0],
-    indices: Vec<u32>,
-}
-
-#[derive(Serialize)]
-struct Entity {
-    timestamp: Stamp,
-    frame_id: &'static str,
-    id: String,
-    lifetime: Stamp,
-    frame_locked: bool,
-    metadata: [(); 0],
-    arrows: Vec<Arrow>,
-    cubes: Vec<Solid>,
-    spheres: Vec<Solid>,
-    cylinders: [(); 0],
-    lines: Vec<Line>,
-    triangles: Vec<Triangles>,
-    texts: [(); 0],
-    models: [(); 0],
-}
-
-impl Entity {
-    fn new(id: String, timestamp: Stamp) -> Self {
-        Self {
-            timestamp,
-            frame_id: "world",
-            id,
-            lifetime: Stamp::default(),
-            frame_locked: false,
-            metadata: [],
-            arrows: vec![],
-            cubes: vec![],
-            spheres: vec![],
-            cylinders: [],
-            lines: vec![],
-            triangles: vec![],
-            texts: [],
-            models: [],
-        }
-    }
-
-    /// Draw `shape` at `pose`.
-    fn shape(&mut self, shape: &Shape3, at: Pose, plane_half: f64, color: Color) {
-        match shape {
-            Shape3::Sphere { radius } => self.spheres.push(Solid {
+/// Draw `shape` at `at` in `e`: spheres and ellipsoids as sphere primitives (scaled per
+/// axis), boxes as cubes, planes and meshes as triangle lists.
+fn draw_shape(
+    e: &mut fx::SceneEntity3,
+    shape: &Shape3,
+    at: Option<fx::Pose>,
+    plane_half: f64,
+    color: fx::Color,
+) {
+    let solid = |size: [f64; 3]| fx::SpherePrimitive {
+        pose: at,
+        size: Some(v3(size)),
+        color: Some(color),
+    };
+    match shape {
+        Shape3::Sphere { radius } => e.spheres.push(solid([2.0 * radius; 3])),
+        Shape3::Ellipsoid { semi_axes } => e.spheres.push(solid(semi_axes.map(|a| 2.0 * a))),
+        Shape3::Box { half } => e.cubes.push(fx::CubePrimitive {
+            pose: at,
+            size: Some(v3(half.map(|a| 2.0 * a))),
+            color: Some(color),
+        }),
+        Shape3::Plane | Shape3::Mesh(_) => {
+            let t = tessellate(shape, plane_half);
+            e.triangles.push(fx::TriangleListPrimitive {
                 pose: at,
-                size: v3([2.0 * radius; 3]),
-                color,
-            }),
-            Shape3::Ellipsoid { semi_axes } => self.spheres.push(Solid {
-                pose: at,
-                size: v3(semi_axes.map(|a| 2.0 * a)),
-                color,
-            }),
-            Shape3::Box { half } => self.cubes.push(Solid {
-                pose: at,
-                size: v3(half.map(|a| 2.0 * a)),
-                color,
-            }),
-            Shape3::Plane | Shape3::Mesh(_) => {
-                let t = tessellate(shape, plane_half);
-                self.triangles.push(Triangles {
-                    pose: at,
-                    points: t.vertices.iter().map(|p| v3(*p)).collect(),
-                    color,
-                    colors: [],
-                    indices: t.triangles.iter().flatten().copied().collect(),
-                })
-            }
+                points: t.vertices.iter().map(|p| v3(*p)).collect(),
+                color: Some(color),
+                colors: vec![],
+                indices: t.triangles.iter().flatten().copied().collect(),
+            })
         }
     }
 }
 
 /// An arrow from `from` along `v` (its length |v|), `d` thick.
-fn arrow(from: [f64; 3], v: [f64; 3], d: f64, color: Color) -> Option<Arrow> {
+fn arrow(from: [f64; 3], v: [f64; 3], d: f64, color: fx::Color) -> Option<fx::ArrowPrimitive> {
     let dir = nalgebra::Vector3::from(v);
     let len = dir.norm();
     if !(len > 0.0) {
@@ -482,20 +386,34 @@ fn arrow(from: [f64; 3], v: [f64; 3], d: f64, color: Color) -> Option<Arrow> {
             )
         });
     let head = (2.5 * d).min(0.4 * len);
-    Some(Arrow {
+    let r = |x: f64| x as f32 as f64;
+    Some(fx::ArrowPrimitive {
         pose: pose(from, [rot.i, rot.j, rot.k, rot.w]),
-        shaft_length: (len - head) as f32,
-        shaft_diameter: d as f32,
-        head_length: head as f32,
-        head_diameter: (2.0 * d) as f32,
-        color,
+        shaft_length: r(len - head),
+        shaft_diameter: r(d),
+        head_length: r(head),
+        head_diameter: r(2.0 * d),
+        color: Some(color),
     })
 }
 
-#[derive(Serialize)]
-struct SceneUpdate {
-    deletions: [(); 0],
-    entities: Vec<Entity>,
+/// A line primitive (0 = LINE_STRIP, 2 = LINE_LIST) in world coordinates.
+fn line(
+    kind: i32,
+    points: Vec<fx::Vector3>,
+    thickness: f64,
+    color: fx::Color,
+) -> fx::LinePrimitive {
+    fx::LinePrimitive {
+        r#type: kind,
+        pose: pose([0.0; 3], [0.0, 0.0, 0.0, 1.0]),
+        thickness,
+        scale_invariant: true,
+        points,
+        color: Some(color),
+        colors: vec![],
+        indices: vec![],
+    }
 }
 
 // ---- /sim/meta -----------------------------------------------------------------------------
@@ -564,14 +482,33 @@ const META: usize = 0;
 const STEP: usize = 1;
 const SCENE_STATIC: usize = 2;
 const SCENE: usize = 3;
+const EVENT: usize = 4;
+
+/// The 3D recording format: 2 adds step 0 (the initial state) on `/sim/step` and `/scene`,
+/// and the run's end (`/sim/event` `run_end`, metadata `gripsim.run_end`).
+/// 3: `/scene` and `/scene/static` are protobuf `foxglove.SceneUpdate` (JSON before), as the
+/// planar ones.
+pub const FORMAT_VERSION3: u32 = 3;
 
 /// (topic, schema name) of every channel.
-pub const CHANNELS3: [(&str, &str); 4] = [
+pub const CHANNELS3: [(&str, &str); 5] = [
     ("/sim/meta", "gripsim.Meta3"),
     ("/sim/step", "gripsim.Step3"),
     ("/scene/static", "foxglove.SceneUpdate"),
     ("/scene", "foxglove.SceneUpdate"),
+    ("/sim/event", "gripsim.Event"),
 ];
+
+/// The run-end message on `/sim/event` (the planar `gripsim.Event` schema, kind `run_end`).
+#[derive(Serialize)]
+struct RunEnd3 {
+    kind: &'static str,
+    step: u64,
+    t: f64,
+    message: String,
+    completed: bool,
+    error: Option<String>,
+}
 
 type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 
@@ -580,8 +517,10 @@ pub struct Mcap3 {
     path: PathBuf,
     partial: PathBuf,
     writer: Option<Writer>,
-    channels: [u16; 4],
-    sequence: [u32; 4],
+    channels: [u16; 5],
+    sequence: [u32; 5],
+    /// The `gripsim.run_end` metadata, written at [`Mcap3::finish`] (empty: no run end seen).
+    end: BTreeMap<String, String>,
     buf: Vec<u8>,
     name: String,
     text: String,
@@ -609,8 +548,8 @@ impl Mcap3 {
             .compression_threads(0)
             .create(BufWriter::with_capacity(1 << 16, file))
             .map_err(|e| fail(&e))?;
-        let mut channels = [0u16; 4];
-        let scene = include_str!("schemas/foxglove.SceneUpdate.json");
+        let mut channels = [0u16; 5];
+        let scene = fx::file_descriptor_set();
         for (k, (topic, schema)) in CHANNELS3.iter().enumerate() {
             let (sid, enc) = match k {
                 STEP => (
@@ -621,7 +560,15 @@ impl Mcap3 {
                     w.add_schema(schema, "jsonschema", META3_SCHEMA.as_bytes()),
                     "json",
                 ),
-                _ => (w.add_schema(schema, "jsonschema", scene.as_bytes()), "json"),
+                EVENT => (
+                    w.add_schema(
+                        schema,
+                        "jsonschema",
+                        include_str!("schemas/gripsim.Event.json").as_bytes(),
+                    ),
+                    "json",
+                ),
+                _ => (w.add_schema(schema, "protobuf", &scene), "protobuf"),
             };
             let sid = sid.map_err(|e| fail(&e))?;
             channels[k] = w
@@ -633,7 +580,8 @@ impl Mcap3 {
             partial,
             writer: Some(w),
             channels,
-            sequence: [0; 4],
+            sequence: [0; 5],
+            end: BTreeMap::new(),
             buf: Vec::with_capacity(1 << 14),
             name: name.to_string(),
             text: text.to_string(),
@@ -679,12 +627,22 @@ impl Mcap3 {
     /// Close the file and move it into place.
     pub fn finish(mut self) -> Result<(), String> {
         if let Some(mut w) = self.writer.take() {
-            let closed = w.finish().map_err(|e| e.to_string()).and_then(|_| {
-                w.into_inner()
-                    .into_inner()
-                    .map(drop)
-                    .map_err(|e| e.error().to_string())
-            });
+            let mut closed = Ok(());
+            if !self.end.is_empty() {
+                let record = ::mcap::records::Metadata {
+                    name: "gripsim.run_end".into(),
+                    metadata: std::mem::take(&mut self.end),
+                };
+                closed = w.write_metadata(&record).map_err(|e| e.to_string());
+            }
+            let closed = closed
+                .and_then(|_| w.finish().map_err(|e| e.to_string()))
+                .and_then(|_| {
+                    w.into_inner()
+                        .into_inner()
+                        .map(drop)
+                        .map_err(|e| e.error().to_string())
+                });
             if let Err(e) = closed {
                 self.error.get_or_insert(e);
             }
@@ -713,7 +671,7 @@ impl Mcap3 {
             ("log_time", "ns"),
         ];
         let meta = Meta3 {
-            format_version: 1,
+            format_version: FORMAT_VERSION3,
             dimension: 3,
             gripsim_version: env!("CARGO_PKG_VERSION"),
             scenario_name: &self.name,
@@ -737,23 +695,29 @@ impl Mcap3 {
             Ok(()) => self.write_buf(META, 0),
             Err(e) => self.fail(e),
         }
-        let mut fixed = Entity::new("obstacles".into(), Stamp::default());
+        let mut fixed = entity("obstacles".into(), fx::Timestamp::default());
         for s in self.shapes.iter().filter(|s| !s.free) {
-            fixed.shape(
+            draw_shape(
+                &mut fixed,
                 &s.shape,
                 pose(s.pose.position.into(), quat(&s.pose)),
                 self.plane_half,
                 OBSTACLE,
             );
         }
-        let msg = SceneUpdate {
-            deletions: [],
+        let msg = fx::SceneUpdate3 {
+            deletions: vec![],
             entities: vec![fixed],
         };
-        self.send(SCENE_STATIC, 0, &msg);
+        self.send_proto(SCENE_STATIC, 0, &msg);
     }
 
-    fn scene(&self, stamp: Stamp, rods: &[Rod3StepView<'_>], bodies: &[BodyPose3]) -> SceneUpdate {
+    fn scene(
+        &self,
+        stamp: fx::Timestamp,
+        rods: &[Rod3StepView<'_>],
+        bodies: &[BodyPose3],
+    ) -> fx::SceneUpdate3 {
         let mut entities = Vec::new();
         for (r, v) in rods.iter().enumerate() {
             let (name, half) = self
@@ -762,18 +726,8 @@ impl Mcap3 {
                 .map_or((format!("rod{r}"), [1e-3; 2]), |i| {
                     (i.name.clone(), i.half_extents)
                 });
-            let mut e = Entity::new(format!("rod/{name}"), stamp);
+            let mut e = entity(format!("rod/{name}"), stamp);
             let n = v.nodes();
-            let line = |kind, points, thickness, color| Line {
-                kind,
-                pose: pose([0.0; 3], [0.0, 0.0, 0.0, 1.0]),
-                thickness,
-                scale_invariant: true,
-                points,
-                color,
-                colors: [],
-                indices: [],
-            };
             e.lines
                 .push(line(0, (0..n).map(|i| v3(v.node(i))).collect(), 3.0, ROD));
             let (mut l1, mut l2) = (vec![], vec![]);
@@ -794,8 +748,9 @@ impl Mcap3 {
             let Some(s) = self.shapes.get(b.shape) else {
                 continue;
             };
-            let mut e = Entity::new(format!("body/{}", s.name), stamp);
-            e.shape(
+            let mut e = entity(format!("body/{}", s.name), stamp);
+            draw_shape(
+                &mut e,
                 &s.shape,
                 pose(b.position, b.rotation),
                 self.plane_half,
@@ -803,20 +758,20 @@ impl Mcap3 {
             );
             entities.push(e);
         }
-        SceneUpdate {
-            deletions: [],
+        fx::SceneUpdate3 {
+            deletions: vec![],
             entities,
         }
     }
 
-    fn contacts_entity(&self, stamp: Stamp, contacts: &[Contact3]) -> Entity {
+    fn contacts_entity(&self, stamp: fx::Timestamp, contacts: &[Contact3]) -> fx::SceneEntity3 {
         let d = 0.3
             * self
                 .rods
                 .iter()
                 .map(|r| r.half_extents[0])
                 .fold(1e-3, f64::max);
-        let mut e = Entity::new("contacts".into(), stamp);
+        let mut e = entity("contacts".into(), stamp);
         for c in contacts {
             let k = self.force_scale;
             e.arrows.extend(
@@ -830,6 +785,13 @@ impl Mcap3 {
             );
         }
         e
+    }
+
+    fn send_proto(&mut self, k: usize, log_time: u64, msg: &impl prost::Message) {
+        self.buf.clear();
+        msg.encode(&mut self.buf)
+            .expect("a Vec grows to take any message");
+        self.write_buf(k, log_time);
     }
 }
 
@@ -856,15 +818,33 @@ impl Observer3 for Mcap3 {
                         .expect("a Vec grows to take any message");
                     self.write_buf(STEP, t);
                 }
-                let stamp = Stamp {
-                    sec: t / 1_000_000_000,
-                    nsec: (t % 1_000_000_000) as u32,
+                let stamp = fx::Timestamp {
+                    seconds: (t / 1_000_000_000) as i64,
+                    nanos: (t % 1_000_000_000) as i32,
                 };
                 let mut scene = self.scene(stamp, rods, bodies);
                 scene.entities.push(self.contacts_entity(stamp, contacts));
-                self.send(SCENE, t, &scene);
+                self.send_proto(SCENE, t, &scene);
             }
-            Event3::End { .. } => {}
+            Event3::End { steps, time } => {
+                // A failed run's file is removed, so a run end in the file is a completed run.
+                self.end = BTreeMap::from([
+                    ("completed".into(), "true".into()),
+                    ("steps".into(), steps.to_string()),
+                    ("t".into(), time.to_string()),
+                    ("error".into(), String::new()),
+                ]);
+                let t = ((time * 1e9).round() as u64).max(self.last_time);
+                let msg = RunEnd3 {
+                    kind: "run_end",
+                    step: *steps,
+                    t: *time,
+                    message: format!("run completed: {steps} steps, t = {time} s"),
+                    completed: true,
+                    error: None,
+                };
+                self.send(EVENT, t, &msg);
+            }
         }
     }
 }

@@ -27,10 +27,15 @@ use std::path::{Path, PathBuf};
 
 /// The layout a 3D `.rrd` opens with.
 pub fn blueprint3() -> Blueprint {
+    blueprint3_with(vec![])
+}
+
+/// [`blueprint3`] with more views under the plots (the replay overlays' difference plots).
+pub fn blueprint3_with(extra: Vec<::rerun::blueprint::ContainerLike>) -> Blueprint {
     let scene = Spatial3DView::new("Scene")
         .with_origin("/")
         .with_contents(["+ /scene/**"]);
-    let plots = Vertical::new([
+    let mut rows: Vec<::rerun::blueprint::ContainerLike> = vec![
         TimeSeriesView::new("Finger forces (N)")
             .with_origin("/plots/finger_force")
             .into(),
@@ -46,10 +51,14 @@ pub fn blueprint3() -> Blueprint {
                 .into(),
         ])
         .into(),
+    ];
+    rows.extend(extra);
+    rows.push(
         TextLogView::new("Contact events")
             .with_origin("/events")
             .into(),
-    ]);
+    );
+    let plots = Vertical::new(rows);
     Blueprint::new(Horizontal::new([scene.into(), plots.into()]).with_column_shares([0.62, 0.38]))
         .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Collapsed))
         .with_selection_panel(SelectionPanel::new().with_state(PanelState::Collapsed))
@@ -82,10 +91,15 @@ fn f32s(a: [f64; 3]) -> [f32; 3] {
 
 impl Rrd3 {
     pub fn create(path: &Path, name: &str) -> Result<Rrd3, String> {
+        Self::create_with(path, name, blueprint3())
+    }
+
+    /// [`Rrd3::create`] with another layout (the replay overlays').
+    pub fn create_with(path: &Path, name: &str, blueprint: Blueprint) -> Result<Rrd3, String> {
         let partial = PathBuf::from(format!("{}.partial", path.display()));
         let rec = RecordingStreamBuilder::new("gripsim")
             .recording_id(format!("{name}-3d"))
-            .with_blueprint(blueprint3())
+            .with_blueprint(blueprint)
             .save(&partial)
             .map_err(|e| format!("{}: {e}", partial.display()))?;
         rec.set_log_time_enabled(false);
@@ -103,6 +117,17 @@ impl Rrd3 {
             force_scale: 0.04,
             error: None,
         })
+    }
+
+    /// The stream, to log more on it at the time of the step just logged (None after an
+    /// error).
+    pub fn stream(&self) -> Option<&RecordingStream> {
+        self.rec.as_ref().filter(|_| self.error.is_none())
+    }
+
+    /// The rods' static facts (after [`Event3::Start`]).
+    pub fn rods(&self) -> &[Rod3Info] {
+        &self.rods
     }
 
     /// Flush, close and move the file into place.

@@ -29,10 +29,12 @@ pub struct GraspFlag {
 #[derive(Debug, Clone)]
 pub struct GraspRule {
     clamped: Vec<Vec<usize>>,
-    up: [f64; 2],
+    /// 2 (planar: q = [x0, y0, x1, …]) or 3 (3D: node positions [x0, y0, z0, x1, …]).
+    dim: usize,
+    up: [f64; 3],
     tolerance: f64,
     first_touch: Option<f64>,
-    reference: Option<[f64; 2]>,
+    reference: Option<[f64; 3]>,
     top: f64,
     over: bool,
     slipped: bool,
@@ -57,10 +59,11 @@ impl GraspRule {
         let w = g[0].hypot(g[1]);
         Some(GraspRule {
             clamped: sc.rods.iter().map(|r| r.clamped.clone()).collect(),
+            dim: 2,
             up: if w > 0.0 {
-                [-g[0] / w, -g[1] / w]
+                [-g[0] / w, -g[1] / w, 0.0]
             } else {
-                [0.0, 1.0]
+                [0.0, 1.0, 0.0]
             },
             tolerance: b.hold_tolerance,
             first_touch: None,
@@ -73,6 +76,37 @@ impl GraspRule {
             last: (0, 0.0, 0.0),
             flags: Vec::new(),
         })
+    }
+
+    /// The rule in 3D: `clamped` the driven nodes of each rod (the gripper is their centroid),
+    /// `gravity` the scene's, `tolerance` the fruit's hold tolerance (m).
+    pub fn of3(
+        clamped: Vec<Vec<usize>>,
+        gravity: [f64; 3],
+        tolerance: f64,
+        expect: GraspOutcome,
+    ) -> GraspRule {
+        let w =
+            (gravity[0] * gravity[0] + gravity[1] * gravity[1] + gravity[2] * gravity[2]).sqrt();
+        GraspRule {
+            clamped,
+            dim: 3,
+            up: if w > 0.0 {
+                gravity.map(|g| -g / w)
+            } else {
+                [0.0, 0.0, 1.0]
+            },
+            tolerance,
+            first_touch: None,
+            reference: None,
+            top: f64::NEG_INFINITY,
+            over: false,
+            slipped: false,
+            dropped: false,
+            expect,
+            last: (0, 0.0, 0.0),
+            flags: Vec::new(),
+        }
     }
 
     /// The verdict against the scenario's expectation.
@@ -104,14 +138,27 @@ impl GraspRule {
 
     /// One step: the rods' positions, the fruit's centroid, whether a prong touches it.
     pub fn step(&mut self, step: u64, t: f64, q: &[&[f64]], fruit: [f64; 2], touching: bool) {
+        self.step_in(step, t, q, [fruit[0], fruit[1], 0.0], touching);
+    }
+
+    /// One step of a 3D run: the rods' node positions (`[x0, y0, z0, x1, …]`), the fruit's
+    /// centre, whether a prong touches it.
+    pub fn step3(&mut self, step: u64, t: f64, x: &[&[f64]], fruit: [f64; 3], touching: bool) {
+        self.step_in(step, t, x, fruit, touching);
+    }
+
+    fn step_in(&mut self, step: u64, t: f64, q: &[&[f64]], fruit: [f64; 3], touching: bool) {
         if self.over {
             return;
         }
-        let (mut c, mut n) = ([0.0; 2], 0.0);
+        let d = self.dim;
+        let (mut c, mut n) = ([0.0; 3], 0.0);
         for (r, qs) in q.iter().enumerate() {
             for &i in self.clamped.get(r).map(Vec::as_slice).unwrap_or(&[]) {
-                if 2 * i + 1 < qs.len() {
-                    c = [c[0] + qs[2 * i], c[1] + qs[2 * i + 1]];
+                if d * i + d - 1 < qs.len() {
+                    for k in 0..d {
+                        c[k] += qs[d * i + k];
+                    }
                     n += 1.0;
                 }
             }
@@ -119,9 +166,12 @@ impl GraspRule {
         if n == 0.0 {
             return;
         }
-        let c = [c[0] / n, c[1] / n];
-        let rel = [fruit[0] - c[0], fruit[1] - c[1]];
-        let height = c[0] * self.up[0] + c[1] * self.up[1];
+        let c = c.map(|x| x / n);
+        let rel = [0, 1, 2].map(|k| fruit[k] - c[k]);
+        let mut height = c[0] * self.up[0] + c[1] * self.up[1];
+        if d == 3 {
+            height += c[2] * self.up[2];
+        }
         if touching && self.first_touch.is_none() {
             self.first_touch = Some(height);
         }
@@ -135,7 +185,12 @@ impl GraspRule {
             self.over = true;
             return;
         }
-        let slip = (rel[0] - r0[0]).hypot(rel[1] - r0[1]);
+        let slip = if d == 2 {
+            (rel[0] - r0[0]).hypot(rel[1] - r0[1])
+        } else {
+            let e = [0, 1, 2].map(|k| rel[k] - r0[k]);
+            (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
+        };
         self.last = (step, t, slip);
         let flag = |kind| GraspFlag {
             kind,

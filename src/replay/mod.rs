@@ -16,6 +16,7 @@ pub mod detect;
 pub mod diff;
 pub mod grasp;
 pub mod overlay;
+pub mod overlay3;
 pub mod read;
 pub mod three;
 
@@ -620,18 +621,23 @@ fn run_3d(cmd: &ReplayCommand) -> Result<Option<u8>, ReplayError> {
             json,
             rrd,
             thresholds,
-            ..
+            allow_partial,
         } if three::is_3d_mcap(run) => {
-            if rrd.is_some() {
-                return Err(ReplayError::file(
-                    run,
-                    "--rrd is not available for 3D runs yet (use replay show)".into(),
-                ));
-            }
             let report = three::check(run, thresholds)?;
             say(&three::format_check(&report));
             if let Some(p) = json {
                 write_json(p, &report)?;
+            }
+            if let Some(p) = rrd {
+                overlay3::write_check(run, p, &report)?;
+                say(&format!(
+                    "wrote {} (open: rerun {})\n",
+                    p.display(),
+                    p.display()
+                ));
+            }
+            if report.incomplete && !allow_partial {
+                return Ok(Some(EXIT_INCOMPLETE));
             }
             Ok(Some(u8::from(report.flagged)))
         }
@@ -641,6 +647,7 @@ fn run_3d(cmd: &ReplayCommand) -> Result<Option<u8>, ReplayError> {
             json,
             rrd,
             tolerances,
+            allow_partial,
             ..
         } if three::is_3d_mcap(a) || three::is_3d_mcap(b) => {
             if !(three::is_3d_mcap(a) && three::is_3d_mcap(b)) {
@@ -650,17 +657,26 @@ fn run_3d(cmd: &ReplayCommand) -> Result<Option<u8>, ReplayError> {
                     b.display()
                 )));
             }
-            if rrd.is_some() {
-                return Err(ReplayError::file(
-                    a,
-                    "--rrd is not available for 3D diffs yet".into(),
-                ));
-            }
             tolerances.validate().map_err(ReplayError::new)?;
             let report = three::diff(a, b, tolerances.tol_position)?;
             say(&three::format_diff(&report));
             if let Some(p) = json {
                 write_json(p, &report)?;
+            }
+            if let Some(p) = rrd {
+                overlay3::write_diff(a, b, p, &report)?;
+                say(&format!(
+                    "wrote {} (open: rerun {})\n",
+                    p.display(),
+                    p.display()
+                ));
+            }
+            if report.incomplete && !allow_partial {
+                say(&format!(
+                    "INCOMPLETE: a recording stops before its run's end (exit {EXIT_INCOMPLETE} \
+                     unless --allow-partial)\n"
+                ));
+                return Ok(Some(EXIT_INCOMPLETE));
             }
             Ok(Some(u8::from(!report.within_tolerance)))
         }

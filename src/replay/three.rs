@@ -65,11 +65,28 @@ pub struct Check3Report {
     pub dimension: u32,
     pub steps: u64,
     pub t_end: f64,
+    /// Why the file was read only in part (null when whole).
+    pub truncated: Option<String>,
+    /// The run's own end: true, or null when the file has no run-end record.
+    pub completed: Option<bool>,
+    /// The recording stops before its run's end (truncated, or no run end).
+    pub incomplete: bool,
     pub scales: Scales,
     pub thresholds: Effective,
     pub flagged: bool,
     pub spikes: Vec<Spike3>,
     pub sticking: Vec<Sticking>,
+    /// A fruit that slipped in the gripper during the lift or was dropped (the planar rule,
+    /// [`super::grasp`]; runs with a free fruit only).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub grasp: Vec<super::grasp::GraspFlag>,
+    /// The slips and drops the scenario expects (`[expect] grasp`): not flagged.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub grasp_expected: Vec<super::grasp::GraspFlag>,
+    /// Contacts above the fruit's bruise pressure: always empty, a 3D fruit is rigid (no
+    /// pressure), as the planar rule has it for a rigid fruit.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub bruise: Vec<super::bruise::BruiseFlag>,
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -144,6 +161,7 @@ pub struct Detector3 {
     grad: Vec<f64>,
     q: Vec<f64>,
     nodes: Vec<Vec<NodeState>>,
+    grasp: Option<super::grasp::GraspRule>,
     pub spikes: Vec<Spike3>,
     pub sticking: Vec<Sticking>,
     pub steps: u64,
@@ -170,7 +188,16 @@ impl Detector3 {
                 mu = mu.max(sc.friction.between(r, &o.name).mu_s);
             }
         }
+        // The grasp rule on a free fruit: the gripper is the centroid of the driven nodes.
+        let clamped: Vec<Vec<usize>> = sims
+            .iter()
+            .map(|s| (0..s.rod.n).filter(|&i| s.fixed[pos(i)]).collect())
+            .collect();
+        let grasp = sc.fruit.as_ref().filter(|f| f.free).map(|f| {
+            super::grasp::GraspRule::of3(clamped, sc.gravity, f.hold_tolerance, sc.expect.grasp)
+        });
         Ok(Detector3 {
+            grasp,
             scales,
             th: Effective::for_scene(th, &scales),
             names: w.rod_names,
@@ -204,8 +231,12 @@ impl Detector3 {
         &self.sims[r]
     }
 
-    /// One recorded step.
+    /// One recorded step. Step 0 (the initial state) is where the detector starts: nothing is
+    /// judged on it.
     pub fn step(&mut self, m: &Step3) {
+        if m.step == 0 {
+            return;
+        }
         self.changes(m);
         for (r, rod) in m.rods.iter().enumerate().take(self.sims.len()) {
             let n = self.sims[r].rod.n;
@@ -231,6 +262,13 @@ impl Detector3 {
             self.prev_v[r].extend_from_slice(&rod.v);
         }
         self.close_stale(m.t);
+        if let (Some(g), Some(b)) = (self.grasp.as_mut(), m.bodies.first()) {
+            if let [x, y, z] = b.position[..] {
+                let xs: Vec<&[f64]> = m.rods.iter().map(|r| r.x.as_slice()).collect();
+                let touching = m.contacts.iter().any(|c| c.shape == b.shape);
+                g.step3(m.step, m.t, &xs, [x, y, z], touching);
+            }
+        }
         self.have_prev = true;
         self.steps += 1;
         self.t_end = m.t;
@@ -381,17 +419,26 @@ impl Detector3 {
         }
         self.sticking
             .sort_by(|a, b| (a.step, a.rod, a.node).cmp(&(b.step, b.rod, b.node)));
+        let grasp = self.grasp.take().map(|g| g.finish()).unwrap_or_default();
         Check3Report {
             file: file.to_string(),
             scenario: scenario.to_string(),
             dimension: 3,
             steps: self.steps,
             t_end: self.t_end,
+            truncated: None,
+            completed: Some(true),
+            incomplete: false,
             scales: self.scales,
             thresholds: self.th,
-            flagged: !(self.spikes.is_empty() && self.sticking.is_empty()),
+            flagged: !(self.spikes.is_empty()
+                && self.sticking.is_empty()
+                && grasp.flags.is_empty()),
             spikes: self.spikes,
             sticking: self.sticking,
+            grasp: grasp.flags,
+            grasp_expected: grasp.expected,
+            bruise: Vec::new(),
         }
     }
 }
@@ -417,6 +464,24 @@ pub struct Run3 {
     pub scenario: Scenario3,
     pub name: String,
     pub steps: Vec<Step3>,
+    /// The run-end record's `completed` (None: the file has none, e.g. a killed run's).
+    pub completed: Option<bool>,
+    /// Why the file was read only in part (an unreadable message: the steps before it).
+    pub truncated: Option<String>,
+}
+
+impl Run3 {
+    /// The recording stops before its run's end.
+    pub fn incomplete(&self) -> bool {
+        self.truncated.is_some() || self.completed != Some(true)
+    }
+}
+
+#[derive(serde::Deserialize)]
+struct EventIn {
+    kind: String,
+    #[serde(default)]
+    completed: Option<bool>,
 }
 
 #[derive(serde::Deserialize)]
@@ -431,31 +496,59 @@ struct MetaIn {
 /// summary section's schema records are looked at (found through the footer), so a planar
 /// recording is not read whole to find out.
 pub fn is_3d_mcap(path: &Path) -> bool {
-    use std::io::{Read as _, Seek as _, SeekFrom};
-    let Ok(mut f) = std::fs::File::open(path) else {
+    summary_says_3d(path).unwrap_or_else(|| first_message_says_3d(path))
+}
+
+/// Without a summary (a file cut short): whether its first message is a 3D `/sim/meta`
+/// (schema `gripsim.Meta3`), read from the file's first 8 MiB.
+fn first_message_says_3d(path: &Path) -> bool {
+    use std::io::Read as _;
+    let Ok(f) = std::fs::File::open(path) else {
         return false;
     };
-    let Ok(len) = f.seek(SeekFrom::End(0)) else {
+    let mut head = Vec::new();
+    if f.take(8 << 20).read_to_end(&mut head).is_err() {
         return false;
+    }
+    let Ok(mut stream) = mcap::MessageStream::new(&head) else {
+        return false;
+    };
+    matches!(stream.next(), Some(Ok(m))
+        if m.channel.schema.as_ref().is_some_and(|s| s.name == "gripsim.Meta3"))
+}
+
+/// Whether the summary section (found through the footer) names `gripsim.Step3`; None when
+/// the file has no readable footer.
+fn summary_says_3d(path: &Path) -> Option<bool> {
+    use std::io::{Read as _, Seek as _, SeekFrom};
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return None;
+    };
+    let Ok(len) = f.seek(SeekFrom::End(0)) else {
+        return None;
     };
     // The footer: opcode, length, summary_start (u64), summary_offset_start, crc; then magic.
     if len < 8 + 29 + 8 {
-        return false;
+        return None;
     }
-    let mut start = [0u8; 8];
-    if f.seek(SeekFrom::Start(len - 28)).is_err() || f.read_exact(&mut start).is_err() {
-        return false;
+    let mut tail = [0u8; 28];
+    if f.seek(SeekFrom::Start(len - 28)).is_err() || f.read_exact(&mut tail).is_err() {
+        return None;
     }
-    let start = u64::from_le_bytes(start);
+    // A whole file ends with the magic; a cut one has no footer to trust.
+    if &tail[20..] != b"\x89MCAP0\r\n" {
+        return None;
+    }
+    let start = u64::from_le_bytes(tail[..8].try_into().expect("8 bytes"));
     if start == 0 || start >= len || len - start > (64 << 20) {
-        return false;
+        return None;
     }
     let mut summary = Vec::new();
     if f.seek(SeekFrom::Start(start)).is_err() || f.read_to_end(&mut summary).is_err() {
-        return false;
+        return None;
     }
     let needle = b"gripsim.Step3";
-    summary.windows(needle.len()).any(|w| w == needle)
+    Some(summary.windows(needle.len()).any(|w| w == needle))
 }
 
 impl Run3 {
@@ -464,9 +557,24 @@ impl Run3 {
         let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read: {e}")))?;
         let mut meta = None;
         let mut steps = Vec::new();
+        let (mut completed, mut truncated) = (None, None);
         for m in mcap::MessageStream::new(&bytes).map_err(|e| err(e.to_string()))? {
-            let m = m.map_err(|e| err(format!("unreadable message: {e}")))?;
+            let m = match m {
+                Ok(m) => m,
+                Err(e) => {
+                    // A file cut short (a killed run): the messages before the damage.
+                    truncated = Some(format!("unreadable message: {e}"));
+                    break;
+                }
+            };
             match (m.channel.topic.as_str(), m.channel.schema.as_ref()) {
+                ("/sim/event", _) => {
+                    let e: EventIn = serde_json::from_slice(&m.data)
+                        .map_err(|e| err(format!("/sim/event: {e}")))?;
+                    if e.kind == "run_end" {
+                        completed = e.completed;
+                    }
+                }
                 ("/sim/meta", _) => {
                     let v: MetaIn = serde_json::from_slice(&m.data)
                         .map_err(|e| err(format!("/sim/meta: {e}")))?;
@@ -491,6 +599,8 @@ impl Run3 {
             scenario,
             name: meta.scenario_name,
             steps,
+            completed,
+            truncated,
         })
     }
 }
@@ -503,19 +613,24 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<Check3Report, ReplayError> 
     for s in &run.steps {
         d.step(s);
     }
-    Ok(d.finish(&path.display().to_string(), &run.name))
+    let mut rep = d.finish(&path.display().to_string(), &run.name);
+    rep.incomplete = run.incomplete();
+    rep.completed = run.completed;
+    rep.truncated = run.truncated;
+    Ok(rep)
 }
 
 /// The text report of a 3D check.
 pub fn format_check(r: &Check3Report) -> String {
     let mut s = format!(
-        "{} (3D, {}): {} steps to t = {} s; {} spike(s), {} sticking episode(s)\n",
+        "{} (3D, {}): {} steps to t = {} s; {} spike(s), {} sticking episode(s), {} grasp flag(s)\n",
         r.file,
         r.scenario,
         r.steps,
         r.t_end,
         r.spikes.len(),
-        r.sticking.len()
+        r.sticking.len(),
+        r.grasp.len()
     );
     for k in &r.spikes {
         s += &format!(
@@ -529,7 +644,25 @@ pub fn format_check(r: &Check3Report) -> String {
             k.rule, k.rod_name, k.node, k.step, k.last_step, k.t, k.last_t, k.count
         );
     }
+    let grasp = r.grasp.iter().map(|f| (f, "")).chain(
+        r.grasp_expected
+            .iter()
+            .map(|f| (f, " (expected by the scenario: not flagged)")),
+    );
+    for (f, note) in grasp {
+        s += &format!(
+            "  grasp {}: step {} t = {:.6} s: the fruit moved {:.3e} m in the gripper (tolerance {:.3e} m){note}\n",
+            f.kind, f.step, f.t, f.slip_m, f.hold_tolerance_m
+        );
+    }
     s += if r.flagged { "FLAGGED\n" } else { "clean\n" };
+    if r.incomplete {
+        s += &format!(
+            "INCOMPLETE: the recording stops before the run's end ({}) (exit {} unless --allow-partial)\n",
+            r.truncated.as_deref().unwrap_or("no run-end record"),
+            super::EXIT_INCOMPLETE
+        );
+    }
     s
 }
 
@@ -549,6 +682,49 @@ pub struct Diff3Report {
     pub final_distance: f64,
     pub tol_position: f64,
     pub within_tolerance: bool,
+    /// A recording stops before its run's end (truncated, or no run end).
+    pub incomplete: bool,
+}
+
+/// Where run B stands at a time of run A.
+pub enum AtB {
+    /// Before B's first step.
+    Before,
+    /// After B's last step.
+    After,
+    /// Between B's steps k0 and k1 (k1 = k0 at B's last step), weight w of k1.
+    Between(usize, usize, f64),
+}
+
+/// B's steps around time `t` (times increasing over the calls; `j` is the cursor): B is
+/// interpolated linearly between them.
+pub fn locate_b(rb: &Run3, j: &mut usize, t: f64) -> AtB {
+    while *j + 1 < rb.steps.len() && rb.steps[*j + 1].t <= t {
+        *j += 1;
+    }
+    let Some(b0) = rb.steps.get(*j) else {
+        return AtB::After;
+    };
+    if t < b0.t - 1e-12 * t.abs() {
+        return AtB::Before;
+    }
+    let k1 = if *j + 1 < rb.steps.len() { *j + 1 } else { *j };
+    let b1 = &rb.steps[k1];
+    let w = if b1.t > b0.t {
+        ((t - b0.t) / (b1.t - b0.t)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    if b1.t == b0.t && (t - b0.t).abs() > 1e-9 * t.abs().max(1e-12) {
+        return AtB::After;
+    }
+    AtB::Between(*j, k1, w)
+}
+
+/// Node `i` of rod `r` of B between its steps `b0` and `b1` (weight `w` of `b1`).
+pub fn node_between(b0: &Step3, b1: &Step3, w: f64, r: usize, i: usize) -> [f64; 3] {
+    let (x0, x1) = (&b0.rods[r].x, &b1.rods[r].x);
+    [0, 1, 2].map(|k| (1.0 - w) * x0[3 * i + k] + w * x1[3 * i + k])
 }
 
 /// `replay diff` on two 3D runs.
@@ -581,33 +757,25 @@ pub fn diff(a: &Path, b: &Path, tol_position: f64) -> Result<Diff3Report, Replay
         final_distance: 0.0,
         tol_position,
         within_tolerance: true,
+        incomplete: ra.incomplete() || rb.incomplete(),
     };
     let mut j = 0;
     for sa in &ra.steps {
-        // B's steps around sa.t.
-        while j + 1 < rb.steps.len() && rb.steps[j + 1].t <= sa.t {
-            j += 1;
-        }
-        let Some(b0) = rb.steps.get(j) else { break };
-        if sa.t < b0.t - 1e-12 * sa.t.abs() {
-            continue;
-        }
-        let b1 = rb.steps.get(j + 1).unwrap_or(b0);
-        let w = if b1.t > b0.t {
-            ((sa.t - b0.t) / (b1.t - b0.t)).clamp(0.0, 1.0)
-        } else {
-            0.0
+        let (b0, b1, w) = match locate_b(&rb, &mut j, sa.t) {
+            AtB::Before => continue,
+            AtB::After => break,
+            AtB::Between(k0, k1, w) => (&rb.steps[k0], &rb.steps[k1], w),
         };
-        if b1.t == b0.t && (sa.t - b0.t).abs() > 1e-9 * sa.t.abs().max(1e-12) {
-            break;
-        }
         let mut step_max = 0.0f64;
-        for (r, (xa, (x0, x1))) in sa.rods.iter().zip(b0.rods.iter().zip(&b1.rods)).enumerate() {
+        for (r, xa) in sa
+            .rods
+            .iter()
+            .enumerate()
+            .take(b0.rods.len().min(b1.rods.len()))
+        {
             for i in 0..xa.x.len() / 3 {
-                let d = norm([0, 1, 2].map(|k| {
-                    let xb = (1.0 - w) * x0.x[3 * i + k] + w * x1.x[3 * i + k];
-                    xa.x[3 * i + k] - xb
-                }));
+                let xb = node_between(b0, b1, w, r, i);
+                let d = norm([0, 1, 2].map(|k| xa.x[3 * i + k] - xb[k]));
                 step_max = step_max.max(d);
                 if d > rep.max_distance {
                     rep.max_distance = d;
@@ -659,94 +827,140 @@ impl crate::rod3d::events::Observer3 for Detect3Observer {
 /// `replay show` on a 3D run: the recording turned into the `.rrd` a live run writes
 /// (src/record/rerun3.rs), the material frames carried along the recorded steps.
 pub fn show(path: &Path, out: &Path) -> Result<u64, ReplayError> {
-    use crate::rod3d::events::{
-        BodyPose3, Contact3, ContactChange3, Emit3, Event3, Observer3, Rod3StepView,
-    };
     let run = Run3::load(path)?;
+    drive(
+        path,
+        &run,
+        out,
+        &run.name,
+        crate::record::rerun3::blueprint3(),
+        |_, _, _| Ok(()),
+    )
+}
+
+/// Feed the recorded steps of `run` (read from `path`) to a new [`crate::record::rerun3::Rrd3`]
+/// writing `out` with the recording name `name` and the layout `blueprint`, calling
+/// `after_step(stream, step, rods)` right after each step is logged (at its time) with the
+/// rods as the replay carries them (positions and reference frames). Returns the steps fed.
+/// A failure leaves no `.rrd` behind.
+pub fn drive(
+    path: &Path,
+    run: &Run3,
+    out: &Path,
+    name: &str,
+    blueprint: ::rerun::blueprint::Blueprint,
+    mut after_step: impl FnMut(&::rerun::RecordingStream, &Step3, &[Sim3]) -> Result<(), ReplayError>,
+) -> Result<u64, ReplayError> {
+    use crate::rod3d::events::Emit3;
     let (mut w, _) =
         crate::rod3d::run3::build(&run.scenario).map_err(|e| ReplayError::file(path, e))?;
-    let mut rrd = crate::record::rerun3::Rrd3::create(out, &run.name)
+    let mut rrd = crate::record::rerun3::Rrd3::create_with(out, name, blueprint)
         .map_err(|e| ReplayError::file(out, e))?;
     w.start_observed(&mut Emit3::default(), &mut rrd);
+    for m in &run.steps {
+        if let Err(e) = load_step(&mut w.rods, m) {
+            let _ = rrd.abandon();
+            return Err(ReplayError::file(path, e));
+        }
+        send_step(&w.rods, m, &mut rrd);
+        let rec = rrd.stream().cloned();
+        if let Some(rec) = rec {
+            if let Err(e) = after_step(&rec, m, &w.rods) {
+                let _ = rrd.abandon();
+                return Err(e);
+            }
+        }
+    }
+    rrd.finish().map_err(|e| ReplayError::file(out, e))?;
+    Ok(run.steps.len() as u64)
+}
+
+/// Set the rods to a recorded step (positions, velocities, material angles) and carry their
+/// reference frames to it as the solver does.
+fn load_step(rods: &mut [Sim3], m: &Step3) -> Result<(), String> {
+    for (sim, rod) in rods.iter_mut().zip(&m.rods) {
+        let n = sim.rod.n;
+        if rod.x.len() != 3 * n || rod.theta.len() + 1 != n || rod.v.len() != 3 * n {
+            return Err(format!(
+                "step {}: a rod's arrays do not match the scenario",
+                m.step
+            ));
+        }
+        for i in 0..n {
+            sim.q[pos(i)..pos(i) + 3].copy_from_slice(&rod.x[3 * i..3 * i + 3]);
+            sim.v[pos(i)..pos(i) + 3].copy_from_slice(&rod.v[3 * i..3 * i + 3]);
+            if i + 1 < n {
+                sim.q[angle(i)] = rod.theta[i];
+            }
+        }
+        // Step 0 is the state the frames were built at.
+        if m.step > 0 {
+            sim.advance_frames();
+        }
+    }
+    Ok(())
+}
+
+/// A recorded step as the live [`crate::rod3d::events::Event3::Step`], to `obs`.
+fn send_step(rods: &[Sim3], m: &Step3, obs: &mut impl crate::rod3d::events::Observer3) {
+    use crate::rod3d::events::{BodyPose3, Contact3, ContactChange3, Event3, Rod3StepView};
     let v3 = |v: &[f64]| -> [f64; 3] {
         match v {
             [a, b, c] => [*a, *b, *c],
             _ => [0.0; 3],
         }
     };
-    for m in &run.steps {
-        for (sim, rod) in w.rods.iter_mut().zip(&m.rods) {
-            let n = sim.rod.n;
-            if rod.x.len() != 3 * n || rod.theta.len() + 1 != n || rod.v.len() != 3 * n {
-                let _ = rrd.abandon();
-                return Err(ReplayError::file(
-                    path,
-                    format!("step {}: a rod's arrays do not match the scenario", m.step),
-                ));
-            }
-            for i in 0..n {
-                sim.q[pos(i)..pos(i) + 3].copy_from_slice(&rod.x[3 * i..3 * i + 3]);
-                sim.v[pos(i)..pos(i) + 3].copy_from_slice(&rod.v[3 * i..3 * i + 3]);
-                if i + 1 < n {
-                    sim.q[angle(i)] = rod.theta[i];
-                }
-            }
-            sim.advance_frames();
-        }
-        let views: Vec<Rod3StepView<'_>> = w.rods.iter().map(|s| s.view()).collect();
-        let contacts: Vec<Contact3> = m
-            .contacts
-            .iter()
-            .map(|c| Contact3 {
-                rod: c.rod as usize,
-                node: c.node as usize,
-                point: v3(&c.point),
-                normal: v3(&c.normal),
-                reaction: v3(&c.reaction),
-                friction: v3(&c.friction),
-                gap: c.gap,
-                surface: c.shape as usize,
-                stick: c.stuck,
-                normal_reaction: c.normal_force,
-                weight: c.weight,
-            })
-            .collect();
-        let bodies: Vec<BodyPose3> = m
-            .bodies
-            .iter()
-            .map(|b| BodyPose3 {
-                shape: b.shape as usize,
-                position: v3(&b.position),
-                rotation: match b.rotation[..] {
-                    [x, y, z, w] => [x, y, z, w],
-                    _ => [0.0, 0.0, 0.0, 1.0],
-                },
-                velocity: v3(&b.velocity),
-                angular_velocity: v3(&b.angular_velocity),
-            })
-            .collect();
-        let changes: Vec<ContactChange3> = m
-            .changes
-            .iter()
-            .map(|c| ContactChange3 {
-                rod: c.rod as usize,
-                node: c.node as usize,
-                added: c.added,
-            })
-            .collect();
-        rrd.on_event(&Event3::Step {
-            step: m.step,
-            time: m.t,
-            dt: m.dt,
-            newton_iterations: m.newton_iterations,
-            rods: &views,
-            contacts: &contacts,
-            bodies: &bodies,
-            changes: &changes,
-            passes: m.passes,
-            switches: 0,
-        });
-    }
-    rrd.finish().map_err(|e| ReplayError::file(out, e))?;
-    Ok(run.steps.len() as u64)
+    let views: Vec<Rod3StepView<'_>> = rods.iter().map(|s| s.view()).collect();
+    let contacts: Vec<Contact3> = m
+        .contacts
+        .iter()
+        .map(|c| Contact3 {
+            rod: c.rod as usize,
+            node: c.node as usize,
+            point: v3(&c.point),
+            normal: v3(&c.normal),
+            reaction: v3(&c.reaction),
+            friction: v3(&c.friction),
+            gap: c.gap,
+            surface: c.shape as usize,
+            stick: c.stuck,
+            normal_reaction: c.normal_force,
+            weight: c.weight,
+        })
+        .collect();
+    let bodies: Vec<BodyPose3> = m
+        .bodies
+        .iter()
+        .map(|b| BodyPose3 {
+            shape: b.shape as usize,
+            position: v3(&b.position),
+            rotation: match b.rotation[..] {
+                [x, y, z, w] => [x, y, z, w],
+                _ => [0.0, 0.0, 0.0, 1.0],
+            },
+            velocity: v3(&b.velocity),
+            angular_velocity: v3(&b.angular_velocity),
+        })
+        .collect();
+    let changes: Vec<ContactChange3> = m
+        .changes
+        .iter()
+        .map(|c| ContactChange3 {
+            rod: c.rod as usize,
+            node: c.node as usize,
+            added: c.added,
+        })
+        .collect();
+    obs.on_event(&Event3::Step {
+        step: m.step,
+        time: m.t,
+        dt: m.dt,
+        newton_iterations: m.newton_iterations,
+        rods: &views,
+        contacts: &contacts,
+        bodies: &bodies,
+        changes: &changes,
+        passes: m.passes,
+        switches: 0,
+    });
 }

@@ -321,6 +321,29 @@ impl World3 {
         Ok(rep)
     }
 
+    /// The initial state as step 0 (an [`Event3::Step`] with `dt` 0, no Newton iterations, no
+    /// contact changes), after [`World3::start_observed`], if `obs` listens to steps: a
+    /// recording then holds where the run started, as the planar one does.
+    pub fn initial_observed<O: Observer3>(&self, emit: &mut Emit3, obs: &mut O) {
+        if !obs.wants_steps() {
+            return;
+        }
+        self.fill(emit);
+        let rods: Vec<Rod3StepView<'_>> = self.rods.iter().map(|s| s.view()).collect();
+        obs.on_event(&Event3::Step {
+            step: self.steps,
+            time: self.time,
+            dt: 0.0,
+            newton_iterations: 0,
+            rods: &rods,
+            contacts: &emit.contacts,
+            bodies: &emit.bodies,
+            changes: &emit.changes,
+            passes: 0,
+            switches: 0,
+        });
+    }
+
     /// [`Event3::End`].
     pub fn end_observed<O: Observer3>(&self, obs: &mut O) {
         obs.on_event(&Event3::End {

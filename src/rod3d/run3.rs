@@ -206,6 +206,7 @@ fn run_loop(
 ) -> Result<Summary3, String> {
     let mut emit = Emit3::default();
     w.start_observed(&mut emit, obs);
+    w.initial_observed(&mut emit, obs);
     let fruit_start = w.bodies.first().map(|b| b.centre().into());
     let mut s = Summary3 {
         name: sc.name.clone(),

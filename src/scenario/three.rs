@@ -36,6 +36,9 @@
 //! centre = [0.0, 0.0, -0.09]
 //! density = 900.0
 //! free = true
+//! hold_tolerance = 0.004           # slip allowed in the gripper's lift (m), default 0.1 × its radius
+//! [expect]
+//! grasp = "held"                   # or "slipped", "dropped" (replay check, run --check)
 //! [[obstacle]]
 //! name = "table"
 //! shape = { kind = "plane" }
@@ -72,6 +75,7 @@ const TOP: &[&str] = &[
     "fruit",
     "obstacle",
     "move",
+    "expect",
 ];
 const SOLVE: &[&str] = &[
     "dt",
@@ -107,7 +111,14 @@ const SHAPE: &[&str] = &[
 ];
 const SECTION: &[&str] = &["kind", "b", "h", "r"];
 const GRIPPER: &[&str] = &["kind", "fingers", "radius", "centre", "sensor_tau"];
-const FRUIT: &[&str] = &["name", "shape", "centre", "density", "free"];
+const FRUIT: &[&str] = &[
+    "name",
+    "shape",
+    "centre",
+    "density",
+    "free",
+    "hold_tolerance",
+];
 const OBSTACLE: &[&str] = &["name", "shape", "at", "normal"];
 const MOVE: &[&str] = &[
     "kind",
@@ -130,6 +141,9 @@ pub struct Fruit3 {
     pub centre: [f64; 3],
     pub density: f64,
     pub free: bool,
+    /// How far the fruit may move in the gripper during the lift (m): the grasp rule's
+    /// tolerance (default 0.1 × its bounding radius, as a planar free body's).
+    pub hold_tolerance: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -161,6 +175,8 @@ pub struct Scenario3 {
     pub fruit: Option<Fruit3>,
     pub obstacles: Vec<Obstacle3>,
     pub moves: Vec<Move3>,
+    /// `[expect]`: the grasp outcome the scenario is built to show (default held).
+    pub expect: super::expect::Expect,
 }
 
 /// Whether a scenario text says `dimension = 3` (anything unreadable is left to the planar
@@ -273,6 +289,7 @@ impl Scenario3 {
         };
         let obstacles = parse_obstacles(&top, dir)?;
         let moves = parse_moves(&top)?;
+        let expect = super::expect::parse(&top)?;
         top.finish()?;
         Ok(Scenario3 {
             name,
@@ -297,6 +314,7 @@ impl Scenario3 {
             fruit,
             obstacles,
             moves,
+            expect,
         })
     }
 
@@ -650,6 +668,18 @@ fn parse_fruit(f: &TableReader<'_>, dir: &std::path::Path) -> Result<Fruit3, Sce
         centre: vec3(f, "centre")?,
         density: f.positive("density")?,
         free: f.opt_bool("free")?.unwrap_or(true),
+        hold_tolerance: 0.0,
+    };
+    let radius = match &fruit.shape {
+        Shape3::Sphere { radius } => *radius,
+        Shape3::Ellipsoid { semi_axes } => semi_axes.iter().fold(0.0f64, |a, b| a.max(*b)),
+        Shape3::Box { half } => (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt(),
+        Shape3::Mesh(m) => m.radius,
+        Shape3::Plane => 0.0,
+    };
+    let fruit = Fruit3 {
+        hold_tolerance: f.opt_positive("hold_tolerance")?.unwrap_or(0.1 * radius),
+        ..fruit
     };
     f.finish()?;
     Ok(fruit)

@@ -26,12 +26,15 @@ of format 2) with Google's `protobuf` library from the FileDescriptorSet the fil
   scene_samples the first /scene messages and every 250th after (format 3: protobuf
                 foxglove.SceneUpdate, decoded by Google's library): index (the message's
                 number on the topic = its step), and per entity its id, the points of its
-                first line, its spheres' centres and the number of arrows and texts
-  scene_static  the /scene/static message's entity ids and line counts
+                first line, its spheres' centres, the number of arrows, texts and cubes and
+                the point counts of its triangle lists (3D format 3: the same protobuf)
+  scene_static  the /scene/static message's entity ids, line counts and triangle lists' point
+                counts
   last_step3    (3D runs, schema gripsim.Step3) the last /sim/step as decoded: per rod x (x, y, z
                 interleaved), theta, twist, m1; bodies' shape, position, rotation; contacts'
                 rod, node, shape, normal force, reaction, friction, stuck. The same shape is in
-                step_samples; meta3 holds the rods' names and the shapes of /sim/meta
+                step_samples; meta3 holds the rods' names, the shapes and the format_version
+                of /sim/meta
   error         null, or why reading stopped early (a file cut short by a crash)
 
 A file cut short (no summary, last chunk half written) is read up to its last complete
@@ -97,6 +100,8 @@ def scene_sample(msg, index):
                 "spheres": [xyz(s.pose.position) for s in e.spheres],
                 "arrows": len(e.arrows),
                 "texts": [t.text for t in e.texts],
+                "cubes": len(e.cubes),
+                "triangles": [len(t.points) for t in e.triangles],
             }
         )
     return {"index": index, "entities": entities}
@@ -209,9 +214,16 @@ def main(path):
                         if n < 20 or n % 250 == 0:
                             scene_samples.append(scene_sample(msg, n))
                     elif topic == "/scene/static" and not isinstance(msg, dict):
-                        scene_static = [{"id": e.id, "lines": len(e.lines)} for e in msg.entities]
+                        scene_static = [
+                            {"id": e.id, "lines": len(e.lines), "triangles": [len(t.points) for t in e.triangles]}
+                            for e in msg.entities
+                        ]
                     elif topic == "/sim/meta" and isinstance(msg, dict) and msg.get("dimension") == 3:
-                        report["meta3"] = {"rods": [r["name"] for r in msg["rods"]], "shapes": msg["shapes"]}
+                        report["meta3"] = {
+                            "rods": [r["name"] for r in msg["rods"]],
+                            "shapes": msg["shapes"],
+                            "format_version": msg["format_version"],
+                        }
                 elif isinstance(record, Metadata):
                     metadata[record.name] = dict(record.metadata)
                 elif isinstance(record, Statistics):

@@ -17,6 +17,10 @@ report on stdout of what a reviewer relies on when looking at the file:
                 the most pressed contact, mm)
   pressure      [{step, strips, colors}] of `scene/pressure` (the pressure along each compliant
                 contact: strips = number of pieces, colors = their u32 rgba)
+  overlay       {entity: [step, ...]} the steps of the rows of every entity of the replay
+                overlays (`scene/flags/**`, `scene/run_b/**`, `scene/largest_difference/**`,
+                `diff/**`), sorted
+  flag_events   [{text, level, step}] of `events/flags` (the findings of `check --rrd` on 3D)
 
 Columns are found by their component name (the part after the last ':'), so the report does
 not depend on how the SDK spells archetype prefixes.
@@ -47,7 +51,7 @@ def first(v):
 
 
 def main(path):
-    rep = {"iterates": {}, "reactions": {}, "series": {}, "bookmarks": [], "legend": [], "zoom": [], "pressure": []}
+    rep = {"iterates": {}, "reactions": {}, "series": {}, "bookmarks": [], "legend": [], "zoom": [], "pressure": [], "overlay": {}, "flag_events": []}
     for chunk in RrdReader(path).stream():
         ent = chunk.entity_path
         batch = chunk.to_record_batch()
@@ -120,6 +124,17 @@ def main(path):
             labels = column(batch, "labels")
             if labels:
                 rep["legend"].extend(x for row in labels if row for x in row)
+        if not chunk.is_static and ent.startswith(
+            ("/scene/flags/", "/scene/run_b/", "/scene/largest_difference", "/diff/")
+        ):
+            rep["overlay"].setdefault(ent, []).extend(step)
+        if ent == "/events/flags":
+            text = column(batch, "text")
+            level = column(batch, "level")
+            for k in range(n):
+                if text is None or text[k] is None:
+                    continue
+                rep["flag_events"].append({"text": first(text[k]), "level": first(level[k]) if level else None, "step": step[k]})
         if chunk.is_static:
             colors = column(batch, "colors")
             names = column(batch, "names")
@@ -129,6 +144,9 @@ def main(path):
     for rows in list(rep["iterates"].values()) + list(rep["reactions"].values()):
         rows.sort(key=lambda r: (r["iteration"] if r["iteration"] is not None else -1))
     rep["zoom"].sort(key=lambda r: r["step"])
+    for rows in rep["overlay"].values():
+        rows.sort()
+    rep["flag_events"].sort(key=lambda r: r["step"])
     rep["pressure"].sort(key=lambda r: r["step"])
     rep["bookmarks"].sort(key=lambda r: (r["iteration"] if r["iteration"] is not None else -1))
     json.dump(rep, sys.stdout, default=str)
