@@ -6,6 +6,8 @@
 //! SCENARIO is a name under scenarios/ (`two-prong-grasp`) or a path to a .toml file.
 //! `RECORDING_COST_ROWS=mcap` runs only the rows whose name contains `mcap` (and the row
 //! without sinks, the reference of the ratios), e.g. to profile one sink under `perf`.
+//! `RECORDING_COST_FLUSH_EVERY=N` overrides the scenario's `[output] flush_every` (the steps
+//! per `.rrd` chunk and MCAP chunk).
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
 //! (default 7), the mean CPU time of the process per run (all threads, from /proc/self/stat;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
@@ -96,7 +98,13 @@ fn main() {
     } else {
         root.join("scenarios").join(format!("{name}.toml"))
     };
-    let sc = Scenario::load(&path, &[]).unwrap();
+    let mut sc = Scenario::load(&path, &[]).unwrap();
+    if let Some(n) = std::env::var("RECORDING_COST_FLUSH_EVERY")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        sc.flush_every = n;
+    }
     let dir = std::env::temp_dir().join(format!("gripsim-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let step = Detail::Step;

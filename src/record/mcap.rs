@@ -19,6 +19,11 @@
 //! writer's defaults). Log times are simulated time in ns (static runs: step number in s),
 //! clamped so they never decrease. Nothing depends on the wall clock or the machine (single
 //! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
+//!
+//! The sink encodes each message on the simulation's thread (a copy of what the event lends
+//! it) and hands batches of them to one writer thread that compresses and writes them in order
+//! ([`Pipe`]): the bytes are those of writing inline, and the run waits for the writer only
+//! when it is [`BATCHES_QUEUED`] batches behind.
 
 use super::{
     error_chain, node_norm, obstacle_outline, Finished, OutputFile, RecordError, RecordOptions,
@@ -96,7 +101,8 @@ type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 /// Writes an MCAP file.
 pub struct McapSink {
     out: OutputFile,
-    writer: Option<Writer>,
+    /// The writer thread (compression and writing happen there); None after an error.
+    writer: Option<Pipe>,
     opts: RecordOptions,
     channels: [u16; 7],
     sequence: [u32; 7],
@@ -161,9 +167,13 @@ impl McapSink {
                 .add_channel(sid, topic, encoding, &BTreeMap::new())
                 .map_err(err)?;
         }
+        let failed: std::sync::Arc<std::sync::atomic::AtomicBool> = Default::default();
+        let pipe = Pipe::start(w, failed.clone()).map_err(|e| {
+            RecordError::write(out.writing(), format!("cannot start a thread: {e}"))
+        })?;
         Ok(Self {
             out,
-            writer: Some(w),
+            writer: Some(pipe),
             opts: RecordOptions {
                 flush_every: opts.flush_every.max(1),
                 ..opts
@@ -185,7 +195,7 @@ impl McapSink {
             completed: false,
             end: BTreeMap::new(),
             error: None,
-            failed: Default::default(),
+            failed,
         })
     }
 
@@ -229,8 +239,8 @@ impl McapSink {
             publish_time: log_time,
         };
         self.sequence[k] = self.sequence[k].wrapping_add(1);
-        if let Err(e) = w.write_to_known_channel(&header, &self.buf) {
-            self.fail(error_chain(&e));
+        if let Err(e) = w.message(header, &self.buf) {
+            self.fail(e);
         }
     }
 
@@ -238,8 +248,10 @@ impl McapSink {
         if self.error.is_none() {
             self.error = Some(RecordError::write(self.out.writing(), e));
         }
-        // Dropping the writer writes what it can of the summary; the file keeps .partial.
-        self.writer = None;
+        // Ending the writer writes what it can of the summary; the file keeps .partial.
+        if let Some(pipe) = self.writer.take() {
+            let _ = pipe.finish();
+        }
         self.failed
             .store(true, std::sync::atomic::Ordering::Relaxed);
     }
@@ -292,9 +304,7 @@ impl McapSink {
                 .insert("auto_window".into(), a.window.to_string());
         }
         if let Some(w) = self.writer.as_mut() {
-            if let Err(e) = w.write_metadata(&record) {
-                return self.fail(error_chain(&e));
-            }
+            w.metadata(record);
         }
         self.send(META, 0, &meta);
     }
@@ -338,7 +348,7 @@ impl McapSink {
         if ev.step.is_multiple_of(self.opts.flush_every) {
             if let Some(w) = self.writer.as_mut() {
                 if let Err(e) = w.flush() {
-                    self.fail(error_chain(&e));
+                    self.fail(e);
                 }
             }
         }
@@ -557,6 +567,193 @@ impl Observer for McapSink {
     }
 }
 
+/// The sink's end of the writer thread. The sink encodes each message (protobuf or JSON) and
+/// appends it to a batch; full batches (and every flush) go over a bounded channel to one
+/// thread that compresses and writes them in order with the `mcap` writer, so the file holds
+/// the same bytes as when the sink wrote it itself. Emptied batches come back for reuse. A
+/// flush waits until the writer has done the flush before it, so the file on disk is never more
+/// than two flush intervals behind the run. The thread's first write error sets the sink's
+/// failure flag (which stops the run) and is returned by [`Pipe::finish`].
+struct Pipe {
+    batch: Batch,
+    to_writer: std::sync::mpsc::SyncSender<Batch>,
+    spent: std::sync::mpsc::Receiver<Batch>,
+    free: Vec<Batch>,
+    /// Flushes sent to the writer, and those it has done.
+    flushes_sent: u64,
+    flushes_done: u64,
+    thread: std::thread::JoinHandle<Result<(), String>>,
+}
+
+/// Encoded messages and records for the writer thread, in order.
+#[derive(Default)]
+struct Batch {
+    data: Vec<u8>,
+    items: Vec<Item>,
+    /// Whether the batch ended with a flush (kept when the writer empties it).
+    flushed: bool,
+}
+
+enum Item {
+    /// A message whose bytes end at this offset of the batch's data (and start where the
+    /// previous message's end).
+    Message(::mcap::records::MessageHeader, usize),
+    Metadata(::mcap::records::Metadata),
+    /// End the current chunk and hand the bytes to the operating system.
+    Flush,
+}
+
+/// A batch is sent when it holds this many bytes (or at a flush).
+const BATCH_BYTES: usize = 1 << 18;
+/// Batches queued for the writer thread at most (then the simulation waits for it).
+const BATCHES_QUEUED: usize = 4;
+
+impl Pipe {
+    fn start(
+        w: Writer,
+        failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    ) -> std::io::Result<Self> {
+        let (to_writer, batches) = std::sync::mpsc::sync_channel(BATCHES_QUEUED);
+        let (back, spent) = std::sync::mpsc::channel();
+        let thread = std::thread::Builder::new()
+            .name("mcap-writer".into())
+            .spawn(move || write_batches(w, batches, back, failed))?;
+        Ok(Self {
+            batch: Batch::default(),
+            to_writer,
+            spent,
+            free: Vec::new(),
+            flushes_sent: 0,
+            flushes_done: 0,
+            thread,
+        })
+    }
+
+    fn message(
+        &mut self,
+        header: ::mcap::records::MessageHeader,
+        data: &[u8],
+    ) -> Result<(), String> {
+        self.batch.data.extend_from_slice(data);
+        self.batch
+            .items
+            .push(Item::Message(header, self.batch.data.len()));
+        if self.batch.data.len() >= BATCH_BYTES {
+            self.send()
+        } else {
+            Ok(())
+        }
+    }
+
+    fn metadata(&mut self, record: ::mcap::records::Metadata) {
+        self.batch.items.push(Item::Metadata(record));
+    }
+
+    /// Send a flush, and wait until the writer has done the one before.
+    fn flush(&mut self) -> Result<(), String> {
+        self.batch.items.push(Item::Flush);
+        self.batch.flushed = true;
+        self.flushes_sent += 1;
+        self.send()?;
+        while self.flushes_done + 1 < self.flushes_sent {
+            let b = self
+                .spent
+                .recv()
+                .map_err(|_| "the .mcap writer thread stopped".to_string())?;
+            self.take_back(b);
+        }
+        Ok(())
+    }
+
+    fn take_back(&mut self, mut b: Batch) {
+        if std::mem::take(&mut b.flushed) {
+            self.flushes_done += 1;
+        }
+        self.free.push(b);
+    }
+
+    fn send(&mut self) -> Result<(), String> {
+        if self.batch.items.is_empty() {
+            return Ok(());
+        }
+        while let Ok(b) = self.spent.try_recv() {
+            self.take_back(b);
+        }
+        let next = self.free.pop().unwrap_or_default();
+        let full = std::mem::replace(&mut self.batch, next);
+        self.to_writer
+            .send(full)
+            .map_err(|_| "the .mcap writer thread stopped".to_string())
+    }
+
+    /// Send what is left and wait for the thread to end the file (summary, footer) and close
+    /// it.
+    fn finish(mut self) -> Result<(), String> {
+        let sent = self.send();
+        let Pipe {
+            to_writer, thread, ..
+        } = self;
+        drop(to_writer);
+        let written = thread
+            .join()
+            .unwrap_or_else(|_| Err("the .mcap writer thread panicked".to_string()));
+        written.and(sent)
+    }
+}
+
+/// The writer thread: write every batch in order, then end the file. After the first error
+/// nothing more is written (the batches are still taken, so the sink never waits).
+fn write_batches(
+    w: Writer,
+    batches: std::sync::mpsc::Receiver<Batch>,
+    back: std::sync::mpsc::Sender<Batch>,
+    failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> Result<(), String> {
+    let mut w = Some(w);
+    let mut error = None;
+    for mut b in batches {
+        if let Some(writer) = w.as_mut() {
+            if let Err(e) = write_batch(writer, &b) {
+                error = Some(error_chain(&e));
+                failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                // Dropping the writer writes what it can of the summary.
+                w = None;
+            }
+        }
+        b.data.clear();
+        b.items.clear();
+        let _ = back.send(b);
+    }
+    match (w, error) {
+        (_, Some(e)) => Err(e),
+        (None, None) => Ok(()),
+        (Some(mut w), None) => w
+            .finish()
+            .map_err(|e| error_chain(&e))
+            .and_then(|_| {
+                w.into_inner()
+                    .into_inner()
+                    .map_err(|e| error_chain(e.error()))
+            })
+            .map(drop),
+    }
+}
+
+fn write_batch(w: &mut Writer, b: &Batch) -> Result<(), ::mcap::McapError> {
+    let mut start = 0;
+    for item in &b.items {
+        match item {
+            Item::Message(header, end) => {
+                w.write_to_known_channel(header, &b.data[start..*end])?;
+                start = *end;
+            }
+            Item::Metadata(record) => w.write_metadata(record)?,
+            Item::Flush => w.flush()?,
+        }
+    }
+    Ok(())
+}
+
 impl Recording for McapSink {
     fn format(&self) -> &'static str {
         "mcap"
@@ -564,21 +761,11 @@ impl Recording for McapSink {
 
     fn finish(&mut self) -> Result<Finished, RecordError> {
         if let Some(mut w) = self.writer.take() {
-            let record = ::mcap::records::Metadata {
+            w.metadata(::mcap::records::Metadata {
                 name: "gripsim.run_end".into(),
                 metadata: std::mem::take(&mut self.end),
-            };
-            let closed = w
-                .write_metadata(&record)
-                .and_then(|_| w.finish())
-                .map_err(|e| error_chain(&e))
-                .and_then(|_| {
-                    w.into_inner()
-                        .into_inner()
-                        .map_err(|e| error_chain(e.error()))
-                })
-                .map(drop);
-            if let Err(e) = closed {
+            });
+            if let Err(e) = w.finish() {
                 self.fail(e);
             }
         }
