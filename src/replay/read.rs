@@ -965,6 +965,32 @@ impl Iterator for Records {
     }
 }
 
+/// The schema name of the file's first message, read with the same guarded record reader as
+/// [`read_messages`] (damaged or hostile files give `None`, never a panic); used to tell a 3D
+/// recording cut short (no summary section) from a planar one.
+pub fn first_message_schema(path: &Path) -> Option<String> {
+    use mcap::records::Record;
+    let records = Records::open(path).ok()?;
+    let mut schemas: HashMap<u16, String> = HashMap::new();
+    let mut channels: HashMap<u16, u16> = HashMap::new();
+    for record in records {
+        match record.ok()? {
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, header.name.clone());
+            }
+            Record::Channel(c) => {
+                channels.insert(c.id, c.schema_id);
+            }
+            Record::Message { header, .. } => {
+                let schema = channels.get(&header.channel_id)?;
+                return schemas.get(schema).cloned();
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
 /// Whether every record of an uncompressed chunk ends within the chunk's records length, as far
 /// as `body` (the chunk record's body, perhaps cut short) shows. True for a compressed chunk.
 fn chunk_records_fit(body: &[u8]) -> bool {

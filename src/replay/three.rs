@@ -500,21 +500,10 @@ pub fn is_3d_mcap(path: &Path) -> bool {
 }
 
 /// Without a summary (a file cut short): whether its first message is a 3D `/sim/meta`
-/// (schema `gripsim.Meta3`), read from the file's first 8 MiB.
+/// (schema `gripsim.Meta3`), read by replay's guarded record reader (a damaged file is no 3D
+/// file and is refused by the planar reader with its own words).
 fn first_message_says_3d(path: &Path) -> bool {
-    use std::io::Read as _;
-    let Ok(f) = std::fs::File::open(path) else {
-        return false;
-    };
-    let mut head = Vec::new();
-    if f.take(8 << 20).read_to_end(&mut head).is_err() {
-        return false;
-    }
-    let Ok(mut stream) = mcap::MessageStream::new(&head) else {
-        return false;
-    };
-    matches!(stream.next(), Some(Ok(m))
-        if m.channel.schema.as_ref().is_some_and(|s| s.name == "gripsim.Meta3"))
+    super::read::first_message_schema(path).is_some_and(|s| s == "gripsim.Meta3")
 }
 
 /// Whether the summary section (found through the footer) names `gripsim.Step3`; None when

@@ -1012,17 +1012,25 @@ fn the_acceleration_scale_counts_actuator_programs() {
     assert!((a - lift).abs() < 1e-12 * lift, "{a} vs {lift}");
 }
 
-/// `run --check` on every shipped 3D scenario: no false flag at its own Δt (the 3D detector's
+/// `run --check` on every shipped 3D scenario (every `dimension = 3` file in scenarios/): no false flag at its own Δt (the 3D detector's
 /// force holds the prong's Kelvin–Voigt damping: without it the lift was flagged 4 times where
 /// the hand starts and stops lifting).
 #[test]
 fn every_shipped_3d_scenario_is_clean() {
-    for name in [
-        "3d-two-finger-sphere",
-        "3d-three-finger-ellipsoid",
-        "3d-off-centre-twist",
-        "3d-lift",
-    ] {
+    let dir = Path::new(ROOT).join("scenarios");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .filter(|p| {
+            let sc: toml::Value = toml::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
+            sc.get("dimension").and_then(|d| d.as_integer()) == Some(3)
+        })
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert!(names.len() >= 5, "{names:?}");
+    for name in &names {
         let out = gripsim()
             .arg("run")
             .arg(scenario(name))
