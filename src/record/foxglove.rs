@@ -36,8 +36,8 @@ pub struct SceneEntityDeletion {
     pub id: String,
 }
 
-/// `foxglove.SceneEntity` with the primitives gripsim draws (fields 6, 8, 10, 12 and 14 —
-/// metadata, cubes, cylinders, triangles, models — are in the schema, never written).
+/// `foxglove.SceneEntity` with the primitives gripsim draws (fields 6, 10 and 14 — metadata,
+/// cylinders, models — are in the schema, never written; cubes and triangle lists only in 3D).
 #[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
 pub struct SceneEntity {
     #[prost(message, optional, tag = "1")]
@@ -53,47 +53,17 @@ pub struct SceneEntity {
     pub frame_locked: bool,
     #[prost(message, repeated, tag = "7")]
     pub arrows: Vec<ArrowPrimitive>,
-    #[prost(message, repeated, tag = "9")]
-    pub spheres: Vec<SpherePrimitive>,
-    #[prost(message, repeated, tag = "11")]
-    pub lines: Vec<LinePrimitive>,
-    #[prost(message, repeated, tag = "13")]
-    pub texts: Vec<TextPrimitive>,
-}
-
-/// `foxglove.SceneUpdate` of a 3D scene ([`SceneEntity3`]): the same message on the wire.
-#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
-pub struct SceneUpdate3 {
-    #[prost(message, repeated, tag = "1")]
-    pub deletions: Vec<SceneEntityDeletion>,
-    #[prost(message, repeated, tag = "2")]
-    pub entities: Vec<SceneEntity3>,
-}
-
-/// `foxglove.SceneEntity` with the primitives a 3D scene draws: [`SceneEntity`]'s and cubes
-/// (field 8) and triangle lists (field 12); metadata, cylinders and models are never written.
-#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
-pub struct SceneEntity3 {
-    #[prost(message, optional, tag = "1")]
-    pub timestamp: Option<Timestamp>,
-    #[prost(string, tag = "2")]
-    pub frame_id: String,
-    #[prost(string, tag = "3")]
-    pub id: String,
-    /// Zero (or absent): kept until replaced.
-    #[prost(message, optional, tag = "4")]
-    pub lifetime: Option<Duration>,
-    #[prost(bool, tag = "5")]
-    pub frame_locked: bool,
-    #[prost(message, repeated, tag = "7")]
-    pub arrows: Vec<ArrowPrimitive>,
+    /// 3D scenes only (boxes); empty in a planar one, so neither on the wire nor in JSON.
     #[prost(message, repeated, tag = "8")]
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub cubes: Vec<CubePrimitive>,
     #[prost(message, repeated, tag = "9")]
     pub spheres: Vec<SpherePrimitive>,
     #[prost(message, repeated, tag = "11")]
     pub lines: Vec<LinePrimitive>,
+    /// 3D scenes only (planes and meshes); empty in a planar one.
     #[prost(message, repeated, tag = "12")]
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub triangles: Vec<TriangleListPrimitive>,
     #[prost(message, repeated, tag = "13")]
     pub texts: Vec<TextPrimitive>,
@@ -688,6 +658,7 @@ mod tests {
             spheres: vec![sphere.clone()],
             lines: vec![line.clone()],
             texts: vec![text.clone()],
+            ..Default::default()
         };
         let deletion = SceneEntityDeletion {
             timestamp: Some(ts),

@@ -995,10 +995,7 @@ fn entity(id: String, ns: u64) -> fx::SceneEntity {
         id,
         lifetime: Some(fx::Duration::default()),
         frame_locked: false,
-        arrows: Vec::new(),
-        spheres: Vec::new(),
-        lines: Vec::new(),
-        texts: Vec::new(),
+        ..Default::default()
     }
 }
 

@@ -327,8 +327,8 @@ const FRUIT: fx::Color = rgba(0.9, 0.47, 0.24, 0.8);
 const OBSTACLE: fx::Color = rgba(0.6, 0.6, 0.6, 0.45);
 
 /// A scene entity in frame "world", kept until replaced.
-fn entity(id: String, timestamp: fx::Timestamp) -> fx::SceneEntity3 {
-    fx::SceneEntity3 {
+fn entity(id: String, timestamp: fx::Timestamp) -> fx::SceneEntity {
+    fx::SceneEntity {
         timestamp: Some(timestamp),
         frame_id: "world".into(),
         id,
@@ -339,7 +339,7 @@ fn entity(id: String, timestamp: fx::Timestamp) -> fx::SceneEntity3 {
 /// Draw `shape` at `at` in `e`: spheres and ellipsoids as sphere primitives (scaled per
 /// axis), boxes as cubes, planes and meshes as triangle lists.
 fn draw_shape(
-    e: &mut fx::SceneEntity3,
+    e: &mut fx::SceneEntity,
     shape: &Shape3,
     at: Option<fx::Pose>,
     plane_half: f64,
@@ -705,7 +705,7 @@ impl Mcap3 {
                 OBSTACLE,
             );
         }
-        let msg = fx::SceneUpdate3 {
+        let msg = fx::SceneUpdate {
             deletions: vec![],
             entities: vec![fixed],
         };
@@ -717,7 +717,7 @@ impl Mcap3 {
         stamp: fx::Timestamp,
         rods: &[Rod3StepView<'_>],
         bodies: &[BodyPose3],
-    ) -> fx::SceneUpdate3 {
+    ) -> fx::SceneUpdate {
         let mut entities = Vec::new();
         for (r, v) in rods.iter().enumerate() {
             let (name, half) = self
@@ -758,13 +758,13 @@ impl Mcap3 {
             );
             entities.push(e);
         }
-        fx::SceneUpdate3 {
+        fx::SceneUpdate {
             deletions: vec![],
             entities,
         }
     }
 
-    fn contacts_entity(&self, stamp: fx::Timestamp, contacts: &[Contact3]) -> fx::SceneEntity3 {
+    fn contacts_entity(&self, stamp: fx::Timestamp, contacts: &[Contact3]) -> fx::SceneEntity {
         let d = 0.3
             * self
                 .rods
