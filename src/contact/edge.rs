@@ -114,38 +114,7 @@ pub fn closest_on_segment(surf: &Surfaces, k: usize, a: [f64; 2], b: [f64; 2]) -
         };
         return (s, at(s));
     }
-    const INV_PHI: f64 = 0.618_033_988_749_894_9;
-    let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    let mut x1 = hi - INV_PHI * (hi - lo);
-    let mut x2 = lo + INV_PHI * (hi - lo);
-    let (mut f1, mut f2) = (at(x1).distance, at(x2).distance);
-    for _ in 0..60 {
-        if f1 <= f2 {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - INV_PHI * (hi - lo);
-            f1 = at(x1).distance;
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + INV_PHI * (hi - lo);
-            f2 = at(x2).distance;
-        }
-        if hi - lo < 1e-13 {
-            break;
-        }
-    }
-    // The ends win ties (a flat obstacle is the nodes' business).
-    let mut best = (0.5 * (lo + hi), at(0.5 * (lo + hi)));
-    for s in [0.0, 1.0] {
-        let q = at(s);
-        if q.distance <= best.1.distance {
-            best = (s, q);
-        }
-    }
-    best
+    crate::obstacle::deepest_along(at, |q| q.distance, 60)
 }
 
 #[cfg(test)]
