@@ -559,7 +559,8 @@ fn without_file(mut v: serde_json::Value) -> serde_json::Value {
 /// it): the shipped lift holds its sphere (no flag, live and replayed); with a tenth of its
 /// friction the sphere stays on the table while the hand rises and is flagged as slipping
 /// during the lift, at the same step live and replayed; a scenario that expects the slip
-/// (`[expect] grasp = "slipped"`) reports it unflagged. A copy cut short has no run end:
+/// (`[expect] grasp = "slipped"`) reports it unflagged, and a wider `[fruit] hold_tolerance`
+/// flags it later. A copy cut short has no run end:
 /// `replay check` says so and exits 3, or reads what is there with `--allow-partial`.
 #[test]
 fn grasp_rules_on_3d_lifts_live_and_replayed() {
@@ -584,6 +585,18 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
                 "expect.grasp=slipped",
             ],
             0,
+        ),
+        (
+            "wider",
+            vec![
+                "--set",
+                "friction.mu_s=0.1",
+                "--set",
+                "friction.mu_k=0.08",
+                "--set",
+                "fruit.hold_tolerance=0.01",
+            ],
+            1,
         ),
     ] {
         let out = expect(
@@ -657,6 +670,17 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
     assert_eq!(expected["flagged"], false, "{expected:#}");
     assert!(expected.get("grasp").is_none(), "{expected:#}");
     assert_eq!(expected["grasp_expected"][0], flags[0]);
+    // `[fruit] hold_tolerance` sets the slip allowed: twice the default flags the same slip
+    // later, where the fruit has fallen behind the hand by the larger distance.
+    let wider = reports[3].0["grasp"].as_array().unwrap();
+    assert_eq!(wider[0]["kind"], "slip", "{wider:?}");
+    assert_eq!(f(&wider[0]["hold_tolerance_m"]), 0.01);
+    assert!(f(&wider[0]["slip_m"]) > 0.01);
+    assert!(
+        f(&wider[0]["t"]) > t,
+        "hold_tolerance 0.01: slip at {} s, default at {t} s",
+        f(&wider[0]["t"])
+    );
     // A copy cut short: no run end, exit 3; --allow-partial reads the steps before the cut.
     let bytes = std::fs::read(d.join("held.mcap")).unwrap();
     std::fs::write(d.join("cut.mcap"), &bytes[..bytes.len() * 6 / 10]).unwrap();
