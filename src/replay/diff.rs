@@ -395,7 +395,14 @@ pub fn parameter_diff(a: &Head, b: &Head) -> Vec<ParamDiff> {
         }
         m
     };
-    let (pa, pb) = (parse(a), parse(b));
+    differing_values(&parse(a), &parse(b))
+}
+
+/// The dotted paths whose values differ between two flattened scenarios.
+pub(crate) fn differing_values(
+    pa: &BTreeMap<String, toml::Value>,
+    pb: &BTreeMap<String, toml::Value>,
+) -> Vec<ParamDiff> {
     let json = |v: &toml::Value| serde_json::to_value(v).ok();
     let mut keys: Vec<&String> = pa.keys().chain(pb.keys()).collect();
     keys.sort();
@@ -431,13 +438,13 @@ enum Item {
 
 /// A contact change of an accepted step, as the diff pairs it.
 #[derive(Debug, Clone)]
-struct Ev {
-    rod: usize,
-    node: usize,
-    change: String,
-    obstacle: usize,
-    t: f64,
-    step: u64,
+pub(crate) struct Ev {
+    pub rod: usize,
+    pub node: usize,
+    pub change: String,
+    pub obstacle: usize,
+    pub t: f64,
+    pub step: u64,
 }
 
 /// One run being read: the step before and the step after the current sample time, its
@@ -852,9 +859,23 @@ fn contact_diff(
     end: f64,
     time_tol: &dyn Fn(f64) -> f64,
 ) -> (EventCounts, Vec<EventDiff>) {
+    let name = |r: usize| a.head.meta.rods[r].name.clone();
+    pair_events(&a.events, &b.events, &name, tol.event_window, end, time_tol)
+}
+
+/// Contact events of two runs up to `end`, paired by (rod, node, change, obstacle) and
+/// nearest time within `window`; a pair further apart than `time_tol` is `shifted`.
+pub(crate) fn pair_events(
+    a: &[Ev],
+    b: &[Ev],
+    name: &dyn Fn(usize) -> String,
+    window: f64,
+    end: f64,
+    time_tol: &dyn Fn(f64) -> f64,
+) -> (EventCounts, Vec<EventDiff>) {
     let in_span = |t: f64| t <= end + time_tol(end);
-    let ea: Vec<&Ev> = a.events.iter().filter(|c| in_span(c.t)).collect();
-    let eb: Vec<&Ev> = b.events.iter().filter(|c| in_span(c.t)).collect();
+    let ea: Vec<&Ev> = a.iter().filter(|c| in_span(c.t)).collect();
+    let eb: Vec<&Ev> = b.iter().filter(|c| in_span(c.t)).collect();
     let mut used = vec![false; eb.len()];
     let mut counts = EventCounts {
         a: ea.len(),
@@ -862,7 +883,6 @@ fn contact_diff(
         ..EventCounts::default()
     };
     let mut events = Vec::new();
-    let name = |r: usize| a.head.meta.rods[r].name.clone();
     // B's events by (rod, node, change, obstacle), so pairing looks at one node's events only.
     let mut groups: BTreeMap<(usize, usize, &str, usize), Vec<usize>> = BTreeMap::new();
     for (j, y) in eb.iter().enumerate() {
@@ -890,7 +910,7 @@ fn contact_diff(
             .into_iter()
             .flatten()
             .map(|&j| (j, eb[j]))
-            .filter(|(j, y)| !used[*j] && (y.t - x.t).abs() <= tol.event_window)
+            .filter(|(j, y)| !used[*j] && (y.t - x.t).abs() <= window)
             .min_by(|p, q| (p.1.t - x.t).abs().total_cmp(&(q.1.t - x.t).abs()));
         match best {
             Some((j, y)) => {
@@ -923,8 +943,7 @@ fn contact_diff(
 /// Findings of one run with no counterpart (same category, kind, rod and node within
 /// `window` seconds) in the other.
 fn finding_diff(fa: &Findings, fb: &Findings, end: f64, window: f64) -> Vec<FindingDiff> {
-    type Key = (&'static str, &'static str, usize, usize);
-    let list = |f: &Findings| -> Vec<(Key, String, u64, f64)> {
+    let list = |f: &Findings| -> Vec<FindingItem> {
         f.spikes
             .iter()
             .map(|s| {
@@ -946,10 +965,22 @@ fn finding_diff(fa: &Findings, fb: &Findings, end: f64, window: f64) -> Vec<Find
             .filter(|x| x.3 <= end)
             .collect()
     };
-    let (la, lb) = (list(fa), list(fb));
+    pair_findings(&list(fa), &list(fb), window)
+}
+
+/// What `finding_diff` pairs: (category, kind, rod, node), rod name, step, time.
+pub(crate) type FindingKey = (&'static str, &'static str, usize, usize);
+pub(crate) type FindingItem = (FindingKey, String, u64, f64);
+
+/// Findings of one run with no counterpart (same key within `window` seconds) in the other.
+pub(crate) fn pair_findings(
+    la: &[FindingItem],
+    lb: &[FindingItem],
+    window: f64,
+) -> Vec<FindingDiff> {
     let mut used_b = vec![false; lb.len()];
     let mut used_a = vec![false; la.len()];
-    let mut groups: BTreeMap<Key, Vec<usize>> = BTreeMap::new();
+    let mut groups: BTreeMap<FindingKey, Vec<usize>> = BTreeMap::new();
     for (j, y) in lb.iter().enumerate() {
         groups.entry(y.0).or_default().push(j);
     }
@@ -967,7 +998,7 @@ fn finding_diff(fa: &Findings, fb: &Findings, end: f64, window: f64) -> Vec<Find
         }
     }
     let mut out: Vec<FindingDiff> = Vec::new();
-    for (status, l, used) in [("only_a", &la, &used_a), ("only_b", &lb, &used_b)] {
+    for (status, l, used) in [("only_a", la, &used_a), ("only_b", lb, &used_b)] {
         for (x, u) in l.iter().zip(used.iter()) {
             if !u {
                 out.push(FindingDiff {

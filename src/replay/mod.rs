@@ -14,6 +14,7 @@
 pub mod bruise;
 pub mod detect;
 pub mod diff;
+pub mod diff3;
 pub mod grasp;
 pub mod overlay;
 pub mod overlay3;
@@ -648,7 +649,7 @@ fn run_3d(cmd: &ReplayCommand) -> Result<Option<u8>, ReplayError> {
             rrd,
             tolerances,
             allow_partial,
-            ..
+            thresholds,
         } if three::is_3d_mcap(a) || three::is_3d_mcap(b) => {
             if !(three::is_3d_mcap(a) && three::is_3d_mcap(b)) {
                 return Err(ReplayError::new(format!(
@@ -658,8 +659,9 @@ fn run_3d(cmd: &ReplayCommand) -> Result<Option<u8>, ReplayError> {
                 )));
             }
             tolerances.validate().map_err(ReplayError::new)?;
-            let report = three::diff(a, b, tolerances.tol_position)?;
-            say(&three::format_diff(&report));
+            thresholds.validate().map_err(ReplayError::new)?;
+            let report = diff3::diff(a, b, tolerances, thresholds)?;
+            say(&diff3::format_diff(&report));
             if let Some(p) = json {
                 write_json(p, &report)?;
             }

@@ -16,7 +16,8 @@
 //! The 3D layout is the live one ([`crate::record::rerun3::blueprint3`]); a diff adds the
 //! difference plot.
 
-use super::three::{self, AtB, Check3Report, Diff3Report, Run3};
+use super::diff3::Diff3Report;
+use super::three::{self, AtB, Check3Report, Run3};
 use super::ReplayError;
 use crate::record::rerun::OTHER_COLOR;
 use crate::record::rerun3::{blueprint3, blueprint3_with};

@@ -93,7 +93,7 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn norm(a: [f64; 3]) -> f64 {
+pub(crate) fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 
@@ -463,6 +463,9 @@ fn within_cone(r: [f64; 3], n: [f64; 3], cone: f64) -> [f64; 3] {
 pub struct Run3 {
     pub scenario: Scenario3,
     pub name: String,
+    /// `/sim/meta` `scenario_text` and `sets`: the scenario as written and its overrides.
+    pub scenario_text: String,
+    pub sets: Vec<String>,
     pub steps: Vec<Step3>,
     /// The run-end record's `completed` (None: the file has none, e.g. a killed run's).
     pub completed: Option<bool>,
@@ -587,6 +590,8 @@ impl Run3 {
         Ok(Run3 {
             scenario,
             name: meta.scenario_name,
+            scenario_text: meta.scenario_text,
+            sets: meta.sets,
             steps,
             completed,
             truncated,
@@ -655,26 +660,6 @@ pub fn format_check(r: &Check3Report) -> String {
     s
 }
 
-/// The comparison of two 3D runs: the largest node distance, aligned on simulated time (run
-/// B interpolated linearly at run A's step times).
-#[derive(Debug, Clone, Serialize)]
-pub struct Diff3Report {
-    pub a: String,
-    pub b: String,
-    pub compared_steps: u64,
-    pub max_distance: f64,
-    pub rod: usize,
-    pub rod_name: String,
-    pub node: usize,
-    pub t: f64,
-    /// The largest node distance at A's last compared step.
-    pub final_distance: f64,
-    pub tol_position: f64,
-    pub within_tolerance: bool,
-    /// A recording stops before its run's end (truncated, or no run end).
-    pub incomplete: bool,
-}
-
 /// Where run B stands at a time of run A.
 pub enum AtB {
     /// Before B's first step.
@@ -714,90 +699,6 @@ pub fn locate_b(rb: &Run3, j: &mut usize, t: f64) -> AtB {
 pub fn node_between(b0: &Step3, b1: &Step3, w: f64, r: usize, i: usize) -> [f64; 3] {
     let (x0, x1) = (&b0.rods[r].x, &b1.rods[r].x);
     [0, 1, 2].map(|k| (1.0 - w) * x0[3 * i + k] + w * x1[3 * i + k])
-}
-
-/// `replay diff` on two 3D runs.
-pub fn diff(a: &Path, b: &Path, tol_position: f64) -> Result<Diff3Report, ReplayError> {
-    let (ra, rb) = (Run3::load(a)?, Run3::load(b)?);
-    let shape = |r: &Run3| -> Vec<usize> {
-        r.steps
-            .first()
-            .map(|s| s.rods.iter().map(|r| r.x.len()).collect())
-            .unwrap_or_default()
-    };
-    if shape(&ra) != shape(&rb) {
-        return Err(ReplayError::new(format!(
-            "{} and {}: the runs' rods differ (nodes per rod {:?} vs {:?}): not comparable",
-            a.display(),
-            b.display(),
-            shape(&ra).iter().map(|x| x / 3).collect::<Vec<_>>(),
-            shape(&rb).iter().map(|x| x / 3).collect::<Vec<_>>()
-        )));
-    }
-    let mut rep = Diff3Report {
-        a: a.display().to_string(),
-        b: b.display().to_string(),
-        compared_steps: 0,
-        max_distance: 0.0,
-        rod: 0,
-        rod_name: String::new(),
-        node: 0,
-        t: 0.0,
-        final_distance: 0.0,
-        tol_position,
-        within_tolerance: true,
-        incomplete: ra.incomplete() || rb.incomplete(),
-    };
-    let mut j = 0;
-    for sa in &ra.steps {
-        let (b0, b1, w) = match locate_b(&rb, &mut j, sa.t) {
-            AtB::Before => continue,
-            AtB::After => break,
-            AtB::Between(k0, k1, w) => (&rb.steps[k0], &rb.steps[k1], w),
-        };
-        let mut step_max = 0.0f64;
-        for (r, xa) in sa
-            .rods
-            .iter()
-            .enumerate()
-            .take(b0.rods.len().min(b1.rods.len()))
-        {
-            for i in 0..xa.x.len() / 3 {
-                let xb = node_between(b0, b1, w, r, i);
-                let d = norm([0, 1, 2].map(|k| xa.x[3 * i + k] - xb[k]));
-                step_max = step_max.max(d);
-                if d > rep.max_distance {
-                    rep.max_distance = d;
-                    rep.rod = r;
-                    rep.node = i;
-                    rep.t = sa.t;
-                }
-            }
-        }
-        rep.final_distance = step_max;
-        rep.compared_steps += 1;
-    }
-    rep.rod_name = crate::rod3d::run3::build(&ra.scenario)
-        .map(|(w, _)| w.rod_names.get(rep.rod).cloned().unwrap_or_default())
-        .unwrap_or_default();
-    rep.within_tolerance = rep.max_distance <= tol_position;
-    Ok(rep)
-}
-
-pub fn format_diff(r: &Diff3Report) -> String {
-    format!(
-        "{} vs {} (3D): {} steps compared; largest node distance {:.6e} m ({} node {} at t = {:.6} s), {:.6e} m at the last step; tolerance {:e} m: {}\n",
-        r.a,
-        r.b,
-        r.compared_steps,
-        r.max_distance,
-        r.rod_name,
-        r.node,
-        r.t,
-        r.final_distance,
-        r.tol_position,
-        if r.within_tolerance { "within" } else { "DIFFERENT" }
-    )
 }
 
 /// `run --check` on a 3D scenario: the detector fed from the live events.

@@ -297,6 +297,32 @@ fn replay_check_diff_and_show_on_3d_runs() {
         diff["rod_name"], diff["node"], diff["t"]
     );
     assert!(dist > 1e-6 && dist < 1e-2, "{dist}");
+    // What the planar diff reports, in 3D: the differing scenario value, the velocity
+    // difference and first divergence, contact events paired across the runs, and the
+    // coarse run's impact spikes as found in run B only (the fine run has none).
+    let params = diff["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), 1, "{params:?}");
+    assert_eq!(params[0]["key"], "solve.dt");
+    assert_eq!(f(&params[0]["b"]), 1e-3);
+    assert!(f(&diff["velocity"]["max"]) > 1e-3);
+    assert!(diff["first_divergence"].is_object());
+    let ev = &diff["contact_event_counts"];
+    println!("contact events: {ev}");
+    assert!(ev["a"].as_u64().unwrap() > 0);
+    assert_eq!(ev["a"], ev["b"]);
+    assert_eq!(ev["only_a"], 0);
+    assert_eq!(ev["only_b"], 0);
+    let found = diff["findings"].as_array().unwrap();
+    assert_eq!(found.len(), spikes.len(), "{found:?}");
+    assert!(found
+        .iter()
+        .all(|x| x["status"] == "only_b" && x["category"] == "spike" && x["kind"] == "impact"));
+    assert_eq!(diff["counts_a"]["spikes"], 0);
+    assert_eq!(
+        diff["counts_b"]["spikes"].as_u64().unwrap() as usize,
+        spikes.len()
+    );
+    assert_eq!(diff["within_tolerance"], false);
     expect(
         gripsim()
             .args(["replay", "diff"])
@@ -306,7 +332,14 @@ fn replay_check_diff_and_show_on_3d_runs() {
             .arg(d.join("same.json")),
         0,
     );
-    assert_eq!(f(&json(&d.join("same.json"))["max_distance"]), 0.0);
+    let same = json(&d.join("same.json"));
+    assert_eq!(f(&same["max_distance"]), 0.0);
+    assert_eq!(f(&same["velocity"]["max"]), 0.0);
+    assert!(same["first_divergence"].is_null());
+    assert_eq!(same["parameters"].as_array().unwrap().len(), 0);
+    assert_eq!(same["findings"].as_array().unwrap().len(), 0);
+    assert_eq!(same["contact_event_counts"]["shifted"], 0);
+    assert_eq!(same["within_tolerance"], true);
     expect(
         gripsim()
             .args(["replay", "show"])
