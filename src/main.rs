@@ -784,31 +784,51 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
     }
     let result = gripsim::rod3d::run3::run_observed(&sc, out.csv.as_deref(), &mut sinks);
     drop(sinks);
-    // The recording is closed (and moved into place, or removed on failure) either way.
-    let mut closed = match rrd {
-        Some(r) if result.is_ok() => r.finish(),
-        Some(r) => r.abandon(),
-        None => Ok(()),
-    };
-    match mcap {
-        Some(m) if result.is_ok() => closed = closed.and(m.finish()),
-        Some(m) => m.abandon(),
-        None => {}
-    }
+    // The recordings are closed either way: moved into place, or (a failed run) kept under
+    // their `.partial` names with the error as the run's end, as a planar run's.
     let s = match result {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("error: {}: {e}", path.display());
-            return ExitCode::from(1);
+            let mut kept = Vec::new();
+            let closed = [
+                rrd.map(|r| r.finish_failed()),
+                mcap.map(|m| m.finish_failed()),
+            ];
+            for c in closed.into_iter().flatten() {
+                match c {
+                    Ok(p) => kept.push(p.display().to_string()),
+                    Err(e) => eprintln!("error: {e}"),
+                }
+            }
+            let hint = if e.contains("did not converge") {
+                "hint: lower solve.dt or raise solve.max_newton_iterations; "
+            } else {
+                ""
+            };
+            eprintln!(
+                "error: {}: {e} ({hint}the recordings end at the last accepted step and keep \
+                 their .partial names{}{})",
+                path.display(),
+                if kept.is_empty() { "" } else { ": " },
+                kept.join(", ")
+            );
+            return ExitCode::from(2);
         }
     };
+    let mut closed = match rrd {
+        Some(r) => r.finish(),
+        None => Ok(()),
+    };
+    if let Some(m) = mcap {
+        closed = closed.and(m.finish());
+    }
     if let Err(e) = closed {
         eprintln!("error: {e}");
         return ExitCode::from(1);
     }
     if let Some(p) = &out.summary {
         let text = serde_json::to_string_pretty(&s).expect("summary serialises");
-        if let Err(e) = std::fs::write(p, text + "\n") {
+        if let Err(e) = gripsim::record::write_atomic(p, (text + "\n").as_bytes()) {
             eprintln!("error: cannot write the summary to {}: {e}", p.display());
             return ExitCode::from(2);
         }
@@ -835,7 +855,7 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
         print!("{}", gripsim::replay::three::format_check(&report));
         if let Some(p) = &check_json {
             let text = serde_json::to_string_pretty(&report).expect("a report serialises");
-            if let Err(e) = std::fs::write(p, text + "\n") {
+            if let Err(e) = gripsim::record::write_atomic(p, (text + "\n").as_bytes()) {
                 eprintln!(
                     "error: cannot write the check report to {}: {e}",
                     p.display()

@@ -13,8 +13,9 @@
 //! any protobuf library decodes the file without a `.proto` file. `/scene` draws spheres and
 //! ellipsoids as Foxglove sphere primitives (scaled per axis), boxes as cubes, planes and
 //! meshes as triangle lists ([`super::shape3`]). Log time: simulated ns. Written as
-//! `<path>.partial`, renamed at [`Mcap3::finish`]; zstd with one thread, so the same run gives
-//! the same bytes.
+//! the planar files are ([`super::OutputFile`]: `NAME.partial.mcap`, renamed at
+//! [`Mcap3::finish`]; a failed run's file keeps the `.partial` name; a device is written
+//! through); zstd with one thread, so the same run gives the same bytes.
 
 use super::shape3::tessellate;
 use crate::obstacle3::Shape3;
@@ -514,8 +515,7 @@ type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 
 /// Writes the MCAP file of a 3D run.
 pub struct Mcap3 {
-    path: PathBuf,
-    partial: PathBuf,
+    out: super::OutputFile,
     writer: Option<Writer>,
     channels: [u16; 5],
     sequence: [u32; 5],
@@ -536,12 +536,18 @@ pub struct Mcap3 {
 }
 
 impl Mcap3 {
-    /// Create `path` (as `<path>.partial`) for the scenario `name` with text `text` and the
-    /// `--set` overrides `sets` (both stored in `/sim/meta`).
+    /// Create `path` for the scenario `name` with text `text` and the `--set` overrides
+    /// `sets` (both stored in `/sim/meta`). Written as the planar files are
+    /// ([`super::OutputFile`]): under a `.partial` name renamed at the end of a completed run;
+    /// a device or FIFO written through; a symlink followed.
     pub fn create(path: &Path, name: &str, text: &str, sets: &[String]) -> Result<Mcap3, String> {
-        let partial = PathBuf::from(format!("{}.partial", path.display()));
-        let fail = |e: &dyn std::fmt::Display| format!("{}: {e}", partial.display());
-        let file = std::fs::File::create(&partial).map_err(|e| fail(&e))?;
+        let out = super::OutputFile::new(path);
+        let file = out.create().map_err(|e| e.to_string())?;
+        let shown = out.writing().display().to_string();
+        let fail = |e: &dyn std::fmt::Display| {
+            out.discard();
+            format!("{shown}: {e}")
+        };
         let mut w = ::mcap::WriteOptions::new()
             .profile("")
             .library(super::mcap::LIBRARY)
@@ -576,8 +582,7 @@ impl Mcap3 {
                 .map_err(|e| fail(&e))?;
         }
         Ok(Mcap3 {
-            path: path.to_path_buf(),
-            partial,
+            out,
             writer: Some(w),
             channels,
             sequence: [0; 5],
@@ -625,7 +630,18 @@ impl Mcap3 {
     }
 
     /// Close the file and move it into place.
-    pub fn finish(mut self) -> Result<(), String> {
+    pub fn finish(self) -> Result<(), String> {
+        self.close(true)
+    }
+
+    /// Close the file of a run that failed (its run end says why): it keeps its `.partial`
+    /// name, as a planar run's. Returns where it is.
+    pub fn finish_failed(self) -> Result<PathBuf, String> {
+        let at = self.out.writing().to_path_buf();
+        self.close(false).map(|_| at)
+    }
+
+    fn close(mut self, complete: bool) -> Result<(), String> {
         if let Some(mut w) = self.writer.take() {
             let mut closed = Ok(());
             if !self.end.is_empty() {
@@ -648,17 +664,19 @@ impl Mcap3 {
             }
         }
         if let Some(e) = self.error.take() {
-            let _ = std::fs::remove_file(&self.partial);
-            return Err(format!("{}: {e}", self.path.display()));
+            self.out.discard();
+            return Err(format!("{}: {e}", self.out.path.display()));
         }
-        std::fs::rename(&self.partial, &self.path)
-            .map_err(|e| format!("{}: {e}", self.path.display()))
+        self.out
+            .settle(complete)
+            .map(drop)
+            .map_err(|e| e.to_string())
     }
 
-    /// Close and remove the unfinished file (a failed run leaves nothing).
+    /// Close and remove the unfinished file (a run that never started leaves nothing).
     pub fn abandon(mut self) {
         self.writer = None;
-        let _ = std::fs::remove_file(&self.partial);
+        self.out.discard();
     }
 
     fn meta(&mut self) {
@@ -826,22 +844,26 @@ impl Observer3 for Mcap3 {
                 scene.entities.push(self.contacts_entity(stamp, contacts));
                 self.send_proto(SCENE, t, &scene);
             }
-            Event3::End { steps, time } => {
-                // A failed run's file is removed, so a run end in the file is a completed run.
+            Event3::End { steps, time, error } => {
+                // A failed run's file keeps its `.partial` name, with the error as its end.
                 self.end = BTreeMap::from([
-                    ("completed".into(), "true".into()),
+                    ("completed".into(), error.is_none().to_string()),
                     ("steps".into(), steps.to_string()),
                     ("t".into(), time.to_string()),
-                    ("error".into(), String::new()),
+                    ("error".into(), error.unwrap_or_default().to_string()),
                 ]);
                 let t = ((time * 1e9).round() as u64).max(self.last_time);
+                let message = match error {
+                    None => format!("run completed: {steps} steps, t = {time} s"),
+                    Some(e) => format!("run failed after {steps} steps, t = {time} s: {e}"),
+                };
                 let msg = RunEnd3 {
                     kind: "run_end",
                     step: *steps,
                     t: *time,
-                    message: format!("run completed: {steps} steps, t = {time} s"),
-                    completed: true,
-                    error: None,
+                    message,
+                    completed: error.is_none(),
+                    error: error.map(str::to_string),
                 };
                 self.send(EVENT, t, &msg);
             }

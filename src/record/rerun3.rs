@@ -10,7 +10,9 @@
 //! `plots/grip_force` (their mean), `plots/fruit/<name>/z`, `solver/newton_iterations`,
 //! `solver/corrector_passes`; contact made/lost as a text log under `events`. The file opens
 //! with a blueprint: the Spatial3D scene beside the force and solver plots.
-//! The file is written as `<path>.partial` and renamed at [`Rrd3::finish`].
+//! The file is written as the planar files are ([`super::OutputFile`]: `NAME.partial.rrd`,
+//! renamed at [`Rrd3::finish`]; a failed run's file keeps the `.partial` name and ends with
+//! the error in `events`; a device is written through, a symlink followed).
 
 use crate::rod3d::events::{BodyPose3, Contact3, Event3, Observer3, Rod3Info, Rod3StepView};
 use crate::rod3d::events::{ContactChange3, Shape3Info};
@@ -72,8 +74,7 @@ pub fn blueprint3_with(extra: Vec<::rerun::blueprint::ContainerLike>) -> Bluepri
 /// Collects a 3D run into an `.rrd` file.
 pub struct Rrd3 {
     rec: Option<RecordingStream>,
-    path: PathBuf,
-    partial: PathBuf,
+    out: super::OutputFile,
     rods: Vec<Rod3Info>,
     shapes: Vec<Shape3Info>,
     /// Half size of a drawn plane (m).
@@ -96,20 +97,28 @@ impl Rrd3 {
 
     /// [`Rrd3::create`] with another layout (the replay overlays').
     pub fn create_with(path: &Path, name: &str, blueprint: Blueprint) -> Result<Rrd3, String> {
-        let partial = PathBuf::from(format!("{}.partial", path.display()));
+        let out = super::OutputFile::new(path);
+        // Makes the folder and removes an older final file (a device is only opened); the
+        // SDK's file sink opens what `writing` names: the partial file, or the device.
+        drop(out.create().map_err(|e| e.to_string())?);
+        let partial = out.writing().to_path_buf();
         let rec = RecordingStreamBuilder::new("gripsim")
             .recording_id(format!("{name}-3d"))
             .with_blueprint(blueprint)
             .save(&partial)
-            .map_err(|e| format!("{}: {e}", partial.display()))?;
+            .map_err(|e| {
+                out.discard();
+                format!("{}: {e}", partial.display())
+            })?;
         rec.set_log_time_enabled(false);
         rec.set_log_tick_enabled(false);
-        rec.send_recording_name(name.to_string())
-            .map_err(|e| format!("{}: {e}", partial.display()))?;
+        rec.send_recording_name(name.to_string()).map_err(|e| {
+            out.discard();
+            format!("{}: {e}", partial.display())
+        })?;
         Ok(Rrd3 {
             rec: Some(rec),
-            path: path.to_path_buf(),
-            partial,
+            out,
             rods: vec![],
             shapes: vec![],
             plane_half: 0.1,
@@ -131,26 +140,39 @@ impl Rrd3 {
     }
 
     /// Flush, close and move the file into place.
-    pub fn finish(mut self) -> Result<(), String> {
+    pub fn finish(self) -> Result<(), String> {
+        self.close(true)
+    }
+
+    /// Flush and close the file of a run that failed: it keeps its `.partial` name, as a
+    /// planar run's. Returns where it is.
+    pub fn finish_failed(self) -> Result<PathBuf, String> {
+        let at = self.out.writing().to_path_buf();
+        self.close(false).map(|_| at)
+    }
+
+    fn close(mut self, complete: bool) -> Result<(), String> {
         if let Some(rec) = self.rec.take() {
             rec.flush_blocking().map_err(|e| e.to_string())?;
             drop(rec);
         }
         if let Some(e) = self.error.take() {
-            let _ = std::fs::remove_file(&self.partial);
-            return Err(format!("{}: {e}", self.path.display()));
+            self.out.discard();
+            return Err(format!("{}: {e}", self.out.path.display()));
         }
-        std::fs::rename(&self.partial, &self.path)
-            .map_err(|e| format!("{}: {e}", self.path.display()))
+        self.out
+            .settle(complete)
+            .map(drop)
+            .map_err(|e| e.to_string())
     }
 
-    /// Close and remove the unfinished file (a failed run leaves nothing).
+    /// Close and remove the unfinished file (a replay that stopped leaves nothing).
     pub fn abandon(mut self) -> Result<(), String> {
         if let Some(rec) = self.rec.take() {
             let _ = rec.flush_blocking();
             drop(rec);
         }
-        let _ = std::fs::remove_file(&self.partial);
+        self.out.discard();
         Ok(())
     }
 
@@ -376,6 +398,19 @@ impl Observer3 for Rrd3 {
                     changes,
                     [*newton_iterations, *passes],
                 ))
+            }
+            Event3::End {
+                steps,
+                time,
+                error: Some(e),
+            } => {
+                rec.set_duration_secs("sim_time", *time);
+                rec.set_time_sequence("step", *steps as i64);
+                rec.log(
+                    "events",
+                    &TextLog::new(format!("run failed after step {steps}: {e}"))
+                        .with_level("ERROR"),
+                )
             }
             Event3::End { .. } => Ok(()),
         };

@@ -67,8 +67,12 @@ pub struct Check3Report {
     pub t_end: f64,
     /// Why the file was read only in part (null when whole).
     pub truncated: Option<String>,
-    /// The run's own end: true, or null when the file has no run-end record.
+    /// The run's own end: true, false for a run that failed, or null when the file has no
+    /// run-end record.
     pub completed: Option<bool>,
+    /// Why the run failed (its run-end record's error).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub run_error: Option<String>,
     /// The recording stops before its run's end (truncated, or no run end).
     pub incomplete: bool,
     pub scales: Scales,
@@ -428,6 +432,7 @@ impl Detector3 {
             t_end: self.t_end,
             truncated: None,
             completed: Some(true),
+            run_error: None,
             incomplete: false,
             scales: self.scales,
             thresholds: self.th,
@@ -469,6 +474,8 @@ pub struct Run3 {
     pub steps: Vec<Step3>,
     /// The run-end record's `completed` (None: the file has none, e.g. a killed run's).
     pub completed: Option<bool>,
+    /// The run-end record's `error` (a failed run's).
+    pub run_error: Option<String>,
     /// Why the file was read only in part (an unreadable message: the steps before it).
     pub truncated: Option<String>,
 }
@@ -485,6 +492,8 @@ struct EventIn {
     kind: String,
     #[serde(default)]
     completed: Option<bool>,
+    #[serde(default)]
+    error: Option<String>,
 }
 
 #[derive(serde::Deserialize)]
@@ -549,7 +558,7 @@ impl Run3 {
         let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read: {e}")))?;
         let mut meta = None;
         let mut steps = Vec::new();
-        let (mut completed, mut truncated) = (None, None);
+        let (mut completed, mut truncated, mut run_error) = (None, None, None);
         for m in mcap::MessageStream::new(&bytes).map_err(|e| err(e.to_string()))? {
             let m = match m {
                 Ok(m) => m,
@@ -565,6 +574,7 @@ impl Run3 {
                         .map_err(|e| err(format!("/sim/event: {e}")))?;
                     if e.kind == "run_end" {
                         completed = e.completed;
+                        run_error = e.error;
                     }
                 }
                 ("/sim/meta", _) => {
@@ -594,6 +604,7 @@ impl Run3 {
             sets: meta.sets,
             steps,
             completed,
+            run_error,
             truncated,
         })
     }
@@ -610,6 +621,7 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<Check3Report, ReplayError> 
     let mut rep = d.finish(&path.display().to_string(), &run.name);
     rep.incomplete = run.incomplete();
     rep.completed = run.completed;
+    rep.run_error = run.run_error;
     rep.truncated = run.truncated;
     Ok(rep)
 }
@@ -653,7 +665,11 @@ pub fn format_check(r: &Check3Report) -> String {
     if r.incomplete {
         s += &format!(
             "INCOMPLETE: the recording stops before the run's end ({}) (exit {} unless --allow-partial)\n",
-            r.truncated.as_deref().unwrap_or("no run-end record"),
+            match (&r.truncated, &r.run_error) {
+                (Some(why), _) => why.clone(),
+                (None, Some(e)) => format!("the run failed: {e}"),
+                (None, None) => "no run-end record".into(),
+            },
             super::EXIT_INCOMPLETE
         );
     }

@@ -152,9 +152,12 @@ pub enum Event3<'a> {
         passes: u32,
         switches: u32,
     },
+    /// The run's end: after the last step, or after the last accepted step of a run that
+    /// failed (`error` says why).
     End {
         steps: u64,
         time: f64,
+        error: Option<&'a str>,
     },
 }
 
@@ -349,6 +352,16 @@ impl World3 {
         obs.on_event(&Event3::End {
             steps: self.steps,
             time: self.time,
+            error: None,
+        });
+    }
+
+    /// [`Event3::End`] of a run that failed after its last accepted step.
+    pub fn fail_observed<O: Observer3>(&self, obs: &mut O, error: &str) {
+        obs.on_event(&Event3::End {
+            steps: self.steps,
+            time: self.time,
+            error: Some(error),
         });
     }
 

@@ -158,8 +158,9 @@ fn step_limit(sc: &Scenario3) -> u64 {
     }
 }
 
-/// Run `sc`, writing the CSV (if any) to `csv` (written as a .partial file, renamed at the
-/// end, removed on failure).
+/// Run `sc`, writing the CSV (if any) to `csv` (as the planar files are,
+/// [`crate::record::OutputFile`]: under a `.partial` name renamed at the end of a completed
+/// run; a failed run's file keeps the `.partial` name and ends at the last accepted step).
 pub fn run(sc: &Scenario3, csv: Option<&std::path::Path>) -> Result<Summary3, String> {
     run_observed(sc, csv, &mut NullObserver3)
 }
@@ -171,11 +172,10 @@ pub fn run_observed<O: Observer3>(
     obs: &mut O,
 ) -> Result<Summary3, String> {
     let (mut w, mut g) = build(sc)?;
-    let partial = csv.map(|p| p.with_extension("partial.csv"));
-    let mut file = match &partial {
-        Some(p) => {
-            let f = std::fs::File::create(p)
-                .map_err(|e| format!("{}: cannot create: {e}", p.display()))?;
+    let out = csv.map(crate::record::OutputFile::new);
+    let mut file = match &out {
+        Some(o) => {
+            let f = o.create().map_err(|e| e.to_string())?;
             let mut f = std::io::BufWriter::new(f);
             writeln!(f, "step,t,object,node,x,y,z,twist,contact,rx,ry,rz")
                 .map_err(|e| e.to_string())?;
@@ -184,15 +184,17 @@ pub fn run_observed<O: Observer3>(
         None => None,
     };
     let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs);
-    drop(file);
-    match (&result, &partial, csv) {
-        (Ok(_), Some(p), Some(c)) => {
-            std::fs::rename(p, c).map_err(|e| format!("{}: {e}", c.display()))?
+    if let Err(e) = &result {
+        // The sinks close their files with the error as the run's end.
+        w.fail_observed(obs, e);
+    }
+    let flushed = file.map(|mut f| std::io::Write::flush(&mut f));
+    if let Some(o) = &out {
+        if let Some(Err(e)) = flushed {
+            o.discard();
+            return Err(format!("{}: {e}", o.writing().display()));
         }
-        (Err(_), Some(p), _) => {
-            let _ = std::fs::remove_file(p);
-        }
-        _ => {}
+        o.settle(result.is_ok()).map_err(|e| e.to_string())?;
     }
     result
 }

@@ -842,3 +842,97 @@ fn item8_a_killed_run_leaves_whole_csv_rows() {
         }
     }
 }
+
+/// A 3D run (`dimension = 3`) follows the planar file rules: every output at a device is
+/// written through (the device stays), a symlinked output stays a symlink to the new file,
+/// and a run that fails keeps its files under their `.partial` names with the error as the
+/// run's end (exit 2): `replay check` reads it, says the run failed and exits 3.
+#[test]
+fn item1_3d_runs_follow_the_same_file_rules() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run3 = |sets: &[&str]| {
+        let mut c = gripsim();
+        c.arg("run").arg(scenario("3d-two-finger-sphere")).arg("-q");
+        for s in sets {
+            c.args(["--set", s]);
+        }
+        c
+    };
+    if let Some(null) = mknod(d, "null", 1, 3) {
+        let mut c = run3(&["solve.t_end=0.002"]);
+        for flag in ["--rrd", "--mcap", "--csv", "--summary"] {
+            c.arg(flag).arg(&null);
+        }
+        let r = run(&mut c, LIMIT);
+        assert_eq!(r.code, Some(0), "{r:?}");
+        assert!(is_char_device(&null), "the device was replaced");
+        assert_eq!(files_in(d), ["null"], "no .partial file left");
+        std::fs::remove_file(&null).unwrap();
+    }
+    let real = d.join("real.mcap");
+    std::fs::write(&real, b"old contents").unwrap();
+    let link = d.join("link.mcap");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let r = run(run3(&["solve.t_end=0.002"]).arg("--mcap").arg(&link), LIMIT);
+    assert_eq!(r.code, Some(0), "{r:?}");
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(&std::fs::read(&real).unwrap()[..8], b"\x89MCAP0\r\n");
+    assert_eq!(files_in(d), ["link.mcap", "real.mcap"]);
+
+    // Two Newton iterations are not enough where the fingers land.
+    let mut c = run3(&["solve.max_newton_iterations=2"]);
+    for (flag, name) in [("--rrd", "f.rrd"), ("--mcap", "f.mcap"), ("--csv", "f.csv")] {
+        c.arg(flag).arg(d.join(name));
+    }
+    let r = run(&mut c, LIMIT);
+    assert_eq!(r.code, Some(2), "{r:?}");
+    let e = error_line(&r);
+    println!("{e}");
+    assert!(e.contains("Newton did not converge"), "{e}");
+    assert!(
+        e.contains("f.partial.mcap") && e.contains("f.partial.rrd"),
+        "{e}"
+    );
+    assert_eq!(
+        files_in(d),
+        [
+            "f.partial.csv",
+            "f.partial.mcap",
+            "f.partial.rrd",
+            "link.mcap",
+            "real.mcap"
+        ]
+    );
+    // The failing step is the one after the last recorded.
+    let failed: u64 = e
+        .split("step ")
+        .nth(1)
+        .and_then(|x| x.split_whitespace().next())
+        .and_then(|x| x.parse().ok())
+        .expect("the error names the step");
+    let report = d.join("check.json");
+    let r = run(
+        gripsim()
+            .args(["replay", "check"])
+            .arg(d.join("f.partial.mcap"))
+            .arg("--json")
+            .arg(&report),
+        LIMIT,
+    );
+    assert_eq!(r.code, Some(3), "{r:?}");
+    assert!(r.stdout.contains("the run failed: step"), "{r:?}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(v["completed"], false);
+    assert_eq!(v["steps"].as_u64(), Some(failed - 1));
+    assert!(v["run_error"]
+        .as_str()
+        .is_some_and(|x| x.contains("Newton did not converge")));
+    let csv = std::fs::read_to_string(d.join("f.partial.csv")).unwrap();
+    let last = csv.lines().last().unwrap();
+    assert!(last.starts_with(&format!("{},", failed - 1)), "{last}");
+}
