@@ -386,7 +386,7 @@ fn file_name(name: &str) -> String {
 
 fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
     if gripsim::scenario::three::file_is_3d(path) {
-        return run3(path, &out, sets, quiet);
+        return run3(path, out, no_record, sets, quiet);
     }
     let sc = match Scenario::load(path, sets) {
         Ok(s) => s,
@@ -706,7 +706,7 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
 
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary and
 /// `.rrd` (src/record/rerun3.rs), with `--set` overrides.
-fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
+fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
     let sc = match gripsim::scenario::three::Scenario3::load_with(path, sets) {
         Ok(s) => s,
         Err(e) => {
@@ -714,6 +714,12 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    // As planar: with no output named, the run is recorded to recordings/<name>.rrd and .mcap.
+    if !no_record && out.rrd.is_none() && out.mcap.is_none() && out.csv.is_none() {
+        let base = Path::new("recordings").join(file_name(&sc.name));
+        out.rrd = Some(base.with_extension("rrd"));
+        out.mcap = Some(base.with_extension("mcap"));
+    }
     let check_json = out.check.as_ref().and_then(|(_, j)| j.clone());
     let outputs: Vec<(&str, &Path)> = [
         ("--rrd", &out.rrd),
@@ -782,7 +788,10 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
     if let Some(m) = mcap.as_mut() {
         sinks.sinks.push(m);
     }
-    let result = gripsim::rod3d::run3::run_observed(&sc, out.csv.as_deref(), &mut sinks);
+    // From here a signal stops the run after the current step and the files are closed.
+    install_signal_handlers();
+    let stop = || STOP.load(Ordering::Relaxed) != 0;
+    let result = gripsim::rod3d::run3::run_until(&sc, out.csv.as_deref(), &mut sinks, &stop);
     drop(sinks);
     // The recordings are closed either way: moved into place, or (a failed run) kept under
     // their `.partial` names with the error as the run's end, as a planar run's.
@@ -799,6 +808,14 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
                     Ok(p) => kept.push(p.display().to_string()),
                     Err(e) => eprintln!("error: {e}"),
                 }
+            }
+            let signal = STOP.load(Ordering::Relaxed);
+            if signal != 0 && e.starts_with(gripsim::rod3d::run3::INTERRUPTED) {
+                eprintln!(
+                    "{e} by {}; the recordings are closed and keep their .partial names",
+                    signal_name(signal)
+                );
+                return ExitCode::from(signal as u8);
             }
             let hint = if e.contains("did not converge") {
                 "hint: lower solve.dt or raise solve.max_newton_iterations; "
@@ -847,6 +864,21 @@ fn run3(path: &Path, out: &Outputs, sets: &[String], quiet: bool) -> ExitCode {
             "finger forces {:?} N (max grip {:.4} N); fruit {:?} -> {:?}; max twist {:.3e} rad; worst penetration {:.2e} m",
             s.finger_forces, s.max_grip_force, s.fruit_start, s.fruit_end, s.max_twist, s.worst_penetration
         );
+        for (format, p, how) in [
+            ("rerun", &out.rrd, "open: rerun FILE"),
+            ("mcap", &out.mcap, "open in Foxglove: 3D panel on /scene"),
+            ("csv", &out.csv, "one row per step, object and node"),
+        ] {
+            if let Some(p) = p {
+                let size = std::fs::metadata(p).map_or(0, |m| m.len());
+                let how = how.replace("FILE", &p.display().to_string());
+                println!(
+                    "  {format:<5} {} ({:.1} MB)  {how}",
+                    p.display(),
+                    size as f64 / 1e6
+                );
+            }
+        }
     }
     if let Some(c) = check {
         let report = c

@@ -667,7 +667,7 @@ pub fn format_check(r: &Check3Report) -> String {
             "INCOMPLETE: the recording stops before the run's end ({}) (exit {} unless --allow-partial)\n",
             match (&r.truncated, &r.run_error) {
                 (Some(why), _) => why.clone(),
-                (None, Some(e)) => format!("the run failed: {e}"),
+                (None, Some(e)) => format!("the run ended early: {e}"),
                 (None, None) => "no run-end record".into(),
             },
             super::EXIT_INCOMPLETE

@@ -171,6 +171,21 @@ pub fn run_observed<O: Observer3>(
     csv: Option<&std::path::Path>,
     obs: &mut O,
 ) -> Result<Summary3, String> {
+    run_until(sc, csv, obs, &|| false)
+}
+
+/// The message of a run that `stop` ended early: "interrupted at step N".
+pub const INTERRUPTED: &str = "interrupted at step";
+
+/// [`run_observed`], asking `stop` before every step: when it says true the run ends there
+/// as a failed run does (the files keep their `.partial` names), with the error
+/// "interrupted at step N" ([`INTERRUPTED`]).
+pub fn run_until<O: Observer3>(
+    sc: &Scenario3,
+    csv: Option<&std::path::Path>,
+    obs: &mut O,
+    stop: &dyn Fn() -> bool,
+) -> Result<Summary3, String> {
     let (mut w, mut g) = build(sc)?;
     let out = csv.map(crate::record::OutputFile::new);
     let mut file = match &out {
@@ -183,7 +198,7 @@ pub fn run_observed<O: Observer3>(
         }
         None => None,
     };
-    let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs);
+    let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs, stop);
     if let Err(e) = &result {
         // The sinks close their files with the error as the run's end.
         w.fail_observed(obs, e);
@@ -205,6 +220,7 @@ fn run_loop(
     g: &mut Gripper3,
     mut csv: Option<&mut std::io::BufWriter<std::fs::File>>,
     obs: &mut impl Observer3,
+    stop: &dyn Fn() -> bool,
 ) -> Result<Summary3, String> {
     let mut emit = Emit3::default();
     w.start_observed(&mut emit, obs);
@@ -232,6 +248,9 @@ fn run_loop(
     }
     let limit = step_limit(sc);
     while s.steps < limit && (sc.t_end.is_some() || !g.done()) {
+        if stop() {
+            return Err(format!("{INTERRUPTED} {}", s.steps));
+        }
         let t1 = (s.steps + 1) as f64 * sc.dt;
         g.drive(w, t1, sc.dt);
         let rep = w

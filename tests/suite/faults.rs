@@ -924,7 +924,7 @@ fn item1_3d_runs_follow_the_same_file_rules() {
         LIMIT,
     );
     assert_eq!(r.code, Some(3), "{r:?}");
-    assert!(r.stdout.contains("the run failed: step"), "{r:?}");
+    assert!(r.stdout.contains("the run ended early: step"), "{r:?}");
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(v["completed"], false);
@@ -935,4 +935,46 @@ fn item1_3d_runs_follow_the_same_file_rules() {
     let csv = std::fs::read_to_string(d.join("f.partial.csv")).unwrap();
     let last = csv.lines().last().unwrap();
     assert!(last.starts_with(&format!("{},", failed - 1)), "{last}");
+}
+
+/// SIGTERM stops a 3D run after the current step as it does a planar one: exit 143, the
+/// files closed under their `.partial` names (the MCAP with its footer and a run end that
+/// says "interrupted at step N"), `replay check` reads them and exits 3.
+#[test]
+fn item8_sigterm_closes_a_3d_runs_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut child = gripsim()
+        .arg("run")
+        .arg(scenario("3d-lift"))
+        .args(["-q", "--mcap"])
+        .arg(d.join("l.mcap"))
+        .arg("--csv")
+        .arg(d.join("l.csv"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_size(&d.join("l.partial.mcap"), 200_000, &mut child);
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(143), "{stderr}");
+    assert!(stderr.contains("by SIGTERM"), "{stderr}");
+    let mcap = std::fs::read(d.join("l.partial.mcap")).unwrap();
+    assert_eq!(
+        &mcap[mcap.len() - 8..],
+        b"\x89MCAP0\r\n",
+        "the MCAP was closed"
+    );
+    let csv = std::fs::read(d.join("l.partial.csv")).unwrap();
+    assert_eq!(csv.last(), Some(&b'\n'));
+    let r = run(
+        gripsim()
+            .args(["replay", "check"])
+            .arg(d.join("l.partial.mcap")),
+        LIMIT,
+    );
+    assert_eq!(r.code, Some(3), "{r:?}");
+    assert!(r.stdout.contains("interrupted at step"), "{r:?}");
 }
