@@ -631,17 +631,16 @@ impl Mcap3 {
 
     /// Close the file and move it into place.
     pub fn finish(self) -> Result<(), String> {
-        self.close(true)
+        self.close(true).map(drop)
     }
 
     /// Close the file of a run that failed (its run end says why): it keeps its `.partial`
     /// name, as a planar run's. Returns where it is.
     pub fn finish_failed(self) -> Result<PathBuf, String> {
-        let at = self.out.writing().to_path_buf();
-        self.close(false).map(|_| at)
+        self.close(false)
     }
 
-    fn close(mut self, complete: bool) -> Result<(), String> {
+    fn close(mut self, complete: bool) -> Result<PathBuf, String> {
         if let Some(mut w) = self.writer.take() {
             let mut closed = Ok(());
             if !self.end.is_empty() {
@@ -663,14 +662,7 @@ impl Mcap3 {
                 self.error.get_or_insert(e);
             }
         }
-        if let Some(e) = self.error.take() {
-            self.out.discard();
-            return Err(format!("{}: {e}", self.out.path.display()));
-        }
-        self.out
-            .settle(complete)
-            .map(drop)
-            .map_err(|e| e.to_string())
+        self.out.conclude(self.error.take(), complete)
     }
 
     /// Close and remove the unfinished file (a run that never started leaves nothing).

@@ -421,6 +421,18 @@ impl OutputFile {
             .map_err(io)
     }
 
+    /// After a sink closed its file: on the sink's `error` remove the partial file and report
+    /// the error naming the path; else [`OutputFile::settle`]. Returns where the file is.
+    pub fn conclude(&self, error: Option<String>, complete: bool) -> Result<PathBuf, String> {
+        if let Some(e) = error {
+            self.discard();
+            return Err(format!("{}: {e}", self.path.display()));
+        }
+        self.settle(complete)
+            .map(|f| f.path)
+            .map_err(|e| e.to_string())
+    }
+
     /// Remove the partial file of a failed write (nothing for a device).
     pub fn discard(&self) {
         if self.target == Target::File {

@@ -141,29 +141,21 @@ impl Rrd3 {
 
     /// Flush, close and move the file into place.
     pub fn finish(self) -> Result<(), String> {
-        self.close(true)
+        self.close(true).map(drop)
     }
 
     /// Flush and close the file of a run that failed: it keeps its `.partial` name, as a
     /// planar run's. Returns where it is.
     pub fn finish_failed(self) -> Result<PathBuf, String> {
-        let at = self.out.writing().to_path_buf();
-        self.close(false).map(|_| at)
+        self.close(false)
     }
 
-    fn close(mut self, complete: bool) -> Result<(), String> {
+    fn close(mut self, complete: bool) -> Result<PathBuf, String> {
         if let Some(rec) = self.rec.take() {
             rec.flush_blocking().map_err(|e| e.to_string())?;
             drop(rec);
         }
-        if let Some(e) = self.error.take() {
-            self.out.discard();
-            return Err(format!("{}: {e}", self.out.path.display()));
-        }
-        self.out
-            .settle(complete)
-            .map(drop)
-            .map_err(|e| e.to_string())
+        self.out.conclude(self.error.take(), complete)
     }
 
     /// Close and remove the unfinished file (a replay that stopped leaves nothing).

@@ -363,7 +363,13 @@ fn set_overrides_a_3d_scenario_with_the_planar_rules() {
         gripsim()
             .arg("run")
             .arg(&sc)
-            .args(["-q", "--no-record", "--set", "solve.t_end=0.01", "--summary"])
+            .args([
+                "-q",
+                "--no-record",
+                "--set",
+                "solve.t_end=0.01",
+                "--summary",
+            ])
             .arg(d.join("s.json")),
     );
     assert_eq!(json(&d.join("s.json"))["steps"].as_u64(), Some(100));
