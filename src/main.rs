@@ -637,10 +637,22 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions, auto: Optio
     if files.is_empty() {
         return;
     }
+    // The .rrd sends its columns at every RRD_FLUSH_POINTS-th flush, or sooner when they
+    // reach RRD_CHUNK_BYTES (src/record/rerun.rs).
+    let rrd = if files.iter().any(|(f, _)| *f == "rerun") {
+        format!(
+            "; the .rrd: written at least every {} steps",
+            opts.flush_every
+                .saturating_mul(gripsim::record::rerun::RRD_FLUSH_POINTS as u64)
+        )
+    } else {
+        String::new()
+    };
     say!(
-        "recordings      ({} detail, readable up to the last multiple of {} steps if the run dies)",
+        "recordings      ({} detail, readable up to the last multiple of {} steps if the run dies{})",
         opts.detail.describe(),
-        opts.flush_every
+        opts.flush_every,
+        rrd
     );
     if let Some(a) = auto {
         say!(
