@@ -641,7 +641,7 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions, auto: Optio
     // reach RRD_CHUNK_BYTES (src/record/rerun.rs).
     let rrd = if files.iter().any(|(f, _)| *f == "rerun") {
         format!(
-            "; the .rrd: written at least every {} steps",
+            "; the .rrd: every {} steps or 1 MiB, whichever first",
             opts.flush_every
                 .saturating_mul(gripsim::record::rerun::RRD_FLUSH_POINTS as u64)
         )

@@ -870,10 +870,12 @@ impl RerunSink {
         // carries its schema and per-row time columns.
         if step.is_multiple_of(self.opts.flush_every) {
             self.flush_points += 1;
-            if self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES {
-                self.flush(&rec);
+            let columns =
+                self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES;
+            if columns {
                 self.flush_points = 0;
             }
+            self.flush(&rec, columns);
         }
     }
 
@@ -1215,18 +1217,23 @@ impl RerunSink {
             .unwrap_or_else(|| r.to_string())
     }
 
-    /// Send the buffered series and make the file readable up to here. The wait for the
-    /// SDK's writer thread is bounded: a writer that died (disk full) or hangs fails the
-    /// recording instead of the run waiting forever.
-    fn flush(&mut self, rec: &RecordingStream) {
-        let mut r = self.per_step.send(rec);
-        for s in &mut self.per_iteration {
-            r = r.and_then(|_| s.send(rec));
+    /// Send the buffered columns (with `columns`) and make the file readable up to here: the
+    /// rows logged so far (events, iterates, the sparse entities) close their chunks at every
+    /// flush point, as before, so the chunking of those is the same in every run of the same
+    /// data (`replay show` and the live run agree chunk for chunk). The wait for the SDK's
+    /// writer thread is bounded: a writer that died (disk full) or hangs fails the recording
+    /// instead of the run waiting forever.
+    fn flush(&mut self, rec: &RecordingStream, columns: bool) {
+        if columns {
+            let mut r = self.per_step.send(rec);
+            for s in &mut self.per_iteration {
+                r = r.and_then(|_| s.send(rec));
+            }
+            for (c, e) in self.scene.iter_mut().zip(&self.rods) {
+                r = r.and_then(|_| c.send(rec, e));
+            }
+            self.check(r);
         }
-        for (c, e) in self.scene.iter_mut().zip(&self.rods) {
-            r = r.and_then(|_| c.send(rec, e));
-        }
-        self.check(r);
         if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
             let e = match e {
                 ::rerun::sink::SinkFlushError::Timeout => format!(
@@ -1240,16 +1247,17 @@ impl RerunSink {
     }
 }
 
-/// The `.rrd` sink sends its buffered columns (and makes the file readable up to there) at
-/// every this many-th flush point (a step that is a multiple of `flush_every`: every 1 000
-/// steps by default)...
+/// The `.rrd` sink sends its buffered per-step columns at every this many-th flush point (a
+/// step that is a multiple of `flush_every`: every 1 000 steps by default; the rows logged
+/// one by one close their chunks at every flush point)...
 pub const RRD_FLUSH_POINTS: u32 = 10;
 
 /// ... or at an earlier flush point once they hold this many bytes of column data (values and
 /// time columns, as Arrow holds them; ~1 000 steps of the two-prong grasp). Per entity and
 /// send the file gets one chunk with its own schema (~1.7 KiB) and time columns, so fewer,
 /// larger chunks make a smaller file and less work for the SDK's encoder (two-prong grasp at
-/// step detail: 1 266 chunks, 46.5 B/node-step when every flush sent them; 230, 36.0 now).
+/// step detail: 1 266 chunks, 46.6 B/node-step in the bench when every flush sent them; 254,
+/// 36.4 now).
 /// A run killed by SIGKILL loses the `.rrd`'s last send interval; a stop by a signal, an
 /// error or the run's end sends everything.
 pub const RRD_CHUNK_BYTES: usize = 1 << 20;
@@ -2246,7 +2254,7 @@ impl Recording for RerunSink {
     fn finish(&mut self) -> Result<Finished, RecordError> {
         if let Some(rec) = self.rec.take() {
             if self.error.is_none() {
-                self.flush(&rec);
+                self.flush(&rec, true);
             }
             // The stream sends what it still holds, then the file is ended here.
             match close_stream(rec) {
