@@ -94,6 +94,9 @@ struct RodOut {
     stress: Vec<f64>,
     gap: Vec<f64>,
     q_pred: Vec<f64>,
+    /// BDF2's contact impulse over the history's last interval (the step's impulse, or the
+    /// step before a sliver and the sliver together).
+    impulse_hist: Vec<f64>,
 }
 
 impl RodOut {
@@ -110,6 +113,7 @@ impl RodOut {
             stress: vec![0.0; n],
             gap: vec![f64::INFINITY; n],
             q_pred: vec![0.0; 2 * n],
+            impulse_hist: vec![0.0; 2 * n],
         }
     }
 }
@@ -207,6 +211,9 @@ pub struct Simulation {
     dirty: Vec<bool>,
     is_member: Vec<bool>,
     group_dirty: bool,
+    /// The step being solved is the first part of a step split at a time of impact or
+    /// release.
+    split_step: bool,
     /// Step-end outputs of the contacts and bodies.
     contact_out: Vec<ContactView>,
     body_out: Vec<BodyOut>,
@@ -289,6 +296,7 @@ impl Simulation {
             dirty: vec![false; n_rods],
             is_member: vec![false; n_rods],
             group_dirty: false,
+            split_step: false,
             contact_out: Vec::new(),
         };
         sim.place_bodies(true);
@@ -474,7 +482,10 @@ impl Simulation {
         let mut allow_split = self.scenario.solve.time_of_impact;
         let mut split_from = None;
         loop {
-            let (new_dt, reason) = match self.try_step(*dt, 0.0, allow_split, obs) {
+            self.split_step = split_from.is_some();
+            let result = self.try_step(*dt, 0.0, allow_split, obs);
+            self.split_step = false;
+            let (new_dt, reason) = match result {
                 Ok(()) => {
                     if let Some(rest) = split_from {
                         self.resume_after_split(rest);
@@ -783,7 +794,9 @@ impl Simulation {
     /// first order under BDF2 (contact, no smooth history) are counted in
     /// [`RunStats::first_order_node_steps`] and estimated as backward Euler. The tolerance is
     /// atol + rtol · L (the rod length). Nodes whose contact state changed in this step are
-    /// left out: their velocity jump is the modelled inelastic impact, not truncation error.
+    /// left out: their velocity jump is the modelled inelastic impact, not truncation error —
+    /// except a release taken on the BDF2 row, estimated as a free node (its acceleration
+    /// jumps by the reaction it had on the surface, which the estimate sees).
     /// A node held at both ends of the step counts its tangential part only
     /// ([`held_part`]): along the contact normal its position is the constraint's.
     fn error_estimate(&mut self, dt: f64) -> (f64, f64) {
@@ -795,10 +808,13 @@ impl Simulation {
             // A particle's length scale is 1 m (see `Rod::length`).
             let tol = s.atol + s.rtol * rod.length;
             for i in 0..rod.n {
-                if rod.clamped[i] || w.contact_saved[i].is_some() != w.contact[i].is_some() {
+                let second = w.second_order(i);
+                if rod.clamped[i]
+                    || (!second && w.contact_saved[i].is_some() != w.contact[i].is_some())
+                {
                     continue;
                 }
-                if w.second_order(i) {
+                if second {
                     let b = &w.bdf;
                     let mut da = [0.0; 2];
                     for (a, d) in da.iter_mut().enumerate() {
@@ -891,6 +907,7 @@ impl Simulation {
         self.work[r].u.copy_from_slice(u);
         self.work[r].a.fill(0.0);
         self.work[r].bdf.hist.fill(false);
+        self.work[r].bdf.settled.fill(false);
         self.work[r].bdf.dt_prev = 0.0;
         let rod = &self.rods[r];
         let w = &mut self.work[r];

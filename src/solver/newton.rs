@@ -127,26 +127,43 @@ pub struct Bdf2 {
     /// The last accepted step's Δq and the velocity before it.
     pub dq_prev: Vec<f64>,
     pub u_prev: Vec<f64>,
-    /// Per node: the last accepted step kept its contact state (a smooth history).
+    /// Per node: the last accepted step's motion was smooth (a history BDF2 may extrapolate):
+    /// it kept its contact state — free at both ends, or held at both ends after a whole held
+    /// step before it (the first held step after a landing stops the node along the normal:
+    /// its start velocity is the impact's, see `settled`) — or it was a release the node took
+    /// on the BDF2 row.
     pub hist: Vec<bool>,
+    /// Per node: held at both ends of the last accepted step (whatever impact it took is
+    /// behind it).
+    pub settled: Vec<bool>,
     /// Per node: the last accepted step took the BDF2 row (its contact impulse is then
     /// BDF2's, see `Simulation::fill_outputs`).
     pub second: Vec<bool>,
     /// The last accepted step's dt (0 before the first).
     pub dt_prev: f64,
+    /// The accelerations a_k of the step before the last (the predictor extrapolates a).
+    pub a_prev: Vec<f64>,
+    /// dt / dt_prev of the step being solved.
+    pub omega: f64,
+    /// The last accepted step was a sliver folded into the history (see
+    /// `Simulation::accept`): the history spans the step before it and the sliver.
+    pub merged: bool,
 }
 
 impl RodWork {
     /// Whether node i takes the BDF2 row in the step being solved: a smooth history and the
     /// same contact state at the start and now ([`smooth_contact`]: free, or held the same
-    /// way on the same fixed surface). A step that changes the state (impact, release,
-    /// stick/slip switch) is first order: the modified mass method's inelastic impact and its
-    /// impulse bookkeeping are backward Euler's.
+    /// way on the same fixed surface), or a release (held at the start, free now: the node
+    /// leaves the surface with the velocity it had on it, so its motion stays smooth; the
+    /// error estimate judges the step like any other second-order step). A step that starts
+    /// or changes a contact (impact, stick/slip switch) is first order: the modified mass
+    /// method's inelastic impact and its impulse bookkeeping are backward Euler's.
     #[inline(always)]
     pub fn second_order(&self, i: usize) -> bool {
         self.bdf.on
             && self.bdf.hist[i]
-            && smooth_contact(self.contact_saved[i], self.contact[i])
+            && (smooth_contact(self.contact_saved[i], self.contact[i])
+                || released_from_fixed(self.contact_saved[i], self.contact[i]))
             && !self.edge_nodes[i]
     }
 
@@ -173,6 +190,7 @@ impl RodWork {
         if !b.on {
             return;
         }
+        b.omega = omega;
         b.alpha = omega * omega / (1.0 + 2.0 * omega);
         b.beta = dt * (1.0 + omega) / (1.0 + 2.0 * omega);
         b.c = 1.0 / (b.beta * b.beta);
@@ -205,6 +223,12 @@ pub fn smooth_contact(a: Option<Constraint>, b: Option<Constraint>) -> bool {
         }
         _ => false,
     }
+}
+
+/// Held on a fixed surface at the start of a step (`a`), free at its end (`b`).
+#[inline(always)]
+pub fn released_from_fixed(a: Option<Constraint>, b: Option<Constraint>) -> bool {
+    matches!((a, b), (Some(a), None) if a.body.is_none())
 }
 
 /// Why Newton gave up.
@@ -339,7 +363,9 @@ impl RodWork {
                 s: vec![0.0; 2 * n],
                 dq_prev: vec![0.0; 2 * n],
                 u_prev: vec![0.0; 2 * n],
+                a_prev: vec![0.0; 2 * n],
                 hist: vec![false; n],
+                settled: vec![false; n],
                 second: vec![false; n],
                 ..Bdf2::default()
             },

@@ -48,13 +48,22 @@ impl Simulation {
                 // BDF2's contact impulse: m (Δu_k − α Δu_{k−1}) = β (f + R) per step, so the
                 // impulse J_k = β R + α J_{k−1} makes the impulses add up to the momentum
                 // change (R dt does not), and it is ∫ R dt to second order.
+                // The history's last interval is the last step's, or the step before a
+                // sliver and the sliver together (`impulse_hist`).
                 let b = &w.bdf;
-                o.impulse[2 * i] = b.beta * o.reaction[2 * i] + b.alpha * o.impulse[2 * i];
-                o.impulse[2 * i + 1] =
-                    b.beta * o.reaction[2 * i + 1] + b.alpha * o.impulse[2 * i + 1];
+                for k in 2 * i..2 * i + 2 {
+                    o.impulse[k] = b.beta * o.reaction[k] + b.alpha * o.impulse_hist[k];
+                }
             } else {
                 o.impulse[2 * i] = o.reaction[2 * i] * dt;
                 o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
+            }
+            for k in 2 * i..2 * i + 2 {
+                o.impulse_hist[k] = if w.bdf.merged && !initial {
+                    o.impulse_hist[k] + o.impulse[k]
+                } else {
+                    o.impulse[k]
+                };
             }
             let held = held_by(w, i, c, pressed, rod.clamped[i], initial);
             let n = held.map_or([0.0; 2], |h| h.0);

@@ -26,18 +26,30 @@ pub(super) struct StepCtx {
 /// The Newton start of free DOF k (node i) in a dynamic step of size dt: the step's own
 /// update rule with the last step's acceleration a_k in place of a_{k+1}, so it is off by
 /// O(dt³) where the motion is smooth. Backward Euler: Δq = dt u + dt² a. BDF2 (a node that
-/// takes its row, see [`newton::RodWork::second_order`]): Δq = s + β² a, with s the BDF2
-/// offset (the extrapolation of the last two steps); backward Euler's start there is off
-/// by ½ dt² a and costs a second Newton iteration on most steps.
+/// takes its row, see [`newton::RodWork::second_order`]): Δq = s + β² â, with s the BDF2
+/// offset (the extrapolation of the last two steps) and â = a_k + ω (a_k − a_{k−1}) the
+/// acceleration extrapolated linearly (a_k alone after a sliver folded into the history),
+/// which makes the start O(dt⁴) off; backward Euler's start there is off by ½ dt² a and
+/// costs a second Newton iteration on most steps.
 #[inline]
 fn predictor(w: &newton::RodWork, i: usize, k: usize, dt: f64) -> f64 {
     let b = &w.bdf;
     if b.on && b.hist[i] && !w.edge_nodes[i] {
-        b.s[k] + b.beta * b.beta * w.a[k]
+        let a = if !b.merged {
+            w.a[k] + b.omega * (w.a[k] - b.a_prev[k])
+        } else {
+            w.a[k]
+        };
+        b.s[k] + b.beta * b.beta * a
     } else {
         dt * w.u[k] + dt * dt * w.a[k]
     }
 }
+
+/// A split step shorter than this fraction of the step before it is a sliver, folded into the
+/// BDF2 history (BDF2's step ratio ω = dt/dt_prev must stay below 1 + √2; the step after a
+/// sliver would exceed it).
+const SLIVER: f64 = 0.25;
 
 impl Simulation {
     pub(super) fn step_ctx(
@@ -427,40 +439,8 @@ impl Simulation {
         }
         let mut max_pen = self.stats.max_penetration;
         for r in 0..self.rods.len() {
-            let rod = &self.rods[r];
-            let w = &mut self.work[r];
-            for i in 0..rod.n {
-                let second = w.second_order(i);
-                for k in 2 * i..2 * i + 2 {
-                    let qn = w.q[k] + w.dq[k];
-                    let u0 = w.u[k];
-                    if second {
-                        let b = &w.bdf;
-                        let un = (w.dq[k] - b.alpha * b.dq_prev[k]) / b.beta;
-                        let hu = u0 + b.alpha * (u0 - b.u_prev[k]);
-                        w.a[k] = (un - hu) / b.beta;
-                        w.u[k] = un;
-                    } else if ctx.dynamic {
-                        let un = w.dq[k] / ctx.dt;
-                        w.a[k] = (un - w.u[k]) / ctx.dt;
-                        w.u[k] = un;
-                    } else {
-                        w.u[k] = 0.0;
-                    }
-                    if ctx.bdf2 {
-                        w.bdf.dq_prev[k] = w.dq[k];
-                        w.bdf.u_prev[k] = u0;
-                    }
-                    w.q[k] = qn;
-                }
-                w.bdf.second[i] = second;
-                w.bdf.hist[i] = ctx.bdf2
-                    && !rod.clamped[i]
-                    && newton::smooth_contact(w.contact_saved[i], w.contact[i])
-                    && !w.edge_nodes[i];
-            }
-            w.bdf.dt_prev = if ctx.bdf2 { ctx.dt } else { 0.0 };
-            w.clear_release_marks();
+            let merge = ctx.bdf2 && self.split_step && ctx.dt < SLIVER * self.work[r].bdf.dt_prev;
+            advance_rod(&self.rods[r], &mut self.work[r], ctx, merge);
         }
         self.remember_reactions();
         self.driven_velocities(ctx);
@@ -580,4 +560,62 @@ impl Simulation {
         }
         pen
     }
+}
+
+/// Advance rod state over an accepted step: positions, velocities and accelerations (each
+/// node by the row it took), and the BDF2 history the next step extrapolates. `merge`: the
+/// step is a time-of-impact sliver (a split step much shorter than the step before it),
+/// folded into the history instead of replacing it, so that the next step is BDF2 over
+/// t_{k−2}, t_k, t_{k+1} (ω = dt / (dt_{k−1} + dt_sliver)) where it would otherwise exceed
+/// BDF2's step ratio and fall back to backward Euler.
+fn advance_rod(rod: &crate::model::Rod, w: &mut newton::RodWork, ctx: &StepCtx, merge: bool) {
+    for i in 0..rod.n {
+        let second = w.second_order(i);
+        for k in 2 * i..2 * i + 2 {
+            let qn = w.q[k] + w.dq[k];
+            let u0 = w.u[k];
+            if !merge {
+                w.bdf.a_prev[k] = w.a[k];
+            }
+            if second {
+                let b = &w.bdf;
+                let un = (w.dq[k] - b.alpha * b.dq_prev[k]) / b.beta;
+                let hu = u0 + b.alpha * (u0 - b.u_prev[k]);
+                w.a[k] = (un - hu) / b.beta;
+                w.u[k] = un;
+            } else if ctx.dynamic {
+                let un = w.dq[k] / ctx.dt;
+                w.a[k] = (un - w.u[k]) / ctx.dt;
+                w.u[k] = un;
+            } else {
+                w.u[k] = 0.0;
+            }
+            if merge {
+                w.bdf.dq_prev[k] += w.dq[k];
+            } else if ctx.bdf2 {
+                w.bdf.dq_prev[k] = w.dq[k];
+                w.bdf.u_prev[k] = u0;
+            }
+            w.q[k] = qn;
+        }
+        w.bdf.second[i] = second;
+        let (c0, c1) = (w.contact_saved[i], w.contact[i]);
+        let smooth = newton::smooth_contact(c0, c1);
+        // Held at both ends: smooth only once the node was held through the step
+        // before too (the first held step after a landing stops it along the normal,
+        // so its start velocity is the impact's and BDF2 would extrapolate the stop).
+        let kept = smooth && (c1.is_none() || w.bdf.settled[i]);
+        let released = second && newton::released_from_fixed(c0, c1);
+        let hist = ctx.bdf2 && !rod.clamped[i] && (kept || released) && !w.edge_nodes[i];
+        // Merged: smooth over the step before the sliver and over the sliver.
+        w.bdf.hist[i] = hist && (!merge || w.bdf.hist[i]);
+        w.bdf.settled[i] = smooth && c1.is_some() && (!merge || w.bdf.settled[i]);
+    }
+    w.bdf.dt_prev = match (ctx.bdf2, merge) {
+        (false, _) => 0.0,
+        (true, true) => w.bdf.dt_prev + ctx.dt,
+        (true, false) => ctx.dt,
+    };
+    w.bdf.merged = merge;
+    w.clear_release_marks();
 }
