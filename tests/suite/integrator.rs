@@ -324,10 +324,11 @@ fn bdf2_stays_second_order_in_persistent_contact_on_a_curved_surface() {
     assert!(ex[2] < 1e-8 && ej[2] < 1e-10, "{ex:?} {ej:?}");
 }
 
-/// The Newton start of a BDF2 step is BDF2's own update with the last acceleration
-/// (Δq = s + β² a, off by O(dt³)), not backward Euler's dt u + dt² a (off by ½ dt² a): at a
-/// fixed dt = 3e-5 the seed grasp takes one Newton iteration per step (measured 2 012 for
-/// 2 000 steps; 2 676 from backward Euler's start). Counts, not wall clock.
+/// The Newton start of a BDF2 step is BDF2's own update with the acceleration extrapolated
+/// from the last two steps (Δq = s + β² (a_k + ω (a_k − a_{k−1})), off by O(dt⁴)), not
+/// backward Euler's dt u + dt² a (off by ½ dt² a): at a fixed dt = 3e-5 the seed grasp takes
+/// one Newton iteration per step (measured 2 006 for 2 000 steps; 2 012 with a_k alone,
+/// 2 676 from backward Euler's start). Counts, not wall clock.
 #[test]
 fn bdf2_steps_start_newton_from_their_own_extrapolation() {
     let text = std::fs::read_to_string(crate::common::scenario("seed-grasp-r5")).unwrap();
@@ -364,9 +365,9 @@ fn bdf2_steps_start_newton_from_their_own_extrapolation() {
 }
 
 /// Adaptive BDF2 takes about two Newton iterations per step at its long steps (one update
-/// from the O(dt³) start leaves the residual above `force_tol`); the second is a chord update
-/// on the factorised Jacobian. Seed grasp, rtol = 1e-6 (measured: 246 steps, 498 iterations,
-/// 274 factorisations over every attempt, 6 rejected; backward Euler at a fixed dt factorises
+/// from the O(dt⁴) start leaves the residual above `force_tol`); the second is a chord update
+/// on the factorised Jacobian. Seed grasp, rtol = 1e-6 (measured: 247 steps, 468 iterations,
+/// 265 factorisations over every attempt, 4 rejected; backward Euler at a fixed dt factorises
 /// once per iteration).
 #[test]
 fn adaptive_bdf2_reuses_the_jacobian_for_its_second_iteration() {
