@@ -565,7 +565,10 @@ fn sets_of(v: &[&str]) -> Vec<String> {
 /// release step (which keeps the BDF2 row) extrapolate the stop, u + α (u − u_prev): a
 /// spurious rebound of α · 0.5 m/s ≈ 0.17 m/s along the normal here. A node keeps a BDF2
 /// history only after a whole held step. Checked against the closed form (0.8253, −0.7606)
-/// m/s at 0.03 s and the fixed dt = 1e-6 run; measured in the doc of docs/model.md.
+/// m/s at 0.03 s and the fixed dt = 1e-6 run, within 1e-2 m/s: a tenth of the rebound, and
+/// above the first-order error of holding the node for a step or two where it should fly
+/// (≈ 20 m/s² × dt). Measured: 8.1e-4 (dt = 1e-4), 3.0e-4 (3e-5) and 4.4e-3 m/s (adaptive,
+/// whose steps after the landing are up to 1 ms); the reference is 1e-5 m/s off the closed form.
 #[test]
 fn a_node_released_right_after_landing_does_not_rebound_under_bdf2() {
     let exact = [0.8253356149096783, -0.7606424733950353];
@@ -594,7 +597,7 @@ fn a_node_released_right_after_landing_does_not_rebound_under_bdf2() {
             gap(u, u_ref)
         );
         assert!(held >= 1 && held <= 3, "{sets:?}: held {held} steps");
-        assert!(gap(u, u_ref) < 5e-3, "{sets:?}: {u:?} against {u_ref:?}");
+        assert!(gap(u, u_ref) < 1e-2, "{sets:?}: {u:?} against {u_ref:?}");
     }
 }
 
@@ -621,11 +624,11 @@ fn bdf2_stays_second_order_through_a_smooth_release() {
         "reference: u {u_ref:?} q {q_ref:?}, held {held_ref} steps; closed-form vx {vx_exact}"
     );
     assert!(
-        q_ref[0].hypot(q_ref[1]) > 0.051,
+        q_ref[0].hypot(q_ref[1]) > 0.0505,
         "the bead left the circle: {q_ref:?}"
     );
     assert!(
-        (u_ref[0] - vx_exact).abs() < 1e-4,
+        (u_ref[0] - vx_exact).abs() < 1e-6,
         "{} against {vx_exact}",
         u_ref[0]
     );
