@@ -4,9 +4,11 @@
 //!
 //! Exact for a sphere (the foot of the perpendicular from its centre, clamped to the segment)
 //! and for a plane (the signed distance is linear along the segment, so an end is deepest and
-//! the contact is the nodes'). Otherwise a golden-section search of the signed distance along
-//! the segment: the signed distance of a convex solid (ellipsoid, box) is a convex function,
-//! so the search finds the deepest point; on a non-convex mesh it finds a local minimum.
+//! the contact is the nodes'). For an ellipsoid the root of the signed distance's slope along
+//! the segment (regula falsi, [`deepest_convex`]). Otherwise a golden-section search of the
+//! signed distance along the segment: the signed distance of a convex solid (box) is a convex
+//! function, so the search finds the deepest point; on a non-convex mesh it finds a local
+//! minimum.
 
 use super::{Obstacle3, Proximity3, Shape3, V3};
 
@@ -41,9 +43,68 @@ pub fn deepest(o: &Obstacle3, a: &V3, b: &V3) -> (f64, Proximity3) {
                 (0.0, qa)
             };
         }
+        Shape3::Ellipsoid { .. } => return deepest_convex(&at, &e),
         _ => {}
     }
     crate::obstacle::deepest_along(at, |q| q.distance, 80)
+}
+
+/// The deepest point of a segment in a smooth convex solid (an ellipsoid): its signed
+/// distance f(s) is convex with f'(s) = n(s)·e (the outward normal at the closest point), so
+/// an end is deepest when f' does not change sign, and otherwise the root of f' is found by
+/// regula falsi with the Illinois rule on its bracket (a few queries, where a golden-section
+/// search of f needs some sixty of the ellipsoid's iterative closest-point queries).
+fn deepest_convex(at: &impl Fn(f64) -> Proximity3, e: &V3) -> (f64, Proximity3) {
+    let (q0, q1) = (at(0.0), at(1.0));
+    let (mut g0, mut g1) = (q0.normal.dot(e), q1.normal.dot(e));
+    if g0 >= 0.0 || g1 <= 0.0 {
+        // Monotone along the segment: the lower end is deepest (ends win ties).
+        return if q1.distance < q0.distance {
+            (1.0, q1)
+        } else {
+            (0.0, q0)
+        };
+    }
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    let mut side = 0i8;
+    for _ in 0..100 {
+        let s = ((lo * g1 - hi * g0) / (g1 - g0)).clamp(lo, hi);
+        let s = if s <= lo || s >= hi {
+            0.5 * (lo + hi)
+        } else {
+            s
+        };
+        let q = at(s);
+        let g = q.normal.dot(e);
+        if g.abs() <= 1e-14 * e.norm() {
+            return (s, q);
+        }
+        if g < 0.0 {
+            (lo, g0) = (s, g);
+            if side == -1 {
+                g1 *= 0.5;
+            }
+            side = -1;
+        } else {
+            (hi, g1) = (s, g);
+            if side == 1 {
+                g0 *= 0.5;
+            }
+            side = 1;
+        }
+        if hi - lo < 1e-13 {
+            break;
+        }
+    }
+    let mid = 0.5 * (lo + hi);
+    let best = (mid, at(mid));
+    if q0.distance <= best.1.distance {
+        return (0.0, q0);
+    }
+    if q1.distance <= best.1.distance {
+        return (1.0, q1);
+    }
+    best
 }
 
 #[cfg(test)]

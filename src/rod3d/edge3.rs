@@ -17,14 +17,20 @@
 //! contact; a contact whose multiplier pulls is released (once per step); one whose segment
 //! turned so its deepest point moved is re-linearised there.
 //!
-//! Edge contacts are frictionless: the tangential force at a point between nodes is not
-//! modelled (docs/model.md, "Edge contact in 3D").
+//! Coulomb friction as on a node ([`super::contact3`]), with the same μ_s, μ_k and rules: a
+//! stuck edge contact holds the whole point at an anchor on the tangent plane (three equations
+//! and multipliers: the force F = λ_n n + λ₁ t₁ + λ₂ t₂ on the segment, in the contact basis
+//! (n, t₁, t₂)); a sliding one holds the normal only and carries the kinetic force,
+//! F = λ (n − μ_k d) with d its slip direction (one multiplier; the column differs from the
+//! row). It slides when |F_t| > μ_s F_n, sticks again when its point's slip velocity turns
+//! against d, at most `MAX_SWITCHES` times a step ([`super::contact3::decide`]).
 
 use super::body3::lever_map;
-use super::contact3::Surface3;
+use super::contact3::{Contact3, Grip3, Surface3};
 use super::rod::pos;
+use crate::contact::friction::Coulomb;
 use crate::obstacle3::V3;
-use nalgebra::Vector6;
+use nalgebra::{Matrix3, Vector6};
 
 /// A segment's deepest point closer than this (as a fraction of the segment) to one of its
 /// nodes is that node's contact, not the segment's (the planar rule).
@@ -60,6 +66,13 @@ pub struct EdgeContact3 {
     pub point: V3,
     /// The multiplier λ: the normal force on the segment (N, positive when pressing).
     pub force: f64,
+    /// The tangential (friction) force on the segment (world, N).
+    pub friction: V3,
+    /// Stuck at an anchor (on the tangent plane, + G ΔX on a body) or sliding.
+    pub grip: Grip3,
+    pub coulomb: Coulomb,
+    /// Stick/slip switches in this step.
+    pub switches: u8,
     /// Released (or dropped) once in this step and re-added: kept for the rest of the step.
     pub locked: bool,
     /// Re-linearisations in this step (at most [`MAX_RELINEARISED`]).
@@ -95,9 +108,96 @@ impl EdgeContact3 {
         self.normal.dot(&self.held_point(q)) - self.target - self.body_row().dot(dx)
     }
 
-    /// The reaction on node `segment + k` (k = 0, 1): its share of λ n (world, N).
+    /// The reaction on node `segment + k` (k = 0, 1): its share of the force F (world, N).
     pub fn node_force(&self, k: usize) -> V3 {
-        self.normal * (self.force * self.weights()[k])
+        self.total_force() * self.weights()[k]
+    }
+
+    /// The force F = λ n + friction on the segment (world, N).
+    pub fn total_force(&self) -> V3 {
+        self.normal * self.force + self.friction
+    }
+
+    /// The contact as a node contact would see it (basis, friction rules).
+    pub fn as_node(&self) -> Contact3 {
+        Contact3 {
+            surface: self.surface,
+            normal: self.normal,
+            target: self.target,
+            lever: self.lever,
+            offset: self.offset,
+            grip: self.grip,
+            coulomb: self.coulomb,
+            switches: self.switches,
+            locked: self.locked,
+        }
+    }
+
+    /// Its unknowns in the Newton system: 3 stuck, 1 sliding.
+    pub fn unknowns(&self) -> usize {
+        self.as_node().held()
+    }
+
+    /// Unknown u's (column, row) directions (world): the force on the segment per unit
+    /// multiplier, and the direction the constraint holds the point along.
+    pub fn directions(&self, u: usize) -> (V3, V3) {
+        let c = self.as_node();
+        let b: Matrix3<f64> = c.basis();
+        match self.grip {
+            Grip3::Stick { .. } => {
+                let d = b.row(u).transpose();
+                (d, d)
+            }
+            Grip3::Slide { .. } => {
+                let t1 = b.row(1).transpose();
+                (self.normal - t1 * c.kinetic(), self.normal)
+            }
+        }
+    }
+
+    /// Unknown u's constraint value at configuration `q` and body displacement `dx` (m; the
+    /// Newton step drives it to zero): the normal violation, and while stuck the tangential
+    /// distances from the anchor.
+    pub fn residual(&self, u: usize, q: &[f64], dx: &Vector6<f64>) -> f64 {
+        match self.grip {
+            Grip3::Stick { anchor } => {
+                let (_, d) = self.directions(u);
+                let a = lever_map(&self.lever).transpose() * d;
+                d.dot(&(self.held_point(q) - anchor)) - a.dot(dx)
+            }
+            Grip3::Slide { .. } => self.violation(q, dx),
+        }
+    }
+
+    /// Take the Newton increments of its multipliers.
+    pub fn take_increments(&mut self, d: &[f64]) {
+        match self.grip {
+            Grip3::Stick { .. } => {
+                let mut f = self.total_force();
+                for (u, du) in d.iter().enumerate() {
+                    f += self.directions(u).0 * *du;
+                }
+                self.force = self.normal.dot(&f);
+                self.friction = f - self.normal * self.force;
+            }
+            Grip3::Slide { .. } => {
+                self.force += d[0];
+                self.slide_friction();
+            }
+        }
+    }
+
+    /// A sliding contact's friction from its normal force: −μ_k λ d.
+    pub fn slide_friction(&mut self) {
+        let (c, _) = self.directions(0);
+        self.friction = c * self.force - self.normal * self.force;
+    }
+
+    /// Its anchor for a stuck grip: where the held point was at the start of the step
+    /// (`q0`), on the tangent plane.
+    pub fn anchor_at(&self, q0: &[f64]) -> V3 {
+        let p0 = self.held_point(q0);
+        p0 + self.normal * (self.target - self.normal.dot(&p0))
     }
 }
 
@@ -117,6 +217,10 @@ mod tests {
             offset: 0.0,
             point: V3::zeros(),
             force: 2.0,
+            friction: V3::zeros(),
+            grip: Grip3::Slide { dir: V3::zeros() },
+            coulomb: Coulomb::FRICTIONLESS,
+            switches: 0,
             locked: false,
             relinearised: 0,
         };

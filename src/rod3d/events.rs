@@ -377,14 +377,14 @@ impl World3 {
             node: e.segment,
             point: prox.closest.into(),
             normal: e.normal.into(),
-            reaction: (e.normal * e.force).into(),
-            friction: [0.0; 3],
+            reaction: e.total_force().into(),
+            friction: e.friction.into(),
             gap: prox.distance - e.offset,
             surface: match e.surface {
                 Surface3::Obstacle(k) => k,
                 Surface3::Body(b) => nobs + b,
             },
-            stick: false,
+            stick: matches!(e.grip, super::contact3::Grip3::Stick { .. }),
             normal_reaction: e.force,
             weight: e.weight,
         }

@@ -479,3 +479,250 @@ impl gripsim::rod3d::events::Observer3 for EdgeEvents {
         }
     }
 }
+
+/// A cube of half-sides 1 × 5 × 1 cm turned 45° about y (a 10 cm ridge along y on top), then
+/// tilted by `phi` about x: the ridge rises along d = (0, cos φ, sin φ); its top line passes
+/// through Rx(φ)(0, 0, 1.414 cm); the outward normal there, square to d and to x, is
+/// n = (0, −sin φ, cos φ).
+fn tilted_ridge(phi: f64) -> (Obstacle3, V3, V3, V3) {
+    let tilt = nalgebra::Rotation3::from_axis_angle(&V3::x_axis(), phi);
+    let turn = nalgebra::Rotation3::from_axis_angle(&V3::y_axis(), std::f64::consts::FRAC_PI_4);
+    let pose = Pose3 {
+        position: V3::zeros(),
+        rotation: tilt * turn,
+    };
+    let top = tilt * V3::new(0.0, 0.0, 0.01 * std::f64::consts::SQRT_2);
+    let o = Obstacle3::new(
+        "ridge",
+        Shape3::Box {
+            half: [0.01, 0.05, 0.01],
+        },
+        pose,
+    );
+    (o, top, tilt * V3::y(), tilt * V3::z())
+}
+
+/// A one-segment rod (2 nodes at x = ±5 mm, round r = 0.5 mm) resting across a ridge tilted
+/// by `phi` with μ_s = 0.5, μ_k = 0.4, for `steps` steps of 1 ms: the centre's velocity along
+/// the ridge (m/s, positive uphill), the edge contact's force (normal, friction, world) and
+/// whether it is stuck at the end, and the steps with an edge contact.
+fn rest_on_tilted_ridge(phi: f64, steps: usize) -> (f64, f64, V3, bool, usize) {
+    let (o, top, d, n) = tilted_ridge(phi);
+    let r = 0.0005;
+    let c = top + n * r;
+    let section = Section3::Circle { r };
+    let mut w = World3::new([0.0, 0.0, -9.81]);
+    w.edge_contact = true;
+    w.force_tol = 1e-12;
+    w.friction.default = gripsim::contact::friction::Coulomb {
+        mu_s: 0.5,
+        mu_k: 0.4,
+    };
+    let points = vec![[c.x - 0.005, c.y, c.z], [c.x + 0.005, c.y, c.z]];
+    w.add_rod(
+        "rod",
+        Sim3::new(Rod3::new(&spec(points, 1e8, section))),
+        section,
+    );
+    w.obstacles.push(o);
+    let mut held = 0;
+    for _ in 0..steps {
+        w.step(1e-3).unwrap();
+        held += usize::from(w.edges[0].len() == 1);
+    }
+    let s = &w.rods[0];
+    let v = V3::new(
+        0.5 * (s.v[pos(0)] + s.v[pos(1)]),
+        0.5 * (s.v[pos(0) + 1] + s.v[pos(1) + 1]),
+        0.5 * (s.v[pos(0) + 2] + s.v[pos(1) + 2]),
+    );
+    let e = w.edges[0]
+        .first()
+        .copied()
+        .expect("an edge contact at the end");
+    let stuck = matches!(e.grip, gripsim::rod3d::contact3::Grip3::Stick { .. });
+    (v.dot(&d), e.force, e.friction, stuck, held)
+}
+
+#[test]
+fn a_segment_across_a_tilted_ridge_sticks_below_the_friction_angle_and_slides_above_it() {
+    // Below tan φ = μ_s the point between the nodes sticks: no motion, friction = m g sin φ
+    // uphill, normal force m g cos φ.
+    let steps = 100;
+    let m = 1000.0 * std::f64::consts::PI * 0.0005f64.powi(2) * 0.01;
+    let g = 9.81;
+    let phi = 20f64.to_radians();
+    let (_, _, d, n) = tilted_ridge(phi);
+    let (v, fnorm, fric, stuck, held) = rest_on_tilted_ridge(phi, steps);
+    let rel_n = (fnorm - m * g * phi.cos()).abs() / (m * g);
+    let rel_t = (fric - d * (m * g * phi.sin())).norm() / (m * g);
+    println!(
+        "tilted ridge φ = 20° (tan φ = {:.3} < μ_s = 0.5): stuck {stuck}, held {held}/{steps} steps, centre velocity along the ridge {v:.3e} m/s; normal force {fnorm:.15e} N (m g cos φ {:.15e}, rel {rel_n:.2e}); friction {fric:?} vs m g sin φ uphill (rel {rel_t:.2e})",
+        phi.tan(),
+        m * g * phi.cos()
+    );
+    assert!(stuck && held == steps, "{stuck} {held}");
+    assert!(v.abs() < 1e-12, "{v}");
+    // Newton stops at its round-off floor (updates ≤ 1e-12 L): the forces to ~1e-8.
+    assert!(rel_n < 1e-7 && rel_t < 1e-7, "{rel_n} {rel_t}");
+    assert!(fric.dot(&n).abs() < 1e-15);
+    // Above it the point slides down with g (sin φ − μ_k cos φ): after k steps of implicit
+    // Euler from rest under a constant force, v = k dt a.
+    let phi = 35f64.to_radians();
+    let (v, fnorm, fric, stuck, held) = rest_on_tilted_ridge(phi, steps);
+    let a = g * (phi.sin() - 0.4 * phi.cos());
+    let expect = -(steps as f64) * 1e-3 * a;
+    let rel = (v - expect).abs() / expect.abs();
+    let rel_k = (fric.norm() - 0.4 * fnorm).abs() / fnorm;
+    println!(
+        "tilted ridge φ = 35° (tan φ = {:.3} > μ_s): stuck {stuck}, held {held}/{steps} steps; velocity along the ridge {v:.15e} m/s, expected −k dt g (sin φ − μ_k cos φ) = {expect:.15e} (relative {rel:.2e}); |friction| / normal force − μ_k: {rel_k:.2e}",
+        phi.tan()
+    );
+    assert!(!stuck && held == steps, "{stuck} {held}");
+    assert!(rel < 1e-6, "{v} vs {expect}");
+    assert!(rel_k < 1e-12, "{rel_k}");
+}
+
+#[test]
+fn friction_of_a_segment_on_a_free_box_ridge_drags_it_with_momentum_exchanged_exactly() {
+    // No gravity: a one-segment rod (nodes straddling the ridge of a free box) is thrown at
+    // the ridge and along it; only friction can push the box along the ridge (y), the normal
+    // is square to it.
+    let (shape, pose, top) = ridge();
+    let shape = match shape {
+        Shape3::Box { .. } => Shape3::Box {
+            half: [0.01, 0.05, 0.01],
+        },
+        s => s,
+    };
+    let section = Section3::Circle { r: 0.0005 };
+    let mut w = World3::new([0.0; 3]);
+    w.edge_contact = true;
+    w.force_tol = 1e-12;
+    w.friction.default = gripsim::contact::friction::Coulomb {
+        mu_s: 0.5,
+        mu_k: 0.4,
+    };
+    let z = top + 0.0005 + 0.0002;
+    let mut sim = Sim3::new(Rod3::new(&spec(
+        line(2, [-0.004, 0.0, z], [0.006, 0.0, z]),
+        1e8,
+        section,
+    )));
+    for i in 0..2 {
+        sim.v[pos(i) + 1] = 0.3;
+        sim.v[pos(i) + 2] = -1.0;
+    }
+    w.add_rod("rod", sim, section);
+    let mut body = Body3::new("box", shape, 100.0, [0.0; 3]).unwrap();
+    body.obstacle.pose.rotation = pose.rotation;
+    body.start = body.obstacle.pose;
+    w.bodies.push(body);
+    let momentum = |w: &World3| -> V3 {
+        let s = &w.rods[0];
+        let mut p = w.bodies[0].momentum();
+        for i in 0..s.rod.n {
+            for a in 0..3 {
+                p[a] += s.rod.mass[pos(i) + a] * s.v[pos(i) + a];
+            }
+        }
+        p
+    };
+    let p0 = momentum(&w);
+    let (mut drift, mut held, mut stuck, mut slid) = (0.0f64, 0, 0, 0);
+    let mut fy = 0.0f64;
+    for _ in 0..200 {
+        w.step(1e-4).unwrap();
+        drift = drift.max((momentum(&w) - p0).norm() / p0.norm());
+        for e in &w.edges[0] {
+            held += 1;
+            fy = fy.max(e.friction.y.abs());
+            match e.grip {
+                gripsim::rod3d::contact3::Grip3::Stick { .. } => stuck += 1,
+                _ => slid += 1,
+            }
+        }
+    }
+    let pb = w.bodies[0].momentum();
+    println!(
+        "free box ridge: {held} steps with an edge contact ({stuck} stuck, {slid} sliding), largest friction along the ridge {fy:.3e} N; box momentum {pb:?} of {p0:?}; drift {drift:.2e}"
+    );
+    assert!(held > 0 && fy > 0.0, "{held} {fy}");
+    assert!(
+        pb.y > 1e-3 * p0.norm(),
+        "friction must drag the box along the ridge: {pb:?}"
+    );
+    assert!(drift < 1e-12, "{drift}");
+}
+
+#[test]
+fn the_shipped_two_finger_sphere_grasp_in_edge_mode_agrees_with_nodes_only() {
+    // The 5 cm sphere is big against the 1.1 cm segments: where a node already follows the
+    // sphere (normal within 30° of a segment's), the segment's penetration is the faceting of
+    // the sphere (a chord from that node: at most L²/(8 R) on radius R), which node contact
+    // accepts; edge contacts hold only where no node follows. The grip must then agree with
+    // nodes only.
+    use gripsim::scenario::three::Scenario3;
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenarios/3d-two-finger-sphere.toml"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let dir = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios"));
+    let sc = Scenario3::from_str(&text, "3d-two-finger-sphere.toml", dir).unwrap();
+    let nodes = gripsim::rod3d::run3::run(&sc, None).unwrap();
+    // The same run stepped here, to measure what its summary does not: how deep the segments
+    // cut into the sphere between the nodes.
+    let (mut w, mut g) = gripsim::rod3d::run3::build(&sc).unwrap();
+    let mut chord = f64::NEG_INFINITY;
+    for k in 1..=nodes.steps {
+        g.drive(&mut w, k as f64 * sc.dt, sc.dt);
+        w.step(sc.dt).unwrap();
+        chord = chord
+            .max(w.segment_penetration(0))
+            .max(w.segment_penetration(1));
+    }
+    let edges = text.replace(
+        "surface = \"face\"",
+        "surface = \"face\"\npoints = \"edges\"",
+    );
+    let sc = Scenario3::from_str(&edges, "3d-two-finger-sphere.toml", dir).unwrap();
+    let (w, _) = gripsim::rod3d::run3::build(&sc).unwrap();
+    let q = &w.rods[0].q;
+    let longest = (0..w.rods[0].rod.n - 1)
+        .map(|i| {
+            let d = (0..3).map(|a| q[pos(i + 1) + a] - q[pos(i) + a]);
+            d.map(|x| x * x).sum::<f64>().sqrt()
+        })
+        .fold(0.0, f64::max);
+    let facet = longest * longest / (8.0 * 0.05);
+    println!("nodes only: the segments cut {chord:.3e} m into the sphere at worst");
+    let s = gripsim::rod3d::run3::run(&sc, None).unwrap();
+    let (fe, fn_) = (&s.finger_forces, &nodes.finger_forces);
+    let rel = (fe[0] - fn_[0]).abs() / fn_[0];
+    let fruit = (V3::from(s.fruit_end.unwrap()) - V3::from(nodes.fruit_end.unwrap())).norm();
+    println!(
+        "3d-two-finger-sphere, edges: {} steps, squeezed at {:?} s, finger forces {:?} N, {} contacts added, {} switches, worst penetration {:.3e} m (faceting bound L²/8R = {:.3e} m, L = {:.4} m)",
+        s.steps, s.squeezed_at, fe, s.contacts_added, s.friction_switches, s.worst_penetration, facet, longest
+    );
+    println!(
+        "nodes only: {} steps, squeezed at {:?} s, finger forces {:?} N; finger force difference {rel:.2e} relative; fruit ends {fruit:.2e} m apart",
+        nodes.steps, nodes.squeezed_at, fn_
+    );
+    assert!((fe[0] - fe[1]).abs() <= 1e-9 * fe[0], "{fe:?}");
+    assert!(rel < 0.05, "{fe:?} vs {fn_:?}");
+    let (te, tn) = (s.squeezed_at.unwrap(), nodes.squeezed_at.unwrap());
+    assert!((te - tn).abs() < 0.01 * tn, "{te} vs {tn}");
+    assert!(fruit < 1e-9, "{fruit}");
+    // Faceting as with nodes only (to 1 %: the runs differ slightly); about L²/(8 R) (the
+    // offsets of a node and of a segment, each from its own material frames, differ a little).
+    assert!(
+        (s.worst_penetration - chord).abs() <= 0.01 * chord,
+        "{} vs {chord}",
+        s.worst_penetration
+    );
+    assert!(
+        chord > 0.5 * facet && chord < 2.0 * facet,
+        "{chord} vs {facet}"
+    );
+}

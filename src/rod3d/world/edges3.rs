@@ -21,7 +21,11 @@ pub const FACET: f64 = std::f64::consts::FRAC_PI_6;
 impl World3 {
     /// Edge contacts of every rod, in the order of their unknowns.
     pub(super) fn edge_count(&self) -> usize {
-        self.edges.iter().map(Vec::len).sum()
+        self.edges
+            .iter()
+            .flatten()
+            .map(EdgeContact3::unknowns)
+            .sum()
     }
 
     /// The thickness offset of segment i of rod r towards a surface with outward normal n:
@@ -51,14 +55,17 @@ impl World3 {
         !(whole(i) && whole(i + 1))
     }
 
-    /// Whether both nodes of segment i already follow surface `s` with normals within
-    /// [`FACET`] of the segment's contact normal n: then the segment's penetration is the
-    /// faceting of a surface the nodes follow (depth ≈ L²κ/8 on a curvature κ), which node
-    /// contact accepts; an edge row there would nearly repeat the nodes' rows (and pull them
-    /// off). A corner between the nodes (a box's or mesh's edge, where the normals turn by
-    /// more) is held.
+    /// Whether a node of segment i already follows surface `s` with a normal within [`FACET`]
+    /// of the segment's contact normal n. Then the segment's penetration is the faceting of a
+    /// smooth surface the node follows (a chord from a point on it: depth at most L²κ/8 on a
+    /// curvature κ), which node contact accepts, as with nodes only; an edge row there would
+    /// nearly repeat the node's held rows (the row's free part is the other node's share,
+    /// which vanishes as the deepest point nears the held node), so the split of the force
+    /// between node and edge is ill-conditioned: forces spike and Newton stalls on the big
+    /// fruit of the shipped grasps. A corner between the nodes (a box's or mesh's edge, where
+    /// the normals turn by more) is held.
     fn nodes_follow(&self, r: usize, i: usize, s: Surface3, n: &V3) -> bool {
-        (i..=i + 1).all(|j| {
+        (i..=i + 1).any(|j| {
             self.contacts[r][j].is_some_and(|c| c.surface == s && c.normal.dot(n) > FACET.cos())
         })
     }
@@ -73,7 +80,10 @@ impl World3 {
             Surface3::Obstacle(_) => V3::zeros(),
         };
         let a = lever_map(&lever).transpose() * n;
-        EdgeContact3 {
+        let coulomb = self
+            .friction
+            .between(&self.rod_names[r], self.surface_name(s));
+        let mut e = EdgeContact3 {
             surface: s,
             segment: i,
             weight: w,
@@ -83,9 +93,52 @@ impl World3 {
             offset,
             point: prox.closest,
             force: 0.0,
+            friction: V3::zeros(),
+            grip: Grip3::Slide { dir: V3::zeros() },
+            coulomb,
+            switches: 0,
             locked: false,
             relinearised: 0,
+        };
+        if coulomb.mu_s > 0.0 {
+            e.grip = Grip3::Stick {
+                anchor: e.anchor_at(&self.rods[r].q),
+            };
         }
+        e
+    }
+
+    /// Contact `new` (re-linearised at another point or plane) with `old`'s force and grip:
+    /// a stuck point is anchored where its new point was at the start of the step (`q0`), a
+    /// slip direction is turned into the new tangent plane.
+    fn carry(old: &EdgeContact3, new: EdgeContact3, q0: &[f64]) -> EdgeContact3 {
+        let mut e = EdgeContact3 {
+            force: old.force,
+            switches: old.switches,
+            ..new
+        };
+        e.grip = match old.grip {
+            Grip3::Stick { .. } => Grip3::Stick {
+                anchor: e.anchor_at(q0),
+            },
+            Grip3::Slide { dir } => {
+                let t = dir - e.normal * e.normal.dot(&dir);
+                Grip3::Slide {
+                    dir: if t.norm() > 1e-3 {
+                        t.normalize()
+                    } else {
+                        V3::zeros()
+                    },
+                }
+            }
+        };
+        match e.grip {
+            Grip3::Stick { .. } => {
+                e.friction = old.friction - e.normal * e.normal.dot(&old.friction)
+            }
+            Grip3::Slide { .. } => e.slide_friction(),
+        }
+        e
     }
 
     /// Segment i's deepest point on surface `s` at configuration `q`: (weight, proximity,
@@ -120,10 +173,9 @@ impl World3 {
                 let (w, prox, _) = self.deepest(r, i, e.surface, &self.rods[r].q);
                 if interior(w) {
                     let ne = self.edge_at(r, i, w, e.surface, &prox);
-                    out.push(EdgeContact3 {
-                        force: e.force,
-                        ..ne
-                    });
+                    let mut ne = Self::carry(&e, ne, &self.rods[r].q);
+                    ne.switches = 0;
+                    out.push(ne);
                 }
             }
             self.edges[r] = out;
@@ -133,7 +185,7 @@ impl World3 {
     /// Rod r's edge contacts after a converged pass: released when the multiplier pulls,
     /// re-linearised where the pass left the segment inside, dropped when the deepest point
     /// moved onto a node; new interior penetrations added. Returns how many changed.
-    pub(super) fn update_edges(&mut self, r: usize, report: &mut StepReport3) -> u32 {
+    pub(super) fn update_edges(&mut self, r: usize, dt: f64, report: &mut StepReport3) -> u32 {
         if !self.edge_contact || self.rods[r].rod.n < 2 {
             return 0;
         }
@@ -141,13 +193,17 @@ impl World3 {
         let mut changed = 0;
         let old = std::mem::take(&mut self.edges[r]);
         let mut out = Vec::with_capacity(old.len());
-        for e in old {
+        for mut e in old {
             let i = e.segment;
             if e.force < 0.0 && !e.locked {
                 self.work[r].edge_released.push((i, e.surface));
                 report.released += 1;
                 changed += 1;
                 continue;
+            }
+            if self.edge_friction(r, &mut e, dt) {
+                report.switches += 1;
+                changed += 1;
             }
             if !self.segment_open(r, i) || self.nodes_follow(r, i, e.surface, &e.normal) {
                 self.work[r].edge_released.push((i, e.surface));
@@ -161,11 +217,11 @@ impl World3 {
                 out.push(e);
             } else if interior(w) {
                 let ne = EdgeContact3 {
-                    force: e.force,
                     locked: e.locked,
                     relinearised: e.relinearised + 1,
                     ..self.edge_at(r, i, w, e.surface, &prox)
                 };
+                let ne = Self::carry(&e, ne, &self.rods[r].q);
                 changed += u32::from(ne != e);
                 out.push(ne);
             } else {
@@ -258,9 +314,34 @@ impl World3 {
         out
     }
 
+    /// Stick/slip of an edge contact from the converged pass, by the node contacts' rules
+    /// ([`decide`]) on its force and its held point's slip velocity. Returns whether it
+    /// switched.
+    fn edge_friction(&self, r: usize, e: &mut EdgeContact3, dt: f64) -> bool {
+        let (q0, qn) = (&self.rods[r].q, &self.work[r].qn);
+        let moved = lever_map(&e.lever) * self.body_dx(e.surface);
+        let v = (e.held_point(qn) - e.held_point(q0) - moved) / dt;
+        let v = v - e.normal * e.normal.dot(&v);
+        match decide(&e.as_node(), &e.total_force(), &v) {
+            Some(Change3::ToSlide { dir }) => {
+                e.grip = Grip3::Slide { dir };
+                e.slide_friction();
+            }
+            Some(Change3::ToStick) => {
+                e.grip = Grip3::Stick {
+                    anchor: e.anchor_at(q0),
+                }
+            }
+            _ => return false,
+        }
+        e.switches += 1;
+        true
+    }
+
     /// Rod r's edge rows of the Newton system (after its node contacts are eliminated): the
-    /// constraint right-hand sides and, on a body, λ a in its equations; with `jac` the border
-    /// columns, the Schur rows and the dense entries.
+    /// constraint right-hand sides and, on a body, G^T F in its equations; with `jac` the
+    /// border columns, the Schur rows and the dense entries. A contact's unknowns are
+    /// consecutive: 3 while stuck (n, t₁, t₂), 1 while sliding.
     pub(super) fn edge_rows(
         &mut self,
         r: usize,
@@ -268,36 +349,51 @@ impl World3 {
         fb: &mut DVector<f64>,
         jac: bool,
     ) {
-        let base = 6 * self.bodies.len() + self.edges[..r].iter().map(Vec::len).sum::<usize>();
-        for (j, e) in self.edges[r].iter().enumerate() {
-            let col = base + j;
+        let nb = 6 * self.bodies.len();
+        let mut col = nb
+            + self.edges[..r]
+                .iter()
+                .flatten()
+                .map(EdgeContact3::unknowns)
+                .sum::<usize>();
+        for e in &self.edges[r] {
             let dxb = self.body_dx(e.surface);
-            fb[col] = -e.violation(&self.work[r].qn, &dxb);
+            let g = lever_map(&e.lever).transpose();
             if let Surface3::Body(b) = e.surface {
-                let a = e.body_row();
-                for f in 0..6 {
-                    fb[6 * b + f] -= e.force * a[f];
-                    if jac {
-                        s[(6 * b + f, col)] += a[f];
-                        s[(col, 6 * b + f)] -= a[f];
-                    }
+                let f = g * e.total_force();
+                for k in 0..6 {
+                    fb[6 * b + k] -= f[k];
                 }
             }
-            if jac {
-                for (k, wt) in e.weights().into_iter().enumerate() {
-                    let ct = self.contacts[r][e.segment + k];
-                    node_column(&mut self.work[r], e.segment + k, e.normal * wt, ct, col, s);
+            for u in 0..e.unknowns() {
+                fb[col] = -e.residual(u, &self.work[r].qn, &dxb);
+                if jac {
+                    let (c, d) = e.directions(u);
+                    if let Surface3::Body(b) = e.surface {
+                        let (gc, gd) = (g * c, g * d);
+                        for k in 0..6 {
+                            s[(6 * b + k, col)] += gc[k];
+                            s[(col, 6 * b + k)] -= gd[k];
+                        }
+                    }
+                    for (k, wt) in e.weights().into_iter().enumerate() {
+                        let ct = self.contacts[r][e.segment + k];
+                        let node = e.segment + k;
+                        node_column(&mut self.work[r], node, (c * wt, d * wt), ct, col, s);
+                    }
                 }
+                col += 1;
             }
         }
     }
 
-    /// After a solve: each edge contact's multiplier takes its increment.
+    /// After a solve: each edge contact's multipliers take their increments.
     pub(super) fn update_edge_forces(&mut self, dx: &DVector<f64>) {
         let mut k = 6 * self.bodies.len();
         for e in self.edges.iter_mut().flatten() {
-            e.force += dx[k];
-            k += 1;
+            let m = e.unknowns();
+            e.take_increments(&dx.as_slice()[k..k + m]);
+            k += m;
         }
     }
 }
@@ -317,32 +413,33 @@ pub(super) fn add_edge_forces(w: &mut Work3, edges: &[EdgeContact3]) {
     }
 }
 
-/// Node i's part of edge column `col`: the unit force `fw` (world) it takes per unit λ, in
-/// its contact basis when it has one. Free coordinates get the border entry −f (a sliding
-/// node's t₁ row also −μ_k f_n, its kinetic combination) and the row entry f; prescribed
-/// coordinates that follow a body put f P into the edge's row of the dense system; a node
-/// touching a body passes −Gᵀ Qᵀ f of λ to the body's equations (its reaction changes).
+/// Node i's part of edge unknown `col`: the unit force `fw.0` (world) it takes per unit
+/// multiplier and the direction `fw.1` the row holds it along, in its contact basis when it
+/// has one. Free coordinates get the border entry −f (a sliding node's t₁ row also
+/// −μ_k f_n, its kinetic combination) and the row entry d; prescribed coordinates that follow
+/// a body put d P into the edge's row of the dense system; a node touching a body passes
+/// −Gᵀ Qᵀ f of the multiplier to the body's equations (its reaction changes).
 fn node_column(
     w: &mut Work3,
     i: usize,
-    fw: V3,
+    fw: (V3, V3),
     ct: Option<Contact3>,
     col: usize,
     s: &mut DMatrix<f64>,
 ) {
-    let (f, mu) = match &ct {
-        Some(c) => (c.basis() * fw, c.kinetic()),
-        None => (fw, 0.0),
+    let (f, d, mu) = match &ct {
+        Some(c) => (c.basis() * fw.0, c.basis() * fw.1, c.kinetic()),
+        None => (fw.0, fw.1, 0.0),
     };
     for c in 0..3 {
         let l = pos(i) + c;
         if !w.elim[l] {
             let kinetic = if c == 1 { mu * f[0] } else { 0.0 };
             w.border[l][col] -= f[c] + kinetic;
-            w.rows.push((col, l, f[c]));
+            w.rows.push((col, l, d[c]));
         } else if let Some((b, p)) = w.follow[l] {
             for e in 0..6 {
-                s[(col, 6 * b + e)] += f[c] * p[e];
+                s[(col, 6 * b + e)] += d[c] * p[e];
             }
         }
     }

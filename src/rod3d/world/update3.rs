@@ -20,7 +20,7 @@ impl World3 {
             }
         }
         for r in 0..self.rods.len() {
-            changed += self.update_edges(r, report);
+            changed += self.update_edges(r, dt, report);
         }
         changed + self.update_body_contacts(dt, report)
     }
