@@ -193,9 +193,15 @@ impl World3 {
         let mut changed = 0;
         let old = std::mem::take(&mut self.edges[r]);
         let mut out = Vec::with_capacity(old.len());
+        // Pairs released here for pulling: not caught again from this pass's positions, where
+        // they were still held (on a plane whose offset and normal are a pass old, the
+        // segment can sit a first-order sliver inside: caught at once, the contact would be
+        // locked while it pulls); the next pass, solved without them, decides.
+        let mut pulled = Vec::new();
         for mut e in old {
             let i = e.segment;
             if e.force < 0.0 && !e.locked {
+                pulled.push((i, e.surface));
                 self.work[r].edge_released.push((i, e.surface));
                 report.released += 1;
                 changed += 1;
@@ -231,7 +237,7 @@ impl World3 {
                 changed += 1;
             }
         }
-        let fresh = self.edge_candidates(r, &out);
+        let fresh = self.edge_candidates(r, &out, &pulled);
         for (i, s, w, prox) in fresh {
             let locked = self.work[r].edge_released.contains(&(i, s));
             out.push(EdgeContact3 {
@@ -247,11 +253,12 @@ impl World3 {
 
     /// The segments of rod r whose deepest point on a surface ended inside it (deeper than
     /// the segment's offset) away from their nodes: (segment, surface, weight, proximity),
-    /// skipping pairs in `held`.
+    /// skipping pairs in `held` and in `skip`.
     fn edge_candidates(
         &self,
         r: usize,
         held: &[EdgeContact3],
+        skip: &[(usize, Surface3)],
     ) -> Vec<(usize, Surface3, f64, Proximity3)> {
         let q = &self.work[r].qn;
         let reach = match self.sections[r] {
@@ -267,6 +274,7 @@ impl World3 {
             let (a, b) = (Self::node(q, i), Self::node(q, i + 1));
             for s in self.surfaces() {
                 if held.iter().any(|e| e.segment == i && e.surface == s)
+                    || skip.contains(&(i, s))
                     || segment::lower_bound(self.surface(s), &a, &b) >= reach
                 {
                     continue;
