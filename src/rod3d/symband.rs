@@ -180,6 +180,9 @@ impl SymBand {
     /// Factorise A = L Lᵀ in place. Err(i) if the pivot of row i is not positive (A is not
     /// positive definite); the storage is then spoilt and must be reassembled.
     pub fn factor(&mut self) -> Result<(), usize> {
+        if self.k == K {
+            return self.factor_by_columns();
+        }
         let (n, k, w) = (self.n, self.k, self.k + 1);
         for i in 0..n {
             let lo = i.saturating_sub(k);
@@ -188,38 +191,116 @@ impl SymBand {
                 let rj = j * w + k - j;
                 let (li, lj) = (&self.a[ri + lo..ri + j], &self.a[rj + lo..rj + j]);
                 let s = self.a[ri + j] - dot(li, lj);
-                if j < i {
-                    self.a[ri + j] = s * self.inv[j];
-                } else {
-                    if s.is_nan() || s <= 0.0 {
-                        return Err(i);
-                    }
-                    let d = s.sqrt();
-                    self.a[ri + i] = d;
-                    self.inv[i] = 1.0 / d;
+                self.set_factor_entry(i, j, ri + j, s)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`SymBand::factor`] at the rods' bandwidth K, column by column (right-looking): column
+    /// j of L is A's column scaled by its pivot, then the K × K triangle after it loses
+    /// L[·][j] L[·][j]ᵀ. Row by row each entry of L waits for the one before it (a chain of
+    /// dependent dot products, latency-bound); here the 55 updates of a column are
+    /// independent. A column that is zero below its pivot (a fixed or eliminated DOF) updates
+    /// nothing.
+    fn factor_by_columns(&mut self) -> Result<(), usize> {
+        let n = self.n;
+        let a = &mut self.a;
+        for j in 0..n {
+            let s = a[j * W + K];
+            if s.is_nan() || s <= 0.0 {
+                return Err(j);
+            }
+            let d = s.sqrt();
+            let inv = 1.0 / d;
+            a[j * W + K] = d;
+            self.inv[j] = inv;
+            // L[j + 1 + t][j] at (j + 1 + t)·W + K − (t + 1).
+            let m = K.min(n - 1 - j);
+            let mut col = [0.0; K];
+            let mut any = false;
+            for (t, c) in col.iter_mut().enumerate().take(m) {
+                let at = (j + 1 + t) * W + K - (t + 1);
+                let v = a[at] * inv;
+                a[at] = v;
+                *c = v;
+                any |= v != 0.0;
+            }
+            if !any {
+                continue;
+            }
+            for (t, &lij) in col.iter().enumerate().take(m) {
+                if lij == 0.0 {
+                    continue;
+                }
+                // Row j + 1 + t, columns j + 1 … j + 1 + t.
+                let base = (j + 1 + t) * W + K - t;
+                for (x, c) in a[base..=base + t].iter_mut().zip(&col) {
+                    *x -= lij * c;
                 }
             }
         }
         Ok(())
     }
 
+    /// L[i][j] from s = A[i][j] − Σ L[i][c] L[j][c] (storage index `at`); on the diagonal
+    /// the pivot must be positive.
+    #[inline(always)]
+    fn set_factor_entry(&mut self, i: usize, j: usize, at: usize, s: f64) -> Result<(), usize> {
+        if j < i {
+            self.a[at] = s * self.inv[j];
+            return Ok(());
+        }
+        if s.is_nan() || s <= 0.0 {
+            return Err(i);
+        }
+        let d = s.sqrt();
+        self.a[at] = d;
+        self.inv[i] = 1.0 / d;
+        Ok(())
+    }
+
     /// Solve A x = b with the factor, in place.
     pub fn solve(&self, b: &mut [f64]) {
         let (n, k, w) = (self.n, self.k, self.k + 1);
-        for i in 0..n {
+        let start = if k == K { n.min(K) } else { n };
+        for i in 0..start {
             let lo = i.saturating_sub(k);
             let ri = i * w + k - i;
             let s = b[i] - dot(&self.a[ri + lo..ri + i], &b[lo..i]);
             b[i] = s * self.inv[i];
         }
+        for i in start..n {
+            // b[i − 1] was found just before: its product last, so that the older terms'
+            // sum does not wait for it (the substitution is a chain of dependent rows).
+            let row = &self.a[i * W..i * W + K];
+            let s = b[i] - dotn::<{ K - 1 }>(row, &b[i - K..]);
+            b[i] = (s - row[K - 1] * b[i - 1]) * self.inv[i];
+        }
         for i in (0..n).rev() {
-            let ri = i * w + k - i;
             b[i] *= self.inv[i];
-            let bi = b[i];
-            let lo = i.saturating_sub(k);
-            for (x, l) in b[lo..i].iter_mut().zip(&self.a[ri + lo..ri + i]) {
+            self.axpy_row(i, b);
+        }
+    }
+
+    /// b[j] −= L[i][j] b[i] for the columns j < i of row i (the backward substitution's
+    /// column of Lᵀ).
+    #[inline(always)]
+    fn axpy_row(&self, i: usize, b: &mut [f64]) {
+        let bi = b[i];
+        if self.k == K && i >= K {
+            let row: &[f64; K] = self.a[i * W..i * W + K].try_into().unwrap();
+            let x: &mut [f64; K] = (&mut b[i - K..i]).try_into().unwrap();
+            for (x, l) in x.iter_mut().zip(row) {
                 *x -= l * bi;
             }
+            return;
+        }
+        let (k, w) = (self.k, self.k + 1);
+        let ri = i * w + k - i;
+        let lo = i.saturating_sub(k);
+        for (x, l) in b[lo..i].iter_mut().zip(&self.a[ri + lo..ri + i]) {
+            *x -= l * bi;
         }
     }
 
@@ -231,25 +312,31 @@ impl SymBand {
             let lo = i.saturating_sub(k).max(first);
             let ri = i * w + k - i;
             let row = &self.a[ri + lo..ri + i];
+            if k == K && lo + K == i {
+                for b in cols.iter_mut() {
+                    let s = b[i] - dotn::<K>(row, &b[lo..]);
+                    b[i] = s * self.inv[i];
+                }
+                continue;
+            }
             for b in cols.iter_mut() {
                 let s = b[i] - dot(row, &b[lo..i]);
                 b[i] = s * self.inv[i];
             }
         }
         for i in (0..n).rev() {
-            let ri = i * w + k - i;
-            let lo = i.saturating_sub(k);
-            let row = &self.a[ri + lo..ri + i];
             for b in cols.iter_mut() {
                 b[i] *= self.inv[i];
-                let bi = b[i];
-                for (x, l) in b[lo..i].iter_mut().zip(row) {
-                    *x -= l * bi;
-                }
+                self.axpy_row(i, b);
             }
         }
     }
 }
+
+/// The half-bandwidth of the rods' matrices (three-node stencils, four DOFs a node), which
+/// the factorisation and the solves unroll, and its row width.
+const K: usize = 10;
+const W: usize = K + 1;
 
 /// x·y of two short slices of equal length, in four independent sums (the band's dot
 /// products are at most k long: one chain of dependent additions would be latency-bound).
@@ -268,6 +355,19 @@ fn dot(x: &[f64], y: &[f64]) -> f64 {
     while i < n {
         acc[0] += x[i] * y[i];
         i += 1;
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
+/// [`dot`] of the first N entries, N known at compile time (unrolled; the same sums in the
+/// same order, so the same result to the bit).
+#[inline(always)]
+fn dotn<const N: usize>(x: &[f64], y: &[f64]) -> f64 {
+    let x: &[f64; N] = x[..N].try_into().unwrap();
+    let y: &[f64; N] = y[..N].try_into().unwrap();
+    let mut acc = [0.0; 4];
+    for i in 0..N {
+        acc[if i < N / 4 * 4 { i % 4 } else { 0 }] += x[i] * y[i];
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3])
 }

@@ -738,6 +738,58 @@ fn banded_cholesky_solves_like_lu_and_refuses_indefinite_matrices() {
     assert_eq!(neg.factor(), Err(1));
 }
 
+/// The column-by-column factor at the rods' bandwidth (10) with identity rows and columns
+/// (fixed or eliminated DOFs, as the step's matrices have) solves like LU, and several
+/// right-hand sides solved together (`solve_many`, zero above row `first`) give what one
+/// solve per column gives.
+#[test]
+fn banded_cholesky_with_identity_rows_and_many_right_hand_sides() {
+    let (n, k) = (44, 10);
+    let mut r = Lcg(7);
+    let ident = |i: usize| i < 7 || i % 9 == 4;
+    let (mut s, mut lu) = (SymBand::new(n, k), BandLu::new(n, k, k));
+    for i in 0..n {
+        for j in i.saturating_sub(k)..=i {
+            let v = match (i == j, ident(i) || ident(j)) {
+                (true, true) => 1.0,
+                (false, true) => 0.0,
+                (true, false) => 6.0 + r.next(),
+                (false, false) => r.range(-0.5, 0.5),
+            };
+            BandSink::add(&mut s, i, j, v);
+            lu.add(i, j, v);
+            if i != j {
+                BandSink::add(&mut s, j, i, v);
+                lu.add(j, i, v);
+            }
+        }
+    }
+    s.factor().unwrap();
+    lu.factor().unwrap();
+    let first = 13;
+    let cols: Vec<Vec<f64>> = (0..4)
+        .map(|_| {
+            (0..n)
+                .map(|i| if i < first { 0.0 } else { r.range(-1.0, 1.0) })
+                .collect()
+        })
+        .collect();
+    let mut many = cols.clone();
+    let mut refs: Vec<&mut [f64]> = many.iter_mut().map(|c| c.as_mut_slice()).collect();
+    s.solve_many(&mut refs, first);
+    for (b, got) in cols.iter().zip(&many) {
+        let (mut x, mut y) = (b.clone(), b.clone());
+        s.solve(&mut x);
+        lu.solve(&mut y);
+        let scale = max_abs(&y);
+        let (e_lu, e_one) = (rel_err(&x, &y, scale), rel_err(got, &x, scale));
+        assert!(e_lu < 1e-14 && e_one < 1e-14, "{e_lu:e} {e_one:e}");
+        for i in (0..n).filter(|&i| ident(i)) {
+            assert_eq!(x[i], b[i], "identity row {i}");
+        }
+    }
+}
+
 /// The dynamic steps of a clamped helix go through the Cholesky factor (no LU fallback), and
 /// a step through LU instead gives the same state to rounding.
 #[test]
