@@ -26,9 +26,12 @@ pub trait Real:
     fn atan(self) -> Self;
     /// Multiply by a plain number.
     fn scale(self, s: f64) -> Self;
+    /// Whether the type carries derivatives (false for plain numbers).
+    const DERIVATIVES: bool = true;
 }
 
 impl Real for f64 {
+    const DERIVATIVES: bool = false;
     #[inline(always)]
     fn cst(v: f64) -> Self {
         v

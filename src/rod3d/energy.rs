@@ -34,8 +34,9 @@ pub fn stretch(
 ) -> f64 {
     let e = [x[3] - x[0], x[4] - x[1], x[5] - x[2]];
     let l = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+    let il = 1.0 / l;
     let strain = l / rest - 1.0;
-    let t = [e[0] / l, e[1] / l, e[2] / l];
+    let t = [e[0] * il, e[1] * il, e[2] * il];
     let f = ea * strain;
     for k in 0..3 {
         grad[k] = -f * t[k];
@@ -43,7 +44,7 @@ pub fn stretch(
     }
     if let Some(h) = hess {
         // d²E/de² = EA/l̄ t tᵀ + EA (l/l̄ − 1)/l (I − t tᵀ)
-        let (a, b) = (ea / rest, f / l);
+        let (a, b) = (ea / rest, f * il);
         for i in 0..3 {
             for j in 0..3 {
                 let id = if i == j { 1.0 } else { 0.0 };
@@ -101,11 +102,16 @@ pub fn signed_angle<T: Real>(u: V3<T>, v: V3<T>, axis: V3<T>, near: f64) -> T {
     // Rotate by the (constant) value of the angle so that atan works near zero: exact
     // derivatives on every branch.
     let a0 = s.val().atan2(c.val());
+    let k = ((near - a0) / (2.0 * PI)).round();
+    if !T::DERIVATIVES {
+        // Plain numbers: the angle itself (the rotation below only serves the derivatives;
+        // it gives the same angle to rounding).
+        return T::cst(a0 + 2.0 * PI * k);
+    }
     let (s0, c0) = a0.sin_cos();
     let x = c.scale(c0) + s.scale(s0);
     let y = s.scale(c0) - c.scale(s0);
     let raw = (y / x).atan() + T::cst(a0);
-    let k = ((near - a0) / (2.0 * PI)).round();
     raw + T::cst(2.0 * PI * k)
 }
 

@@ -49,7 +49,8 @@ const TF: usize = 7;
 #[derive(Debug, Clone, Copy)]
 pub struct Edge {
     t: V,
-    l: f64,
+    /// 1/|e| (multiplications instead of divisions in the derivatives).
+    il: f64,
     a1: V,
     m1: V,
     m2: V,
@@ -70,7 +71,8 @@ fn unit(j: usize) -> V {
 pub fn edge(e: V, old: &EdgeFrame, theta: f64, jv: bool) -> Edge {
     let want_jv = jv;
     let l = dot(e, e).sqrt();
-    let t = mul(1.0 / l, e);
+    let il = 1.0 / l;
+    let t = mul(il, e);
     let a1 = transport(old.a1, old.t, t);
     let a2 = cross(t, a1);
     let (s, c) = theta.sin_cos();
@@ -83,16 +85,17 @@ pub fn edge(e: V, old: &EdgeFrame, theta: f64, jv: bool) -> Edge {
     // ∂v/∂e = −[t⁰]× P/(ch l) − b (P t⁰)ᵀ/(ch² l) − b tᵀ/(ch l²), P = (I − t tᵀ)/l, where
     // column j of [t⁰]× P is (t⁰ × êⱼ + b tⱼ)/l.
     let mut jv = [[0.0; 3]; 3];
+    let (d1, d2) = (il * il / ch, il / (ch * ch));
     for (j, _) in t.iter().enumerate().filter(|_| want_jv) {
         let x = cross(t0, unit(j));
-        let pt0 = (t0[j] - (ch - 1.0) * t[j]) / l;
+        let pt0 = (t0[j] - (ch - 1.0) * t[j]) * il;
         for i in 0..3 {
-            jv[i][j] = -(x[i] + 2.0 * b[i] * t[j]) / (ch * l * l) - b[i] * pt0 / (ch * ch * l);
+            jv[i][j] = -(x[i] + 2.0 * b[i] * t[j]) * d1 - b[i] * pt0 * d2;
         }
     }
     Edge {
         t,
-        l,
+        il,
         a1,
         m1,
         m2,
@@ -118,8 +121,8 @@ fn dot_grad(
     let w = oth.t;
     let (wt, wu, wp) = (dot(w, own.t), dot(w, u), dot(w, up));
     for j in 0..3 {
-        g[o + j] += s * (-wt * u[j] / own.l + wp * own.v[j]);
-        g[oo + j] += s * (u[j] - wu * w[j]) / oth.l;
+        g[o + j] += s * (-wt * u[j] * own.il + wp * own.v[j]);
+        g[oo + j] += s * (u[j] - wu * w[j]) * oth.il;
     }
     g[th] += s * wp;
 }
@@ -137,30 +140,30 @@ fn dot_hess(
     s: f64,
     h: &mut H8,
 ) {
-    let (w, t, v, l, lo) = (oth.t, own.t, own.v, own.l, oth.l);
+    let (w, t, v, il, io) = (oth.t, own.t, own.v, own.il, oth.il);
     let (wt, wu, wp) = (dot(w, t), dot(w, u), dot(w, up));
-    let (il2, io2) = (s / (l * l), s / (lo * lo));
+    let (il2, io2) = (s * il * il, s * io * io);
     for i in 0..3 {
         for j in 0..3 {
             let own_ij = il2
                 * (-0.5 * (w[i] * u[j] + w[j] * u[i]) + 1.5 * wt * (t[i] * u[j] + t[j] * u[i]))
-                + s * (-wt * (v[i] * up[j] + v[j] * up[i]) / l
+                + s * (-wt * (v[i] * up[j] + v[j] * up[i]) * il
                     + 0.5 * wp * (own.jv[i][j] + own.jv[j][i])
                     - wu * v[i] * v[j]);
             h[o + i][o + j] += own_ij;
             let d = if i == j { 1.0 } else { 0.0 };
             h[oo + i][oo + j] -= io2 * (w[i] * u[j] + w[j] * u[i] + wu * (d - 3.0 * w[i] * w[j]));
             // ∂/∂w_i of the own gradient: P_w ∂u/∂e_j.
-            let pt = (t[i] - w[i] * wt) / lo;
-            let pp = (up[i] - w[i] * wp) / lo;
-            let c = s * (-pt * u[j] / l + pp * v[j]);
+            let pt = (t[i] - w[i] * wt) * io;
+            let pp = (up[i] - w[i] * wp) * io;
+            let c = s * (-pt * u[j] * il + pp * v[j]);
             h[oo + i][o + j] += c;
             h[o + j][oo + i] += c;
         }
-        let pp = s * (up[i] - w[i] * wp) / lo;
+        let pp = s * (up[i] - w[i] * wp) * io;
         h[oo + i][th] += pp;
         h[th][oo + i] += pp;
-        let c = s * (-wt * up[i] / l - wu * v[i]);
+        let c = s * (-wt * up[i] * il - wu * v[i]);
         h[o + i][th] += c;
         h[th][o + i] += c;
     }
@@ -172,8 +175,8 @@ fn chi_grad(a: &Edge, b: &Edge) -> G8 {
     let c = dot(a.t, b.t);
     let mut g = [0.0; 8];
     for k in 0..3 {
-        g[E + k] = (b.t[k] - c * a.t[k]) / a.l;
-        g[F + k] = (a.t[k] - c * b.t[k]) / b.l;
+        g[E + k] = (b.t[k] - c * a.t[k]) * a.il;
+        g[F + k] = (a.t[k] - c * b.t[k]) * b.il;
     }
     g
 }
@@ -182,7 +185,7 @@ fn chi_grad(a: &Edge, b: &Edge) -> G8 {
 fn chi_hess(a: &Edge, b: &Edge, s: f64, h: &mut H8) {
     let c = dot(a.t, b.t);
     let (x, y) = (a.t, b.t);
-    let (sa, sb, sab) = (s / (a.l * a.l), s / (b.l * b.l), s / (a.l * b.l));
+    let (sa, sb, sab) = (s * a.il * a.il, s * b.il * b.il, s * a.il * b.il);
     for i in 0..3 {
         for j in 0..3 {
             let d = if i == j { 1.0 } else { 0.0 };
@@ -199,8 +202,8 @@ fn chi_hess(a: &Edge, b: &Edge, s: f64, h: &mut H8) {
 fn twist_grad(a: &Edge, b: &Edge, kb: V) -> G8 {
     let mut g = [0.0; 8];
     for k in 0..3 {
-        g[E + k] = 0.5 * kb[k] / a.l - a.v[k];
-        g[F + k] = 0.5 * kb[k] / b.l + b.v[k];
+        g[E + k] = 0.5 * kb[k] * a.il - a.v[k];
+        g[F + k] = 0.5 * kb[k] * b.il + b.v[k];
     }
     g[TE] = -1.0;
     g[TF] = 1.0;
@@ -210,33 +213,25 @@ fn twist_grad(a: &Edge, b: &Edge, kb: V) -> G8 {
 /// Adds s ∇²m (only the reference twist has a second derivative).
 fn twist_hess(a: &Edge, b: &Edge, kb: V, chi: f64, s: f64, h: &mut H8) {
     let sum = add(a.t, b.t);
-    let (x, la, lb) = (a.t, a.l, b.l);
+    let x = a.t;
+    let ichi = 1.0 / chi;
+    let (ia2, ib2) = (0.25 * a.il * a.il, 0.25 * b.il * b.il);
+    let (cee, cff, cef) = (ichi * ia2, ichi * ib2, 0.5 * ichi * a.il * b.il);
     // [tₑ]×, row i column j.
     let tx = [[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]];
     for i in 0..3 {
         for j in 0..3 {
             let ks = kb[i] * sum[j] + sum[i] * kb[j];
-            let ee = -ks / (4.0 * chi * la * la)
-                - (kb[i] * a.t[j] + a.t[i] * kb[j]) / (4.0 * la * la)
+            let ee = -ks * cee
+                - (kb[i] * a.t[j] + a.t[i] * kb[j]) * ia2
                 - 0.5 * (a.jv[i][j] + a.jv[j][i]);
-            let ff = -ks / (4.0 * chi * lb * lb)
-                - (kb[i] * b.t[j] + b.t[i] * kb[j]) / (4.0 * lb * lb)
+            let ff = -ks * cff - (kb[i] * b.t[j] + b.t[i] * kb[j]) * ib2
                 + 0.5 * (b.jv[i][j] + b.jv[j][i]);
-            let ef = (2.0 * tx[i][j] - kb[i] * sum[j]) / (2.0 * chi * la * lb);
+            let ef = (2.0 * tx[i][j] - kb[i] * sum[j]) * cef;
             h[E + i][E + j] += s * ee;
             h[F + i][F + j] += s * ff;
             h[E + i][F + j] += s * ef;
             h[F + j][E + i] += s * ef;
-        }
-    }
-}
-
-/// Adds s g gᵀ.
-fn outer(g: &G8, s: f64, h: &mut H8) {
-    for i in 0..8 {
-        let gi = s * g[i];
-        for j in 0..8 {
-            h[i][j] += gi * g[j];
         }
     }
 }
@@ -256,9 +251,10 @@ struct Strains {
 
 fn strains(a: &Edge, b: &Edge) -> Strains {
     let chi = 1.0 + dot(a.t, b.t);
-    let kb = mul(2.0 / chi, cross(a.t, b.t));
-    let k1 = (dot(b.t, a.m1) - dot(a.t, b.m1)) / chi;
-    let k2 = (dot(b.t, a.m2) - dot(a.t, b.m2)) / chi;
+    let ichi = 1.0 / chi;
+    let kb = mul(2.0 * ichi, cross(a.t, b.t));
+    let k1 = (dot(b.t, a.m1) - dot(a.t, b.m1)) * ichi;
+    let k2 = (dot(b.t, a.m2) - dot(a.t, b.m2)) * ichi;
     let gc = chi_grad(a, b);
     // ∇κᵢ = (∇Nᵢ − κᵢ ∇χ)/χ, Nᵢ = t_f·mᵢₑ − tₑ·mᵢ_f.
     let (mut g1, mut g2) = ([0.0; 8], [0.0; 8]);
@@ -269,8 +265,8 @@ fn strains(a: &Edge, b: &Edge) -> Strains {
     dot_grad(a, E, TE, a.m2, nm1, b, F, 1.0, &mut g2);
     dot_grad(b, F, TF, b.m2, nb1, a, E, -1.0, &mut g2);
     for k in 0..8 {
-        g1[k] = (g1[k] - k1 * gc[k]) / chi;
-        g2[k] = (g2[k] - k2 * gc[k]) / chi;
+        g1[k] = (g1[k] - k1 * gc[k]) * ichi;
+        g2[k] = (g2[k] - k2 * gc[k]) * ichi;
     }
     let gm = twist_grad(a, b, kb);
     Strains {
@@ -348,27 +344,23 @@ pub fn stencil(
     let Some(h) = h else {
         return energy;
     };
-    for row in h.iter_mut() {
-        row.fill(0.0);
+    // Σ wᵢ ∇²κᵢ = [Σ wᵢ ∇²Nᵢ − (Σ wᵢ κᵢ) ∇²χ − (∇χ cᵀ + c ∇χᵀ)]/χ, c = Σ wᵢ ∇κᵢ. The
+    // outer products k₁ ∇κ₁∇κ₁ᵀ + k₂ ∇κ₂∇κ₂ᵀ + k_m ∇m∇mᵀ and the last term in one pass.
+    let ichi = 1.0 / chi;
+    let c: G8 = std::array::from_fn(|i| (w1 * g1[i] + w2 * g2[i]) * ichi);
+    for i in 0..8 {
+        let (a1, a2, am) = (p.ei1 * g1[i], p.ei2 * g2[i], p.gj * gm[i]);
+        for j in 0..8 {
+            h[i][j] = a1 * g1[j] + a2 * g2[j] + am * gm[j] - (gc[i] * c[j] + c[i] * gc[j]);
+        }
     }
-    outer(&g1, p.ei1, h);
-    outer(&g2, p.ei2, h);
-    outer(&gm, p.gj, h);
-    // Σ wᵢ ∇²κᵢ = [Σ wᵢ ∇²Nᵢ − (Σ wᵢ κᵢ) ∇²χ − (∇χ cᵀ + c ∇χᵀ)]/χ, c = Σ wᵢ ∇κᵢ.
     let ua = add(mul(w1, a.m1), mul(w2, a.m2));
     let upa = sub(mul(w1, a.m2), mul(w2, a.m1));
     let ub = add(mul(w1, b.m1), mul(w2, b.m2));
     let upb = sub(mul(w1, b.m2), mul(w2, b.m1));
-    dot_hess(a, E, TE, ua, upa, b, F, 1.0 / chi, h);
-    dot_hess(b, F, TF, ub, upb, a, E, -1.0 / chi, h);
-    chi_hess(a, b, -(w1 * k1 + w2 * k2) / chi, h);
-    for i in 0..8 {
-        let ci = w1 * g1[i] + w2 * g2[i];
-        for j in 0..8 {
-            let cj = w1 * g1[j] + w2 * g2[j];
-            h[i][j] -= (gc[i] * cj + ci * gc[j]) / chi;
-        }
-    }
+    dot_hess(a, E, TE, ua, upa, b, F, ichi, h);
+    dot_hess(b, F, TF, ub, upb, a, E, -ichi, h);
+    chi_hess(a, b, -(w1 * k1 + w2 * k2) * ichi, h);
     twist_hess(a, b, kb, chi, wm, h);
     energy
 }

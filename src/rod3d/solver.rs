@@ -339,26 +339,19 @@ pub fn assemble_into<S: BandSink>(
     grad.fill(0.0);
     let free = |k: usize| fixed.is_empty() || !fixed[k];
     let mut energy = 0.0;
-    let (mut g6, mut h6) = ([0.0; 6], [[0.0; 6]; 6]);
-    let (mut g7, mut h7) = ([0.0; 7], [[0.0; 7]; 7]);
-    for i in 0..rod.n - 1 {
-        let (a, b) = (pos(i), pos(i + 1));
-        let x = [q[a], q[a + 1], q[a + 2], q[b], q[b + 1], q[b + 2]];
-        let h = band.as_ref().map(|_| &mut h6);
-        energy += stretch(&x, rod.ea, rod.rest_length[i], &mut g6, h);
-        // As a block over x_i, θ_i, x_{i+1} (zero row and column for the angle).
-        const AT: [usize; 6] = [0, 1, 2, 4, 5, 6];
-        for (r, &ar) in AT.iter().enumerate() {
-            g7[ar] = g6[r];
-            for (c, &ac) in AT.iter().enumerate() {
-                h7[ar][ac] = h6[r][c];
-            }
+    let jac = band.is_some();
+    if rod.n < 3 {
+        // No bending stencil: the stretching elements alone.
+        let (mut g7, mut h7) = ([0.0; 7], [[0.0; 7]; 7]);
+        for i in 0..rod.n - 1 {
+            g7.fill(0.0);
+            h7.iter_mut().for_each(|r| r.fill(0.0));
+            energy += add_stretch(rod, q, i, 0, &mut g7, jac.then_some(&mut h7));
+            scatter(pos(i), &g7, &h7, grad, band.as_deref_mut(), &free);
         }
-        scatter(a, &g7, &h7, grad, band.as_deref_mut(), &free);
     }
     let (mut g11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
     // Each edge belongs to two stencils: its frame is computed once, carried to the next.
-    let jac = band.is_some();
     let edge = |i: usize| {
         let (a, b) = (pos(i), pos(i + 1));
         let e = [q[b] - q[a], q[b + 1] - q[a + 1], q[b + 2] - q[a + 2]];
@@ -371,6 +364,12 @@ pub fn assemble_into<S: BandSink>(
         let th = [q[angle(i - 1)], q[angle(i)]];
         let (p, h) = (&rod.elastic[i], jac.then_some(&mut h11));
         energy += kernel::stencil_dofs(&prev, &next, th, ref_twist[i], p, &mut g11, h);
+        // The stretching of edge i (and of edge 0 with the first stencil) in the same
+        // block: one scatter per stencil.
+        if i == 1 {
+            energy += add_stretch(rod, q, 0, 0, &mut g11, jac.then_some(&mut h11));
+        }
+        energy += add_stretch(rod, q, i, 4, &mut g11, jac.then_some(&mut h11));
         scatter(base, &g11, &h11, grad, band.as_deref_mut(), &free);
         prev = next;
     }
@@ -383,6 +382,41 @@ pub fn assemble_into<S: BandSink>(
     }
     debug_assert!(angle(rod.n - 2) + 4 == q.len());
     energy
+}
+
+/// Add the stretching of edge i (energy, gradient and with `h` Hessian over x_i, x_{i+1}) to
+/// a block whose DOFs start at x_i's offset `at` (the edge's angle between them untouched).
+fn add_stretch<const N: usize>(
+    rod: &Rod3,
+    q: &[f64],
+    i: usize,
+    at: usize,
+    g: &mut [f64; N],
+    h: Option<&mut [[f64; N]; N]>,
+) -> f64 {
+    let (a, b) = (pos(i), pos(i + 1));
+    let x = [q[a], q[a + 1], q[a + 2], q[b], q[b + 1], q[b + 2]];
+    let (mut g6, mut h6) = ([0.0; 6], [[0.0; 6]; 6]);
+    let want_h = h.is_some();
+    let en = stretch(
+        &x,
+        rod.ea,
+        rod.rest_length[i],
+        &mut g6,
+        want_h.then_some(&mut h6),
+    );
+    const AT: [usize; 6] = [0, 1, 2, 4, 5, 6];
+    for (r, &ar) in AT.iter().enumerate() {
+        g[at + ar] += g6[r];
+    }
+    if let Some(h) = h {
+        for (r, &ar) in AT.iter().enumerate() {
+            for (c, &ac) in AT.iter().enumerate() {
+                h[at + ar][at + ac] += h6[r][c];
+            }
+        }
+    }
+    en
 }
 
 /// Kelvin–Voigt material damping with retardation time `tau`: adds the viscous force
