@@ -193,28 +193,38 @@ pub fn solve_bordered(
         // The nonzero columns solved together, from their first nonzero row.
         let mut zr = std::mem::take(&mut *r.z);
         zr.resize_with(nx, Vec::new);
-        let mut first = n;
-        let mut active: Vec<&mut [f64]> = Vec::with_capacity(nx);
-        for (c, col) in zr.iter_mut().enumerate() {
-            col.resize(n, 0.0);
-            let mut top = n;
-            for (l, row) in r.border.iter().enumerate() {
-                col[l] = row[c];
-                if row[c] != 0.0 && top == n {
-                    top = l;
+        // The border row by row (one pass over its rows), each column's first nonzero row.
+        let mut top = vec![n; nx];
+        zr.iter_mut().for_each(|col| col.resize(n, 0.0));
+        for (l, row) in r.border.iter().enumerate() {
+            for (c, &v) in row.iter().enumerate().take(nx) {
+                zr[c][l] = v;
+                if v != 0.0 && top[c] == n {
+                    top[c] = l;
                 }
             }
-            if top < n {
-                first = first.min(top);
-                active.push(col);
-            }
         }
+        let first = top.iter().copied().min().unwrap_or(n);
+        let mut active: Vec<&mut [f64]> = zr
+            .iter_mut()
+            .zip(&top)
+            .filter(|(_, &t)| t < n)
+            .map(|(col, _)| col.as_mut_slice())
+            .collect();
         r.solve_many(&mut active, first);
         drop(active);
+        // C Z: row l of Z gathered once for the consecutive entries of a column l.
+        let (mrows, ms) = (m.nrows(), m.as_mut_slice());
+        let mut zl = vec![0.0; nx];
+        let mut last = usize::MAX;
         for &(row, l, v) in r.rows {
             f[row] -= v * r.rhs[l];
-            for (c, col) in zr.iter().enumerate() {
-                m[(row, c)] -= v * col[l];
+            if l != last {
+                zl.iter_mut().zip(&zr).for_each(|(z, col)| *z = col[l]);
+                last = l;
+            }
+            for (c, z) in zl.iter().enumerate() {
+                ms[c * mrows + row] -= v * z;
             }
         }
         *r.z = zr;

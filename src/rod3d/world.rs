@@ -91,6 +91,9 @@ pub struct World3 {
     pub time: f64,
     pub steps: u64,
     work: Vec<Work3>,
+    /// The bodies' predicted displacements while the contacts are re-linearised (kept from
+    /// step to step: no allocation).
+    guesses: Vec<Vector6<f64>>,
 }
 
 impl World3 {
@@ -115,6 +118,7 @@ impl World3 {
             time: 0.0,
             steps: 0,
             work: Vec::new(),
+            guesses: Vec::new(),
         }
     }
 
@@ -306,16 +310,18 @@ impl World3 {
         }
         // Carried contacts are re-linearised at the start pose (ΔX = 0), then the bodies take
         // their predicted displacement as the first guess.
-        let mut guesses = Vec::with_capacity(self.bodies.len());
+        let mut guesses = std::mem::take(&mut self.guesses);
+        guesses.clear();
         for b in &mut self.bodies {
             b.begin(dt);
             guesses.push(std::mem::replace(&mut b.dx, Vector6::zeros()));
         }
         self.relinearise();
-        for (b, g) in self.bodies.iter_mut().zip(guesses) {
-            b.dx = g;
+        for (b, g) in self.bodies.iter_mut().zip(&guesses) {
+            b.dx = *g;
             b.place();
         }
+        self.guesses = guesses;
         let mut report = StepReport3::default();
         let max_passes = 3 * self.rods.iter().map(|s| s.rod.n as u32).sum::<u32>().max(4);
         loop {

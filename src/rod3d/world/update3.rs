@@ -103,14 +103,15 @@ impl World3 {
     /// went below a fixed obstacle.
     fn update_body_contacts(&mut self, dt: f64, report: &mut StepReport3) -> u32 {
         let mut changed = 0;
-        let mut keep = Vec::new();
-        for mut bc in std::mem::take(&mut self.body_contacts) {
+        // Kept in place (no new list each step).
+        let mut all = std::mem::take(&mut self.body_contacts);
+        all.retain_mut(|bc| {
             let n = bc.normal;
             let fn_ = n.dot(&bc.force);
             if fn_ < 0.0 {
                 report.released += 1;
                 changed += 1;
-                continue;
+                return false;
             }
             let ft = bc.force - n * fn_;
             let mu = bc.coulomb;
@@ -129,9 +130,9 @@ impl World3 {
                     report.switches += 1;
                 }
             }
-            keep.push(bc);
-        }
-        self.body_contacts = keep;
+            true
+        });
+        self.body_contacts = all;
         changed + self.detect_body_contacts(report)
     }
 
