@@ -229,25 +229,63 @@ fn grasp2(runs: usize) -> (f64, u64, f64) {
 /// resolution": both shipped grasps have 10-node prongs; the 3D one is run at the planar
 /// one's dt = 1e-5 s without material damping (the planar grasp has none), then as shipped
 /// (loss factor 0.3) and at its own dt = 1e-4 s for reference.
+///
+/// The planar figure is bimodal on a shared machine (the same binary measures 6.3 or 10 µs
+/// in runs minutes apart), so the two sides are measured in interleaved rounds, each a planar
+/// run (best of 3) right before a 3D run: the ratio is reported best against best and as the
+/// median of the rounds' ratios. Both sides run the same work in every round.
 fn grasp_ratio() {
-    let (us2, n2, it2) = grasp2(5);
+    const ROUNDS: usize = 5;
+    let (mut planar, mut undamped) = ((f64::INFINITY, 0, 0.0), (f64::INFINITY, 0, 0.0, 0.0));
+    let mut ratios = Vec::with_capacity(ROUNDS);
+    println!("\nInterleaved rounds (planar best of 3, then the 3D grasp undamped at dt 1e-5), CPU µs per step:");
+    for round in 1..=ROUNDS {
+        let p = grasp2(3);
+        let u = grasp3(1e-5, false, 1);
+        println!(
+            "round {round}: planar {:.2}, 3D {:.2}, × {:.2}",
+            p.0,
+            u.0,
+            u.0 / p.0
+        );
+        ratios.push(u.0 / p.0);
+        if p.0 < planar.0 {
+            planar = p;
+        }
+        if u.0 < undamped.0 {
+            undamped = u;
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ROUNDS / 2];
+    let (us2, n2, it2) = planar;
     println!(
         "\nTwo-finger grasps, 10 nodes per prong, whole scenarios, CPU µs per step (best of runs):"
     );
     println!("| run | dt (s) | steps | µs/step | Newton it/step | passes/step | × planar |");
     println!("|---|---|---|---|---|---|---|");
     println!("| planar two-prong-grasp | 1e-5 | {n2} | {us2:.2} | {it2:.2} | | 1 |");
-    for (dt, damped, label) in [
-        (1e-5, false, "3d-two-finger-sphere, undamped"),
-        (1e-5, true, "3d-two-finger-sphere, as shipped"),
-        (1e-4, true, "3d-two-finger-sphere, as shipped"),
-    ] {
-        let (us3, n3, it3, p3) = grasp3(dt, damped, 2);
+    let row = |label: &str, dt: f64, (us3, n3, it3, p3): (f64, u64, f64, f64)| {
         println!(
             "| {label} | {dt:e} | {n3} | {us3:.2} | {it3:.2} | {p3:.3} | {:.2} |",
             us3 / us2
         );
-    }
+    };
+    row("3d-two-finger-sphere, undamped", 1e-5, undamped);
+    row(
+        "3d-two-finger-sphere, as shipped",
+        1e-5,
+        grasp3(1e-5, true, 2),
+    );
+    row(
+        "3d-two-finger-sphere, as shipped",
+        1e-4,
+        grasp3(1e-4, true, 2),
+    );
+    println!(
+        "3D undamped against planar: {:.2}× best against best, {median:.2}× median of {ROUNDS} interleaved rounds",
+        undamped.0 / us2
+    );
 }
 
 fn main() {
