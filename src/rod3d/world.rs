@@ -222,18 +222,11 @@ impl World3 {
     fn contact_at(&self, r: usize, i: usize, s: Surface3, prox: &Proximity3) -> Contact3 {
         let n = prox.normal;
         let offset = self.offset(r, i, &n);
-        let lever = match s {
-            Surface3::Body(_) => prox.closest - self.centre(s),
-            Surface3::Obstacle(_) => V3::zeros(),
-        };
-        let a = lever_map(&lever).transpose() * n;
-        let coulomb = self
-            .friction
-            .between(&self.rod_names[r], self.surface_name(s));
+        let (lever, target, coulomb) = self.hold_on(r, s, prox, offset);
         Contact3 {
             surface: s,
             normal: n,
-            target: n.dot(&prox.closest) + offset - a.dot(&self.body_dx(s)),
+            target,
             lever,
             offset,
             grip: Grip3::Slide { dir: V3::zeros() },
@@ -241,6 +234,29 @@ impl World3 {
             switches: 0,
             locked: false,
         }
+    }
+
+    /// What holding a point of rod r on `s` where `prox` sees it (offset `offset` along the
+    /// normal) takes: the lever from the body's centre (zero on an obstacle), the target
+    /// n·x of the constraint at the current body displacement, and the pair's friction.
+    pub(crate) fn hold_on(
+        &self,
+        r: usize,
+        s: Surface3,
+        prox: &Proximity3,
+        offset: f64,
+    ) -> (V3, f64, crate::contact::friction::Coulomb) {
+        let n = prox.normal;
+        let lever = match s {
+            Surface3::Body(_) => prox.closest - self.centre(s),
+            Surface3::Obstacle(_) => V3::zeros(),
+        };
+        let a = lever_map(&lever).transpose() * n;
+        let target = n.dot(&prox.closest) + offset - a.dot(&self.body_dx(s));
+        let coulomb = self
+            .friction
+            .between(&self.rod_names[r], self.surface_name(s));
+        (lever, target, coulomb)
     }
 
     /// Where node i must be: projected onto its constraint at the current body displacement.

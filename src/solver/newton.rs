@@ -302,15 +302,7 @@ impl RodWork {
         let dim = 2 * nfree;
         Self {
             q: rod.q0.clone(),
-            u: (0..2 * n)
-                .map(|k| {
-                    if rod.clamped[k / 2] {
-                        0.0
-                    } else {
-                        rod.velocity[k % 2]
-                    }
-                })
-                .collect(),
+            u: Self::initial_velocity(rod),
             a: vec![0.0; 2 * n],
             dq: vec![0.0; 2 * n],
             qn: rod.q0.clone(),
@@ -359,16 +351,36 @@ impl RodWork {
             conform_z: Vec::new(),
             conform_v: Vec::new(),
             conform_s: Vec::new(),
-            bdf: Bdf2 {
-                s: vec![0.0; 2 * n],
-                dq_prev: vec![0.0; 2 * n],
-                u_prev: vec![0.0; 2 * n],
-                a_prev: vec![0.0; 2 * n],
-                hist: vec![false; n],
-                settled: vec![false; n],
-                second: vec![false; n],
-                ..Bdf2::default()
-            },
+            bdf: Bdf2::for_nodes(n),
+        }
+    }
+
+    /// The initial velocity of every coordinate (0 at clamped nodes).
+    fn initial_velocity(rod: &Rod) -> Vec<f64> {
+        (0..2 * rod.n)
+            .map(|k| {
+                if rod.clamped[k / 2] {
+                    0.0
+                } else {
+                    rod.velocity[k % 2]
+                }
+            })
+            .collect()
+    }
+}
+
+impl Bdf2 {
+    /// Empty histories for `n` nodes.
+    fn for_nodes(n: usize) -> Self {
+        Bdf2 {
+            s: vec![0.0; 2 * n],
+            dq_prev: vec![0.0; 2 * n],
+            u_prev: vec![0.0; 2 * n],
+            a_prev: vec![0.0; 2 * n],
+            hist: vec![false; n],
+            settled: vec![false; n],
+            second: vec![false; n],
+            ..Bdf2::default()
         }
     }
 }

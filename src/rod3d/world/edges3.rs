@@ -75,20 +75,13 @@ impl World3 {
     fn edge_at(&self, r: usize, i: usize, w: f64, s: Surface3, prox: &Proximity3) -> EdgeContact3 {
         let n = prox.normal;
         let offset = self.edge_offset(r, i, &n);
-        let lever = match s {
-            Surface3::Body(_) => prox.closest - self.centre(s),
-            Surface3::Obstacle(_) => V3::zeros(),
-        };
-        let a = lever_map(&lever).transpose() * n;
-        let coulomb = self
-            .friction
-            .between(&self.rod_names[r], self.surface_name(s));
+        let (lever, target, coulomb) = self.hold_on(r, s, prox, offset);
         let mut e = EdgeContact3 {
             surface: s,
             segment: i,
             weight: w,
             normal: n,
-            target: n.dot(&prox.closest) + offset - a.dot(&self.body_dx(s)),
+            target,
             lever,
             offset,
             point: prox.closest,
