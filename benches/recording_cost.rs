@@ -1,5 +1,8 @@
 //! What recording costs: a scenario (default seed-grasp-r5) run with no sink, with each sink
-//! alone, with .rrd + .mcap at step detail, and at iteration detail.
+//! alone, with .rrd + .mcap at step detail, at iteration detail, and at `--detail auto` (the
+//! default of `gripsim run`: the decimating layer in front of both files, with its live spike
+//! detector at the default thresholds; the survey run that picks the drawing scale is not
+//! part of any row).
 //!
 //!     cargo bench --bench recording_cost [-- REPEATS] [SCENARIO]
 //!
@@ -15,10 +18,11 @@
 //! (steps + 1) × nodes: every recorded step holds the initial state too).
 
 use gripsim::events::{Fanout, NullObserver, Observer};
+use gripsim::record::auto::AutoDetail;
 use gripsim::record::csv::CsvSink;
 use gripsim::record::mcap::McapSink;
 use gripsim::record::rerun::RerunSink;
-use gripsim::record::{Detail, RecordOptions, Recording};
+use gripsim::record::{AutoRule, Detail, RecordOptions, Recording};
 use gripsim::{Scenario, Simulation};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -34,8 +38,12 @@ struct Case {
 
 /// One run; returns the wall time (s) and the sizes of the files written.
 fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>) {
+    let detail = match case.detail {
+        Detail::Auto(r) if r.every == 0 => Detail::Auto(AutoRule::for_scenario(sc)),
+        d => d,
+    };
     let opts = RecordOptions {
-        detail: case.detail,
+        detail,
         flush_every: sc.flush_every,
     };
     let start = Instant::now();
@@ -63,7 +71,17 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>)
         for s in sinks.iter_mut() {
             fan.push(s.as_mut() as &mut dyn Observer);
         }
-        sim.run(&mut fan).unwrap();
+        match detail.auto() {
+            Some(rule) => {
+                let th = gripsim::replay::Thresholds::DEFAULT;
+                let spikes = gripsim::replay::detect::Detector::new(sc, &th);
+                let mut auto = AutoDetail::new(fan, rule, Some(spikes));
+                sim.run(&mut auto).unwrap();
+            }
+            None => {
+                sim.run(&mut fan).unwrap();
+            }
+        }
     }
     let mut sizes = Vec::new();
     for s in sinks.iter_mut() {
@@ -150,6 +168,13 @@ fn main() {
             mcap: true,
             csv: false,
             detail: Detail::Iteration,
+        },
+        Case {
+            name: ".rrd + .mcap, auto detail",
+            rrd: true,
+            mcap: true,
+            csv: false,
+            detail: Detail::Auto(AutoRule::default()),
         },
     ];
     let steps = (sc.solve.t_end / sc.solve.dt).round();
