@@ -427,6 +427,40 @@ pub struct Target {
     pub limit: f64,
     pub fixed: Option<Row>,
     pub bdf2: Option<Row>,
+    /// A second figure, independent of where the rungs fall: each strategy's steps at exactly
+    /// the limit, interpolated log-log between the two rungs of its ladder that bracket it
+    /// ([`steps_at_limit`]; the same rule for both strategies). `None` when no two rungs
+    /// bracket the limit.
+    pub fixed_at_limit: Option<f64>,
+    pub bdf2_at_limit: Option<f64>,
+}
+
+/// The steps at which a ladder's impulse error is exactly `limit`: the ladder's (steps, error)
+/// rungs sorted by steps, every pair of neighbours whose errors bracket the limit interpolated
+/// on the straight line between them in log(steps)–log(error), and the fewest steps of those
+/// crossings (a ladder whose error is not monotone in its steps can cross the limit more than
+/// once). `None` when no neighbours bracket it (every rung within the limit, or none).
+pub fn steps_at_limit(rungs: &[(u64, f64)], limit: f64) -> Option<f64> {
+    let mut r: Vec<(u64, f64)> = rungs
+        .iter()
+        .copied()
+        .filter(|&(n, e)| n > 0 && e > 0.0 && e.is_finite())
+        .collect();
+    r.sort_by_key(|&(n, _)| n);
+    r.windows(2)
+        .filter_map(|w| {
+            let ((n1, e1), (n2, e2)) = (w[0], w[1]);
+            if (e1 - limit) * (e2 - limit) > 0.0 {
+                return None;
+            }
+            if e1 == e2 {
+                return Some(n1 as f64);
+            }
+            let (l1, l2) = ((n1 as f64).ln(), (n2 as f64).ln());
+            let f = (limit.ln() - e1.ln()) / (e2.ln() - e1.ln());
+            Some((l1 + f * (l2 - l1)).exp())
+        })
+        .min_by(|a, b| a.total_cmp(b))
 }
 
 impl Target {
@@ -460,12 +494,21 @@ impl Target {
             }
             None => "no comparison".into(),
         };
+        let at = |n: Option<f64>| n.map_or("not bracketed".into(), |n| format!("{n:.0} steps"));
+        let ratio = match (self.fixed_at_limit, self.bdf2_at_limit) {
+            (Some(f), Some(b)) => format!(" => {:.1}x fewer steps", f / b),
+            _ => String::new(),
+        };
         format!(
-            "target {} (impulse error <= {} %): {}; {} => {verdict}",
+            "target {} (impulse error <= {} %): {}; {} => {verdict}; at exactly {} % (log-log \
+             between the bracketing rungs, both strategies): fixed {}, bdf2+adaptive+toi {}{ratio}",
             self.case,
             self.limit * 100.0,
             rung(&self.fixed),
-            rung(&self.bdf2)
+            rung(&self.bdf2),
+            self.limit * 100.0,
+            at(self.fixed_at_limit),
+            at(self.bdf2_at_limit),
         )
     }
 }
@@ -482,6 +525,14 @@ pub fn targets(rows: &[Row], limit: f64) -> Vec<Target> {
             .min_by_key(|r| r.steps)
             .cloned()
     };
+    let at_limit = |case: &str, strategy: Strategy| {
+        let rungs: Vec<(u64, f64)> = rows
+            .iter()
+            .filter(|r| r.case == case && r.strategy == strategy.name())
+            .filter_map(|r| Some((r.steps, r.err.impulse_rel?)))
+            .collect();
+        steps_at_limit(&rungs, limit)
+    };
     cases
         .into_iter()
         .filter(|c| {
@@ -495,6 +546,8 @@ pub fn targets(rows: &[Row], limit: f64) -> Vec<Target> {
             limit,
             fixed: best(c, Strategy::Fixed),
             bdf2: best(c, Strategy::Bdf2AdaptiveToi),
+            fixed_at_limit: at_limit(c, Strategy::Fixed),
+            bdf2_at_limit: at_limit(c, Strategy::Bdf2AdaptiveToi),
         })
         .collect()
 }

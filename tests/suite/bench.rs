@@ -55,6 +55,13 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
         .map(|l| l.split_whitespace().nth(1).unwrap())
         .collect();
     assert_eq!(cases, ["seed-grasp-r5", "two-prong-grasp"], "{targets}");
+    // The second figure of each line: fixed backward Euler's steps at exactly 1 %, between
+    // its rungs dt = 1e-4 (600 steps, 2.6 %) and 3e-5 (2 000 steps, 0.84 %).
+    for l in targets.lines() {
+        let tail = l.split("both strategies): fixed ").nth(1).expect(l);
+        let n: f64 = tail.split_whitespace().next().unwrap().parse().expect(l);
+        assert!(n > 600.0 && n < 2000.0, "{l}");
+    }
     for (f, min) in [
         ("work-precision.png", 10_000),
         ("work-precision.svg", 10_000),
@@ -88,4 +95,29 @@ fn quick_stress_map_has_no_non_finite_value_and_no_penetration_in_ok_cells() {
     }
     assert_eq!(n, 16);
     assert!(dir.path().join("stress.png").exists() && dir.path().join("stress.svg").exists());
+}
+
+#[test]
+fn steps_at_the_limit_are_interpolated_log_log_between_the_bracketing_rungs() {
+    use gripsim::bench::steps_at_limit;
+    let close = |a: Option<f64>, b: f64| a.is_some_and(|a| (a - b).abs() < 1e-9 * b);
+    // Error ∝ 1/steps: halfway in log is 200 steps at 2 %.
+    assert!(close(
+        steps_at_limit(&[(100, 0.04), (400, 0.01)], 0.02),
+        200.0
+    ));
+    // Error ∝ 1/steps²: 100 √2 steps at 2 %, whatever the order of the rungs and a rung
+    // further down.
+    let second = [(800, 0.002), (200, 0.01), (100, 0.04)];
+    assert!(close(steps_at_limit(&second, 0.02), 100.0 * 2f64.sqrt()));
+    // A rung exactly at the limit is its own answer.
+    let exact = [(100, 0.04), (250, 0.02), (400, 0.01)];
+    assert!(close(steps_at_limit(&exact, 0.02), 250.0));
+    // Not monotone: three crossings, the fewest steps win (100 · 1.5^(ln 3 / ln(0.03/0.009))).
+    let wobbly = [(100, 0.03), (150, 0.009), (200, 0.012), (300, 0.005)];
+    assert!(close(steps_at_limit(&wobbly, 0.01), 144.770_937_851_11));
+    // Nothing brackets the limit.
+    assert_eq!(steps_at_limit(&[(100, 0.005), (200, 0.001)], 0.01), None);
+    assert_eq!(steps_at_limit(&[(100, 0.05), (200, 0.02)], 0.01), None);
+    assert_eq!(steps_at_limit(&[(100, 0.05)], 0.01), None);
 }
