@@ -47,6 +47,11 @@ pub enum Integrator {
     /// Variable-step two-step BDF: second order, L-stable. Nodes touching an obstacle in a
     /// step (and in the step before) drop to backward Euler locally.
     Bdf2,
+    /// TR-BDF2 (γ = 2 − √2): a trapezoidal stage to t + γ dt, then BDF2 over t, t + γ dt,
+    /// t + dt. Second order, L-stable, local error constant
+    /// about 0.04 against BDF2's 2/9.
+    /// Nodes touching an obstacle drop to backward Euler in a stage as under BDF2.
+    TrBdf2,
 }
 
 /// `[solve]`.
@@ -832,11 +837,12 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
     let integrator = match s.opt_str("integrator")?.unwrap_or("backward_euler") {
         "backward_euler" => Integrator::BackwardEuler,
         "bdf2" => Integrator::Bdf2,
+        "tr_bdf2" => Integrator::TrBdf2,
         other => {
-            let names = ["backward_euler", "bdf2"];
+            let names = ["backward_euler", "bdf2", "tr_bdf2"];
             let hint = match reader::did_you_mean(other, &names) {
                 Some(m) => format!("did you mean \"{m}\"?"),
-                None => "use \"backward_euler\" or \"bdf2\"".into(),
+                None => "use \"backward_euler\", \"bdf2\" or \"tr_bdf2\"".into(),
             };
             return Err(s.err_hint(
                 "integrator",

@@ -148,6 +148,9 @@ pub struct Bdf2 {
     /// The last accepted step was a sliver folded into the history (see
     /// `Simulation::accept`): the history spans the step before it and the sliver.
     pub merged: bool,
+    /// TR-BDF2's first stage (the trapezoidal rule over γ dt, see [`RodWork::begin_trap`]):
+    /// the row is the same with α = 0, β = γ dt / 2 and s = γ dt u + β² a, and u₁ = Δq/β − u.
+    pub trap: bool,
 }
 
 impl RodWork {
@@ -176,9 +179,27 @@ impl RodWork {
         }
     }
 
+    /// TR-BDF2's trapezoidal stage over `dt1` = γ dt: M (u₁ − u) = dt1/2 (f + f₁), q₁ = q +
+    /// dt1/2 (u + u₁). With the start's acceleration a = M⁻¹ f (the last step's end) this is
+    /// M/β² (Δq − s) = f₁ with β = dt1/2, s = dt1 u + β² a: the BDF2 row's form. A node
+    /// takes it where it would take the BDF2 row ([`RodWork::second_order`]).
+    pub fn begin_trap(&mut self, dt1: f64) {
+        let b = &mut self.bdf;
+        b.on = true;
+        b.trap = true;
+        b.omega = 0.0;
+        b.alpha = 0.0;
+        b.beta = 0.5 * dt1;
+        b.c = 1.0 / (b.beta * b.beta);
+        for k in 0..self.u.len() {
+            b.s[k] = dt1 * self.u[k] + b.beta * b.beta * self.a[k];
+        }
+    }
+
     /// Set up the BDF2 coefficients of a step of size `dt` (`on`: the scenario asks for it).
     pub fn begin_bdf2(&mut self, on: bool, dt: f64) {
         let b = &mut self.bdf;
+        b.trap = false;
         let omega = if b.dt_prev > 0.0 {
             dt / b.dt_prev
         } else {
@@ -863,7 +884,9 @@ pub fn step_velocities(rod: &Rod, w: &mut RodWork, dt: f64) {
     for i in 0..rod.n {
         let second = w.second_order(i);
         for k in 2 * i..2 * i + 2 {
-            w.v1[k] = if second {
+            w.v1[k] = if second && w.bdf.trap {
+                w.dq[k] / w.bdf.beta - w.u[k]
+            } else if second {
                 (w.dq[k] - w.bdf.alpha * w.bdf.dq_prev[k]) / w.bdf.beta
             } else {
                 w.dq[k] / dt

@@ -32,6 +32,7 @@ impl Simulation {
             } else {
                 (w.r[2 * i], w.r[2 * i + 1])
             };
+            let old = [o.reaction[2 * i], o.reaction[2 * i + 1]];
             if rod.clamped[i] {
                 o.reaction[2 * i] = 0.0;
                 o.reaction[2 * i + 1] = 0.0;
@@ -44,7 +45,13 @@ impl Simulation {
                 o.reaction[2 * i] = g[0];
                 o.reaction[2 * i + 1] = g[1];
             }
-            if w.bdf.second[i] && dt > 0.0 {
+            if w.bdf.second[i] && w.bdf.trap && dt > 0.0 && !initial {
+                // TR-BDF2's trapezoidal stage: m (u₁ − u₀) = β (f₀ + R₀ + f₁ + R₁), so its
+                // impulse is β (R₀ + R₁) (R₀: the last step's end reaction, `old`).
+                for k in 2 * i..2 * i + 2 {
+                    o.impulse[k] = w.bdf.beta * (o.reaction[k] + old[k - 2 * i]);
+                }
+            } else if w.bdf.second[i] && dt > 0.0 {
                 // BDF2's contact impulse: m (Δu_k − α Δu_{k−1}) = β (f + R) per step, so the
                 // impulse J_k = β R + α J_{k−1} makes the impulses add up to the momentum
                 // change (R dt does not), and it is ∫ R dt to second order.

@@ -15,8 +15,13 @@ pub(super) struct StepCtx {
     pub t1: f64,
     pub step: u64,
     pub dynamic: bool,
-    /// The scenario asks for the second-order integrator (dynamic mode).
+    /// The scenario asks for a second-order integrator (dynamic mode): BDF2, or TR-BDF2 whose
+    /// stages keep the same per-node histories.
     pub bdf2: bool,
+    /// TR-BDF2's stage: 0 (not TR-BDF2), 1 (the trapezoidal stage over γ dt) or 2 (the BDF2
+    /// stage over (1 − γ) dt). `dt` is the stage's size; `step_dt` the whole step's.
+    pub stage: u8,
+    pub step_dt: f64,
     pub opt: NewtonOptions,
     pub max_passes: u32,
     pub wants_iter: bool,
@@ -66,7 +71,9 @@ impl Simulation {
             t1: if dynamic { self.t + dt } else { lambda },
             step: self.step + 1,
             dynamic,
-            bdf2: dynamic && solve.integrator == Integrator::Bdf2,
+            bdf2: dynamic && solve.integrator != Integrator::BackwardEuler,
+            stage: 0,
+            step_dt: dt,
             opt: NewtonOptions {
                 c: if dynamic { 1.0 / (dt * dt) } else { 0.0 },
                 dt: if dynamic { dt } else { 0.0 },
@@ -74,7 +81,7 @@ impl Simulation {
                 force_tol: solve.force_tol,
                 step_tol: solve.step_tol,
                 max_iterations: solve.max_newton_iterations,
-                chord: dynamic && solve.integrator == Integrator::Bdf2,
+                chord: dynamic && solve.integrator != Integrator::BackwardEuler,
             },
             max_passes: solve
                 .max_contact_passes
@@ -93,25 +100,46 @@ impl Simulation {
         allow_split: bool,
         obs: &mut O,
     ) -> Result<(), StepError> {
+        if self.scenario.solve.mode == Mode::Dynamic
+            && self.scenario.solve.integrator == Integrator::TrBdf2
+        {
+            return self.try_tr_bdf2(dt, allow_split, obs);
+        }
         let ctx = self.step_ctx(dt, lambda, obs.wants_iterations(), obs.wants_steps());
         obs.on_event(&Event::StepBegin {
             step: ctx.step,
             t: self.t,
             dt,
         });
-        self.begin_step(&ctx);
+        let (newton_iterations, passes_total) = self.solve_stage(&ctx, allow_split, obs)?;
+        if ctx.dynamic && self.scenario.solve.stepping == Stepping::Adaptive {
+            self.adapt(dt)?;
+        }
+        self.accept(&ctx, obs, newton_iterations, passes_total);
+        Ok(())
+    }
+
+    /// Begin a step (or a TR-BDF2 stage) and solve it until its constraint sets settle.
+    /// Returns the Newton iterations and the contact changes over the passes.
+    pub(super) fn solve_stage<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        allow_split: bool,
+        obs: &mut O,
+    ) -> Result<(u32, u32), StepError> {
+        self.begin_step(ctx);
         let (mut newton_iterations, mut passes_total, mut pass) = (0u32, 0u32, 0u32);
         self.dirty.iter_mut().for_each(|d| *d = true);
         self.group_dirty = true;
         loop {
-            newton_iterations += self.solve_pass(&ctx, pass, obs)?;
+            newton_iterations += self.solve_pass(ctx, pass, obs)?;
             if pass == 0 {
-                self.after_predictor(&ctx, allow_split)?;
+                self.after_predictor(ctx, allow_split)?;
             }
             if allow_split && ctx.dynamic {
-                self.split_at_release(&ctx)?;
+                self.split_at_release(ctx)?;
             }
-            let changed = self.update_contacts(&ctx, pass, obs);
+            let changed = self.update_contacts(ctx, pass, obs);
             if changed == 0 {
                 break;
             }
@@ -130,11 +158,7 @@ impl Simulation {
                 });
             }
         }
-        if ctx.dynamic && self.scenario.solve.stepping == Stepping::Adaptive {
-            self.adapt(dt)?;
-        }
-        self.accept(&ctx, obs, newton_iterations, passes_total);
-        Ok(())
+        Ok((newton_iterations, passes_total))
     }
 
     /// Save the constraint sets, prescribe the driven nodes, guess the rest, re-linearise the
@@ -147,7 +171,11 @@ impl Simulation {
             w.edges_saved.clone_from(&w.edges);
             w.edge_released.clear();
             w.step_dt = if ctx.dynamic { ctx.dt } else { 0.0 };
-            w.begin_bdf2(ctx.bdf2, ctx.dt);
+            if ctx.stage == 1 {
+                w.begin_trap(ctx.dt);
+            } else {
+                w.begin_bdf2(ctx.bdf2, ctx.dt);
+            }
             // Prescribed displacement of driven nodes; initial guess for the rest.
             let (g, mirror) = self.rod_actuator[r];
             let motion = self.actuators[g].motion(ctx.t1.max(0.0));
@@ -387,7 +415,7 @@ impl Simulation {
 
     /// Adaptive stepping: reject the step when the error estimate exceeds the tolerance, or
     /// propose the next step size.
-    fn adapt(&mut self, dt: f64) -> Result<(), StepError> {
+    pub(super) fn adapt(&mut self, dt: f64) -> Result<(), StepError> {
         let (err, err2) = self.error_estimate(dt);
         let mut factor = if err > 0.0 {
             (0.9 / err.sqrt()).clamp(0.2, 2.0)
@@ -427,7 +455,7 @@ impl Simulation {
     }
 
     /// Accept: advance the state, emit the step's end.
-    fn accept<O: Observer>(
+    pub(super) fn accept<O: Observer>(
         &mut self,
         ctx: &StepCtx,
         obs: &mut O,
@@ -439,7 +467,10 @@ impl Simulation {
         }
         let mut max_pen = self.stats.max_penetration;
         for r in 0..self.rods.len() {
-            let merge = ctx.bdf2 && self.split_step && ctx.dt < SLIVER * self.work[r].bdf.dt_prev;
+            let merge = ctx.bdf2
+                && ctx.stage == 0
+                && self.split_step
+                && ctx.dt < SLIVER * self.work[r].bdf.dt_prev;
             advance_rod(&self.rods[r], &mut self.work[r], ctx, merge);
         }
         self.remember_reactions();
@@ -458,19 +489,22 @@ impl Simulation {
         self.step = ctx.step;
         self.t = ctx.t1;
         self.stats.t = ctx.t1;
-        self.last_dt = ctx.dt;
+        self.last_dt = ctx.step_dt;
         self.check_drives(obs);
         if ctx.wants_steps {
             for r in 0..self.rods.len() {
                 self.fill_outputs(r, if ctx.dynamic { ctx.dt } else { 0.0 }, false);
             }
+            if ctx.stage == 2 {
+                self.add_stage_impulses();
+            }
             self.fill_contact_outputs(ctx.dt);
-            self.emit_step_end(obs, ctx.dt, newton_iterations, passes);
+            self.emit_step_end(obs, ctx.step_dt, newton_iterations, passes);
         }
     }
 
     /// The energy balance of the step being accepted (see [`crate::energy::balance`]).
-    fn energy_step(&mut self, ctx: &StepCtx) {
+    pub(super) fn energy_step(&mut self, ctx: &StepCtx) {
         for r in 0..self.rods.len() {
             let rod = &self.rods[r];
             let w = &mut self.work[r];
@@ -510,7 +544,7 @@ impl Simulation {
 
     /// A driven node's velocity is its actuator's exact velocity (not the backward difference
     /// of its positions, which depends on dt).
-    fn driven_velocities(&mut self, ctx: &StepCtx) {
+    pub(super) fn driven_velocities(&mut self, ctx: &StepCtx) {
         if !ctx.dynamic {
             return;
         }
@@ -527,7 +561,7 @@ impl Simulation {
         }
     }
 
-    fn accept_bodies(&mut self, ctx: &StepCtx) {
+    pub(super) fn accept_bodies(&mut self, ctx: &StepCtx) {
         for b in &mut self.bodies {
             for k in 0..3 {
                 let v = b.dx[k] / ctx.dt;
@@ -568,7 +602,12 @@ impl Simulation {
 /// folded into the history instead of replacing it, so that the next step is BDF2 over
 /// t_{k−2}, t_k, t_{k+1} (ω = dt / (dt_{k−1} + dt_sliver)) where it would otherwise exceed
 /// BDF2's step ratio and fall back to backward Euler.
-fn advance_rod(rod: &crate::model::Rod, w: &mut newton::RodWork, ctx: &StepCtx, merge: bool) {
+pub(super) fn advance_rod(
+    rod: &crate::model::Rod,
+    w: &mut newton::RodWork,
+    ctx: &StepCtx,
+    merge: bool,
+) {
     for i in 0..rod.n {
         let second = w.second_order(i);
         for k in 2 * i..2 * i + 2 {
@@ -577,7 +616,13 @@ fn advance_rod(rod: &crate::model::Rod, w: &mut newton::RodWork, ctx: &StepCtx, 
             if !merge {
                 w.bdf.a_prev[k] = w.a[k];
             }
-            if second {
+            if second && w.bdf.trap {
+                // Trapezoidal: u₁ = Δq/β − u, M (u₁ − u) = β (f + f₁) so a₁ = (u₁ − u)/β − a.
+                let b = &w.bdf;
+                let un = w.dq[k] / b.beta - u0;
+                w.a[k] = (un - u0) / b.beta - w.a[k];
+                w.u[k] = un;
+            } else if second {
                 let b = &w.bdf;
                 let un = (w.dq[k] - b.alpha * b.dq_prev[k]) / b.beta;
                 let hu = u0 + b.alpha * (u0 - b.u_prev[k]);
