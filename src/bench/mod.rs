@@ -36,16 +36,19 @@ pub enum Strategy {
     Bdf2Fixed,
     /// BDF2 under error control with time of impact.
     Bdf2AdaptiveToi,
+    /// TR-BDF2 under error control with time of impact (the same rungs as BDF2's).
+    TrBdf2AdaptiveToi,
 }
 
 /// Every strategy, in table order.
-pub const STRATEGIES: [Strategy; 6] = [
+pub const STRATEGIES: [Strategy; 7] = [
     Strategy::Fixed,
     Strategy::Proximity,
     Strategy::Adaptive,
     Strategy::AdaptiveToi,
     Strategy::Bdf2Fixed,
     Strategy::Bdf2AdaptiveToi,
+    Strategy::TrBdf2AdaptiveToi,
 ];
 
 impl Strategy {
@@ -57,6 +60,7 @@ impl Strategy {
             Strategy::AdaptiveToi => "adaptive+toi",
             Strategy::Bdf2Fixed => "bdf2",
             Strategy::Bdf2AdaptiveToi => "bdf2+adaptive+toi",
+            Strategy::TrBdf2AdaptiveToi => "tr_bdf2+adaptive+toi",
         }
     }
 
@@ -70,6 +74,11 @@ impl Strategy {
                 };
                 let mut v = base.sets(p);
                 v.push("solve.integrator=\"bdf2\"".into());
+                v
+            }
+            Strategy::TrBdf2AdaptiveToi => {
+                let mut v = Strategy::AdaptiveToi.sets(p);
+                v.push("solve.integrator=\"tr_bdf2\"".into());
                 v
             }
             Strategy::Fixed => vec!["solve.stepping=\"fixed\"".into(), format!("solve.dt={p:e}")],
@@ -433,6 +442,10 @@ pub struct Target {
     /// bracket the limit.
     pub fixed_at_limit: Option<f64>,
     pub bdf2_at_limit: Option<f64>,
+    /// The same two figures for TR-BDF2 + adaptive + time of impact (compared with fixed
+    /// backward Euler by the same rules as BDF2).
+    pub tr_bdf2: Option<Row>,
+    pub tr_bdf2_at_limit: Option<f64>,
 }
 
 /// The steps at which a ladder's impulse error is exactly `limit`: the ladder's (steps, error)
@@ -466,55 +479,75 @@ pub fn steps_at_limit(rungs: &[(u64, f64)], limit: f64) -> Option<f64> {
 impl Target {
     /// Fewer steps, less wall time and less CPU time of the BDF2 rung against the fixed rung.
     pub fn ratios(&self) -> Option<(f64, f64, f64)> {
-        let (f, b) = (self.fixed.as_ref()?, self.bdf2.as_ref()?);
-        Some((
-            f.steps as f64 / b.steps.max(1) as f64,
-            f.wall_s / b.wall_s.max(1e-12),
-            f.cpu_s / b.cpu_s.max(1e-12),
-        ))
+        rung_ratios(self.fixed.as_ref()?, self.bdf2.as_ref()?)
+    }
+
+    /// The same for the TR-BDF2 rung.
+    pub fn tr_ratios(&self) -> Option<(f64, f64, f64)> {
+        rung_ratios(self.fixed.as_ref()?, self.tr_bdf2.as_ref()?)
     }
 
     pub fn describe(&self) -> String {
-        let rung = |r: &Option<Row>| match r {
-            Some(r) => format!(
-                "{} {}={:e}: {} steps, {:.3} ms wall, {:.3} ms CPU, impulse error {:.3} %",
-                r.strategy,
-                r.param_name,
-                r.param,
-                r.steps,
-                r.wall_s * 1e3,
-                r.cpu_s * 1e3,
-                r.err.impulse_rel.unwrap_or(f64::NAN) * 100.0
-            ),
-            None => "no rung of the ladder is within the limit".into(),
-        };
-        let verdict = match self.ratios() {
+        let verdict = |r: Option<(f64, f64, f64)>| match r {
             Some((s, w, c)) => {
                 format!("{s:.1}x fewer steps, {w:.1}x less wall time, {c:.1}x less CPU time")
             }
             None => "no comparison".into(),
         };
         let at = |n: Option<f64>| n.map_or("not bracketed".into(), |n| format!("{n:.0} steps"));
-        let ratio = match (self.fixed_at_limit, self.bdf2_at_limit) {
+        let ratio = |x: Option<f64>| match (self.fixed_at_limit, x) {
             (Some(f), Some(b)) => format!(" => {:.1}x fewer steps", f / b),
             _ => String::new(),
         };
         format!(
-            "target {} (impulse error <= {} %): {}; {} => {verdict}; at exactly {} % (log-log \
-             between the bracketing rungs, both strategies): fixed {}, bdf2+adaptive+toi {}{ratio}",
+            "target {} (impulse error <= {} %): {}; {} => {}; {} => {}; at exactly {} % \
+             (log-log between the bracketing rungs, every strategy the same way): fixed {}, \
+             bdf2+adaptive+toi {}{}, tr_bdf2+adaptive+toi {}{}",
             self.case,
             self.limit * 100.0,
-            rung(&self.fixed),
-            rung(&self.bdf2),
+            describe_rung(&self.fixed),
+            describe_rung(&self.bdf2),
+            verdict(self.ratios()),
+            describe_rung(&self.tr_bdf2),
+            verdict(self.tr_ratios()),
             self.limit * 100.0,
             at(self.fixed_at_limit),
             at(self.bdf2_at_limit),
+            ratio(self.bdf2_at_limit),
+            at(self.tr_bdf2_at_limit),
+            ratio(self.tr_bdf2_at_limit),
         )
     }
 }
 
-/// Per case with an impulse error: the fewest-step rung within `limit` of fixed backward Euler
-/// and of BDF2 + adaptive + time of impact.
+/// Fewer steps, less wall and CPU time of rung `b` against rung `f`.
+fn rung_ratios(f: &Row, b: &Row) -> Option<(f64, f64, f64)> {
+    Some((
+        f.steps as f64 / b.steps.max(1) as f64,
+        f.wall_s / b.wall_s.max(1e-12),
+        f.cpu_s / b.cpu_s.max(1e-12),
+    ))
+}
+
+fn describe_rung(r: &Option<Row>) -> String {
+    match r {
+        Some(r) => format!(
+            "{} {}={:e}: {} steps, {:.3} ms wall, {:.3} ms CPU, impulse error {:.3} %",
+            r.strategy,
+            r.param_name,
+            r.param,
+            r.steps,
+            r.wall_s * 1e3,
+            r.cpu_s * 1e3,
+            r.err.impulse_rel.unwrap_or(f64::NAN) * 100.0
+        ),
+        None => "no rung of the ladder is within the limit".into(),
+    }
+}
+
+/// Per case with an impulse error: the fewest-step rung within `limit` of fixed backward Euler,
+/// of BDF2 + adaptive + time of impact and of TR-BDF2 + adaptive + time of impact (each
+/// second-order strategy is compared with fixed backward Euler by the same rules).
 pub fn targets(rows: &[Row], limit: f64) -> Vec<Target> {
     let mut cases: Vec<&str> = rows.iter().map(|r| r.case.as_str()).collect();
     cases.dedup();
@@ -548,6 +581,8 @@ pub fn targets(rows: &[Row], limit: f64) -> Vec<Target> {
             bdf2: best(c, Strategy::Bdf2AdaptiveToi),
             fixed_at_limit: at_limit(c, Strategy::Fixed),
             bdf2_at_limit: at_limit(c, Strategy::Bdf2AdaptiveToi),
+            tr_bdf2: best(c, Strategy::TrBdf2AdaptiveToi),
+            tr_bdf2_at_limit: at_limit(c, Strategy::TrBdf2AdaptiveToi),
         })
         .collect()
 }

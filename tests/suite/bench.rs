@@ -26,9 +26,9 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
     let csv = std::fs::read_to_string(dir.path().join("work-precision.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     // The two grasps × (3 fixed + 3 proximity + 3 adaptive + 3 adaptive+toi + 3 bdf2 +
-    // 3 bdf2+adaptive+toi) rungs; the point mass and the cantilever have 2 rungs of each
-    // fixed-dt strategy.
-    assert_eq!(lines.len(), 1 + 2 * 18 + 2 * 15, "{csv}");
+    // 3 bdf2+adaptive+toi + 3 tr_bdf2+adaptive+toi) rungs; the point mass and the cantilever
+    // have 2 rungs of each fixed-dt strategy.
+    assert_eq!(lines.len(), 1 + 2 * 21 + 2 * 18, "{csv}");
     assert!(lines[0].starts_with("case,strategy,parameter,value,steps"));
     for l in &lines[1..] {
         let f: Vec<&str> = l.split(',').collect();
@@ -58,7 +58,7 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
     // The second figure of each line: fixed backward Euler's steps at exactly 1 %, between
     // its rungs dt = 1e-4 (600 steps, 2.6 %) and 3e-5 (2 000 steps, 0.84 %).
     for l in targets.lines() {
-        let tail = l.split("both strategies): fixed ").nth(1).expect(l);
+        let tail = l.split("same way): fixed ").nth(1).expect(l);
         let n: f64 = tail.split_whitespace().next().unwrap().parse().expect(l);
         assert!(n > 600.0 && n < 2000.0, "{l}");
     }
