@@ -61,6 +61,11 @@ fn quick_work_precision_and_scaling_write_tables_and_figures() {
         let tail = l.split("same way): fixed ").nth(1).expect(l);
         let n: f64 = tail.split_whitespace().next().unwrap().parse().expect(l);
         assert!(n > 600.0 && n < 2000.0, "{l}");
+        // TR-BDF2's figure at exactly 1 %, between its rungs rtol 1e-5 (88 steps, 2.1 %) and
+        // 1e-6 (147 steps, 0.37 %): below BDF2's (between 116 and 247).
+        let tr = l.split("tr_bdf2+adaptive+toi ").last().expect(l);
+        let m: f64 = tr.split_whitespace().next().unwrap().parse().expect(l);
+        assert!(m > 88.0 && m < 147.0, "{l}");
     }
     for (f, min) in [
         ("work-precision.png", 10_000),
