@@ -57,6 +57,7 @@ use ::rerun::blueprint::{
     Blueprint, BlueprintPanel, ContainerLike, Horizontal, SelectionPanel, Spatial2DView, Tabs,
     TextLogView, TimePanel, TimeSeriesView, Vertical,
 };
+use ::rerun::external::arrow::array::{ArrayRef, Float32Array, Float64Array};
 use ::rerun::log::ChunkBatcherConfig;
 use ::rerun::{
     AnyValues, Arrows2D, AsComponents, Color, EntityPath, EntityPathPart, LineStrips2D, Points2D,
@@ -270,9 +271,13 @@ impl Series {
                 continue;
             }
             let rows = c.times.step.len();
-            let columns =
-                Scalars::new(c.values.drain(..)).columns(std::iter::repeat_n(c.width, rows))?;
-            rec.send_columns(path.clone(), c.times.columns(), columns)?;
+            let values = std::mem::take(&mut c.values);
+            let column = arrow_column(
+                std::sync::Arc::new(Float64Array::from(values)),
+                Scalars::descriptor_scalars(),
+                std::iter::repeat_n(c.width, rows),
+            )?;
+            rec.send_columns(path.clone(), c.times.columns(), [column])?;
             c.times.clear();
         }
         Ok(())
@@ -295,13 +300,18 @@ struct ForceArrows {
 #[derive(Default)]
 struct SceneColumns {
     times: Times,
-    points: Vec<[f32; 2]>,
+    /// x, y of every node of every buffered row.
+    points: Vec<f32>,
     nodes: usize,
     color_times: Times,
     colors: Vec<Color>,
     last_colors: Vec<Color>,
+    /// Scratch: this step's colours.
+    new_colors: Vec<Color>,
     mag_times: Times,
-    mag: Vec<Vec<[f32; 2]>>,
+    /// x, y of every point of the buffered rows' strips, and each strip's length.
+    mag: Vec<f32>,
+    mag_lengths: Vec<usize>,
     /// The normals and reactions of the rows that show them (and the empty row after).
     force_times: Times,
     forces: ForceArrows,
@@ -309,14 +319,17 @@ struct SceneColumns {
 }
 
 impl SceneColumns {
-    fn push(&mut self, now: Now, points: &[[f32; 2]], colors: Vec<Color>) {
+    /// A step's positions `q` (x, y per node) and node colours (`colors` fills the buffer it
+    /// is given; they are buffered only when they changed).
+    fn push(&mut self, now: Now, q: &[f64], colors: impl FnOnce(&mut Vec<Color>)) {
         self.times.push(now);
-        self.nodes = points.len();
-        self.points.extend_from_slice(points);
-        if colors != self.last_colors {
+        self.nodes = q.len() / 2;
+        self.points.extend(q.iter().map(|&x| x as f32));
+        colors(&mut self.new_colors);
+        if self.new_colors != self.last_colors {
             self.color_times.push(now);
-            self.colors.extend_from_slice(&colors);
-            self.last_colors = colors;
+            self.colors.extend_from_slice(&self.new_colors);
+            std::mem::swap(&mut self.last_colors, &mut self.new_colors);
         }
     }
 
@@ -365,19 +378,20 @@ impl SceneColumns {
         if !self.times.is_empty() {
             let n = self.nodes;
             let rows = self.times.step.len();
-            let strips: Vec<Vec<[f32; 2]>> = self
-                .points
-                .chunks_exact(n.max(1))
-                .map(|c| c.to_vec())
-                .collect();
-            let nodes = Points2D::update_fields()
-                .with_positions(self.points.drain(..))
-                .columns(std::iter::repeat_n(n, rows))?;
-            rec.send_columns(e.nodes.clone(), self.times.columns(), nodes)?;
-            let line = LineStrips2D::update_fields()
-                .with_strips(strips)
-                .columns_of_unit_batches()?;
-            rec.send_columns(e.centerline.clone(), self.times.columns(), line)?;
+            // The same points as the nodes' positions (n per row) and as one strip per row.
+            let points = vec2_array(std::mem::take(&mut self.points));
+            let nodes = arrow_column(
+                points.clone(),
+                Points2D::descriptor_positions(),
+                std::iter::repeat_n(n, rows),
+            )?;
+            rec.send_columns(e.nodes.clone(), self.times.columns(), [nodes])?;
+            let line = arrow_column(
+                strips_array(points, std::iter::repeat_n(n, rows)),
+                LineStrips2D::descriptor_strips(),
+                std::iter::repeat_n(1, rows),
+            )?;
+            rec.send_columns(e.centerline.clone(), self.times.columns(), [line])?;
             self.times.clear();
         }
         if !self.color_times.is_empty() {
@@ -390,10 +404,14 @@ impl SceneColumns {
         }
         if !self.mag_times.is_empty() {
             // One strip per row.
-            let strips = LineStrips2D::update_fields()
-                .with_strips(self.mag.drain(..))
-                .columns_of_unit_batches()?;
-            rec.send_columns(e.mag_step.clone(), self.mag_times.columns(), strips)?;
+            let rows = self.mag_lengths.len();
+            let points = vec2_array(std::mem::take(&mut self.mag));
+            let strips = arrow_column(
+                strips_array(points, self.mag_lengths.drain(..)),
+                LineStrips2D::descriptor_strips(),
+                std::iter::repeat_n(1, rows),
+            )?;
+            rec.send_columns(e.mag_step.clone(), self.mag_times.columns(), [strips])?;
             self.mag_times.clear();
         }
         Ok(())
@@ -793,15 +811,14 @@ impl RerunSink {
         let it = self.iteration;
         self.iteration += 1;
         self.set_time(&rec, step, t, it);
-        let style = self.style.clone().expect("set above");
+        // Taken out for the step (put back below): no copy of the style per step.
+        let style = self.style.take().expect("set above");
         let now = (step as i64, t.max(0.0), it);
         for (r, v) in rods.iter().enumerate() {
             // Nodes and centre line (every step) go out as columns at the next flush; the
             // normals and reactions as columns too; the predictor is logged as rows when shown.
             let e = &mut self.rods[r];
-            let points: Vec<[f32; 2]> = v.q.chunks_exact(2).map(|c| f32x2([c[0], c[1]])).collect();
-            let colors = e.node_colors(&style, v);
-            self.scene[r].push(now, &points, colors);
+            self.scene[r].push(now, v.q, |colors| e.node_colors(&style, v, colors));
             if let Some(a) = e.force_arrows(&style, r, v, Look::Live) {
                 self.scene[r].push_forces(now, a);
             }
@@ -810,8 +827,10 @@ impl RerunSink {
             let res = self.rods[r].draw_magnified(&rec, &style, r, v, passes > 0, step);
             match res {
                 Ok(Some(strip)) => {
-                    self.scene[r].mag_times.push(now);
-                    self.scene[r].mag.push(strip);
+                    let c = &mut self.scene[r];
+                    c.mag_times.push(now);
+                    c.mag_lengths.push(strip.len());
+                    c.mag.extend(strip.iter().flatten());
                 }
                 Ok(None) => {}
                 Err(e) => self.check(Err(e)),
@@ -865,17 +884,16 @@ impl RerunSink {
             self.per_step.push(k, &[x]);
             k += 1;
         }
+        self.style = Some(style);
         // Every RRD_FLUSH_POINTS-th flush point, or an earlier one once the buffered columns
-        // hold RRD_CHUNK_BYTES, sends them: one chunk per entity and send, and a chunk
-        // carries its schema and per-row time columns.
+        // hold RRD_CHUNK_BYTES, sends them and flushes the stream: one chunk per entity and
+        // send, and a chunk carries its schema and per-row time columns.
         if step.is_multiple_of(self.opts.flush_every) {
             self.flush_points += 1;
-            let columns =
-                self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES;
-            if columns {
+            if self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES {
                 self.flush_points = 0;
+                self.flush(&rec);
             }
-            self.flush(&rec, columns);
         }
     }
 
@@ -893,11 +911,11 @@ impl RerunSink {
             .iter()
             .map(|c| {
                 2 * rows(&c.times)
-                    + 16 * c.points.len()
+                    + 8 * c.points.len()
                     + rows(&c.color_times)
                     + 4 * c.colors.len()
                     + rows(&c.mag_times)
-                    + 8 * c.mag.iter().map(Vec::len).sum::<usize>()
+                    + 4 * c.mag.len()
                     + 2 * rows(&c.force_times)
                     + 16 * (c.forces.n_orig.len() + c.forces.r_orig.len())
             })
@@ -1217,23 +1235,23 @@ impl RerunSink {
             .unwrap_or_else(|| r.to_string())
     }
 
-    /// Send the buffered columns (with `columns`) and make the file readable up to here: the
-    /// rows logged so far (events, iterates, the sparse entities) close their chunks at every
-    /// flush point, as before, so the chunking of those is the same in every run of the same
-    /// data (`replay show` and the live run agree chunk for chunk). The wait for the SDK's
+    /// Send the buffered columns and make the file readable up to here: the rows logged so
+    /// far (events, iterates, the sparse entities) close their chunks here too, so the
+    /// chunking of those is the same in every run of the same data (`replay show` and the
+    /// live run agree chunk for chunk). (Until 2026-11-24 the stream was flushed at every flush
+    /// point, ten times as often as the columns were sent: a round trip through the SDK's
+    /// threads each time, and a chunk per sparse entity and flush.) The wait for the SDK's
     /// writer thread is bounded: a writer that died (disk full) or hangs fails the recording
     /// instead of the run waiting forever.
-    fn flush(&mut self, rec: &RecordingStream, columns: bool) {
-        if columns {
-            let mut r = self.per_step.send(rec);
-            for s in &mut self.per_iteration {
-                r = r.and_then(|_| s.send(rec));
-            }
-            for (c, e) in self.scene.iter_mut().zip(&self.rods) {
-                r = r.and_then(|_| c.send(rec, e));
-            }
-            self.check(r);
+    fn flush(&mut self, rec: &RecordingStream) {
+        let mut r = self.per_step.send(rec);
+        for s in &mut self.per_iteration {
+            r = r.and_then(|_| s.send(rec));
         }
+        for (c, e) in self.scene.iter_mut().zip(&self.rods) {
+            r = r.and_then(|_| c.send(rec, e));
+        }
+        self.check(r);
         if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
             let e = match e {
                 ::rerun::sink::SinkFlushError::Timeout => format!(
@@ -1513,6 +1531,50 @@ fn f32x2(p: [f64; 2]) -> [f32; 2] {
     [p[0] as f32, p[1] as f32]
 }
 
+/// `xy` (x, y, x, y, …) as the Arrow array of Rerun's 2D positions and vectors (a fixed-size
+/// list of two f32), built straight from the buffer: the archetypes' builders convert point
+/// by point.
+fn vec2_array(xy: Vec<f32>) -> ArrayRef {
+    use ::rerun::external::arrow::array::FixedSizeListArray;
+    use ::rerun::external::arrow::datatypes::DataType;
+    use ::rerun::Loggable;
+    let DataType::FixedSizeList(item, 2) = ::rerun::components::Position2D::arrow_datatype() else {
+        unreachable!("a Position2D is two f32")
+    };
+    std::sync::Arc::new(FixedSizeListArray::new(
+        item,
+        2,
+        std::sync::Arc::new(Float32Array::from(xy)),
+        None,
+    ))
+}
+
+/// `points` cut into line strips of `lengths` points (Rerun's LineStrip2D).
+fn strips_array(points: ArrayRef, lengths: impl IntoIterator<Item = usize>) -> ArrayRef {
+    use ::rerun::external::arrow::array::ListArray;
+    use ::rerun::external::arrow::buffer::OffsetBuffer;
+    use ::rerun::external::arrow::datatypes::DataType;
+    use ::rerun::Loggable;
+    let DataType::List(item) = ::rerun::components::LineStrip2D::arrow_datatype() else {
+        unreachable!("a LineStrip2D is a list of points")
+    };
+    std::sync::Arc::new(ListArray::new(
+        item,
+        OffsetBuffer::from_lengths(lengths),
+        points,
+        None,
+    ))
+}
+
+/// A `send_columns` column of `descriptor` from the values `array`, `lengths` of them per row.
+fn arrow_column(
+    array: ArrayRef,
+    descriptor: ::rerun::ComponentDescriptor,
+    lengths: impl IntoIterator<Item = usize>,
+) -> Result<::rerun::SerializedComponentColumn, ::rerun::SerializationError> {
+    ::rerun::SerializedComponentBatch::new(array, descriptor).partitioned(lengths)
+}
+
 /// The legend, static, in a band above the drawing box (the 2D view fits it in): the force
 /// scale bar (an arrow of the scale's round length, labelled with it), the colour bar
 /// (labelled with its range), and the magnification with the colour key of the magnified view.
@@ -1611,17 +1673,24 @@ impl RodEntities {
         self.info.clamped.get(i).copied().unwrap_or(false)
     }
 
-    /// The live look's node colours: |R| on the recording's colour map, grey when driven.
-    fn node_colors(&self, style: &SceneStyle, v: &RodStepView<'_>) -> Vec<Color> {
-        (0..v.in_contact.len())
-            .map(|i| {
-                if self.clamped(i) {
-                    rgb(DRIVEN_COLOR)
+    /// The live look's node colours: |R| on the recording's colour map, grey when driven
+    /// (into `out`, cleared first).
+    fn node_colors(&self, style: &SceneStyle, v: &RodStepView<'_>, out: &mut Vec<Color>) {
+        out.clear();
+        // A node without a reaction (most of them, most of the time) has the map's first colour.
+        let zero = rgb(style.forces.color(0.0));
+        out.extend((0..v.in_contact.len()).map(|i| {
+            if self.clamped(i) {
+                rgb(DRIVEN_COLOR)
+            } else {
+                let (x, y) = (v.reaction[2 * i], v.reaction[2 * i + 1]);
+                if x == 0.0 && y == 0.0 {
+                    zero
                 } else {
-                    rgb(style.forces.color(node_norm(v.reaction, i)))
+                    rgb(style.forces.color(x.hypot(y)))
                 }
-            })
-            .collect()
+            }
+        }));
     }
 
     /// What never changes in a live run's nodes, centre line and magnified step: logged once,
@@ -1791,14 +1860,14 @@ impl RodEntities {
     ) -> Option<ForceArrows> {
         let rs = style.rods[r];
         let n = v.in_contact.len();
-        let contacts: Vec<usize> = (0..n).filter(|&i| v.in_contact[i]).collect();
-        if contacts.is_empty() && !self.had_contacts {
+        let any = v.in_contact.iter().any(|&c| c);
+        if !any && !self.had_contacts {
             return None;
         }
-        self.had_contacts = !contacts.is_empty();
+        self.had_contacts = any;
         let rad = rs.node_radius;
         let mut a = ForceArrows::default();
-        for &i in &contacts {
+        for i in (0..n).filter(|&i| v.in_contact[i]) {
             let p = [v.q[2 * i], v.q[2 * i + 1]];
             let nv = [v.normal[2 * i], v.normal[2 * i + 1]];
             let tangent = [-nv[1], nv[0]];
@@ -2254,7 +2323,7 @@ impl Recording for RerunSink {
     fn finish(&mut self) -> Result<Finished, RecordError> {
         if let Some(rec) = self.rec.take() {
             if self.error.is_none() {
-                self.flush(&rec, true);
+                self.flush(&rec);
             }
             // The stream sends what it still holds, then the file is ended here.
             match close_stream(rec) {

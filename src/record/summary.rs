@@ -138,7 +138,17 @@ impl Window {
         if self.points.is_empty() {
             self.points.push_back((t0, 0.0, 0.0));
         }
-        self.points.push_back((t1, cx + jx, cy + jy));
+        let n = self.points.len();
+        if jx == 0.0 && jy == 0.0 && n >= 2 && {
+            let (a, b) = (self.points[n - 2], self.points[n - 1]);
+            a.1 == b.1 && a.2 == b.2
+        } {
+            // No impulse on a flat stretch: extend it instead of adding a breakpoint (the
+            // same function, so the same values; a node out of contact keeps two points).
+            self.points[n - 1].0 = t1;
+        } else {
+            self.points.push_back((t1, cx + jx, cy + jy));
+        }
         let from = t1 - tau;
         // Keep exactly one breakpoint at or before t − τ.
         while self.points.len() > 2 && self.points[1].0 <= from {
@@ -428,5 +438,60 @@ impl Observer for SummaryCollector {
             }
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Window;
+
+    /// The window as first written: a breakpoint per step, flat stretches included.
+    fn reference(
+        points: &mut Vec<(f64, f64, f64)>,
+        t0: f64,
+        t1: f64,
+        j: [f64; 2],
+        tau: f64,
+    ) -> f64 {
+        let (cx, cy) = points.last().map(|p| (p.1, p.2)).unwrap_or((0.0, 0.0));
+        if points.is_empty() {
+            points.push((t0, 0.0, 0.0));
+        }
+        points.push((t1, cx + j[0], cy + j[1]));
+        let from = t1 - tau;
+        while points.len() > 2 && points[1].0 <= from {
+            points.remove(0);
+        }
+        let (p0, p1) = (points[0], points[1]);
+        let (ax, ay) = if p0.0 >= from {
+            (p0.1, p0.2)
+        } else {
+            let f = (from - p0.0) / (p1.0 - p0.0);
+            (p0.1 + f * (p1.1 - p0.1), p0.2 + f * (p1.2 - p0.2))
+        };
+        (cx + j[0] - ax).hypot(cy + j[1] - ay) / tau
+    }
+
+    /// Flat stretches (steps without impulse) kept as one segment give the same force, bit for
+    /// bit, as a breakpoint per step, through contacts, gaps and a window of 7 steps.
+    #[test]
+    fn a_flat_stretch_is_one_segment_and_the_same_force() {
+        let (dt, tau) = (1e-5, 7e-5);
+        let mut w = Window::default();
+        let mut r = Vec::new();
+        for k in 0..200u32 {
+            let on = (20..35).contains(&k) || k == 60 || (90..93).contains(&k);
+            let j = if on {
+                [1e-6 * f64::from(k % 5 + 1), -3e-7 * f64::from(k % 3)]
+            } else {
+                [0.0, 0.0]
+            };
+            let (t0, t1) = (f64::from(k) * dt, f64::from(k + 1) * dt);
+            let a = w.push(t0, t1, j[0], j[1], tau);
+            let b = reference(&mut r, t0, t1, j, tau);
+            assert_eq!(a.to_bits(), b.to_bits(), "step {k}: {a} vs {b}");
+        }
+        // Out of contact since step 93: the window holds two points, not a point per step.
+        assert!(w.points.len() <= 3, "{} points", w.points.len());
     }
 }
