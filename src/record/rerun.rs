@@ -35,8 +35,8 @@
 //! the per-node plots: one entity per kind and rod, a row holds all its nodes' values). Whatever changes
 //! every step (the scalar series, node positions, centre lines, the magnified step) is buffered
 //! and sent as columns at every 10th flush or at 1 MiB ([`RRD_FLUSH_POINTS`], [`RRD_CHUNK_BYTES`]),
-//! built as Arrow arrays straight from the buffers, and the stream is flushed then (the rows
-//! logged one by one close their chunks there); a scalar series skips the
+//! built as Arrow arrays straight from the buffers (the rows logged one by one close their
+//! chunks at every flush point after which some were logged); a scalar series skips the
 //! inside of runs of equal values (the per-node plots at f32's precision), node colours are sent only when they change, and what never
 //! changes (radii, line colours, draw orders) is static. The normals and reactions go out as
 //! columns too (a row per step in contact, and an empty one after); the sparse entities
@@ -107,6 +107,8 @@ pub struct RerunSink {
     pressure_shown: bool,
     /// Flush points since the columns were last sent.
     flush_points: u32,
+    /// Rows were logged one by one (or the stream was lent out) since the stream's last flush.
+    rows: std::cell::Cell<bool>,
 }
 
 /// Time points worth a bookmark, found while the run is logged and written at its end.
@@ -622,6 +624,7 @@ impl RerunSink {
             file,
             pressure_shown: false,
             flush_points: 0,
+            rows: std::cell::Cell::new(true),
         })
     }
 
@@ -639,6 +642,8 @@ impl RerunSink {
     /// The recording stream (None once finished), for replay overlays that log their own
     /// entities at the times the sink has set.
     pub fn stream(&self) -> Option<&RecordingStream> {
+        // Whoever borrows it may log rows.
+        self.rows.set(true);
         self.rec.as_ref()
     }
 
@@ -663,6 +668,7 @@ impl RerunSink {
     }
 
     fn text(&mut self, step: u64, t: f64, level: &str, text: String) {
+        self.rows.set(true);
         let Some(rec) = self.rec.clone() else {
             return;
         };
@@ -672,6 +678,7 @@ impl RerunSink {
     }
 
     fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
+        self.rows.set(true);
         self.obstacles = info.obstacles.to_vec();
         self.bodies = info.bodies.to_vec();
         for r in info.rods {
@@ -748,6 +755,7 @@ impl RerunSink {
     /// Static data once the first state is known: the y-up flip, the obstacle outlines and the
     /// legend (force scale bar, colour bar, magnification).
     fn first_step(&mut self, rods: &[RodStepView<'_>]) {
+        self.rows.set(true);
         let infos: Vec<RodInfo> = self.rods.iter().map(|r| r.info.clone()).collect();
         let style = SceneStyle::new(
             &infos,
@@ -820,6 +828,11 @@ impl RerunSink {
             // Nodes and centre line (every step) go out as columns at the next flush; the
             // normals and reactions as columns too; the predictor is logged as rows when shown.
             let e = &mut self.rods[r];
+            // The predictor and the magnified view log rows on corrected steps, after
+            // iterates, and once (clearing) after either.
+            if passes > 0 || e.had_predictor || e.had_iterate || e.had_mag_correction {
+                self.rows.set(true);
+            }
             self.scene[r].push(now, v.q, |colors| e.node_colors(&style, v, colors));
             if let Some(a) = e.force_arrows(&style, r, v, Look::Live) {
                 self.scene[r].push_forces(now, a);
@@ -898,6 +911,8 @@ impl RerunSink {
             if self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES {
                 self.flush_points = 0;
                 self.flush(&rec);
+            } else if self.rows.get() {
+                self.flush_stream(&rec);
             }
         }
     }
@@ -933,6 +948,7 @@ impl RerunSink {
     /// plots: each prong's grip force (Σ normal force on the body) and the safety margin
     /// μ_s Σ N / (m g).
     fn draw_bodies(&mut self, bodies: &[BodyView<'_>], contacts: &[ContactView]) {
+        self.rows.set(true);
         let (Some(rec), Some(style)) = (self.rec.clone(), self.style.as_ref()) else {
             return;
         };
@@ -1020,6 +1036,7 @@ impl RerunSink {
         };
         let Some(c) = pr::most_pressed(contacts).filter(|c| c.rod < rods.len()) else {
             if std::mem::take(&mut self.pressure_shown) {
+                self.rows.set(true);
                 let r = rec
                     .log("scene/pressure", &::rerun::Clear::flat())
                     .and_then(|_| rec.log("zoom/contact", &::rerun::Clear::recursive()));
@@ -1027,6 +1044,7 @@ impl RerunSink {
             }
             return;
         };
+        self.rows.set(true);
         if !self.pressure_shown {
             self.pressure_shown = true;
             let r = rec.log_static("zoom", &Transform3D::from_scale((1.0, -1.0, 1.0)));
@@ -1136,6 +1154,7 @@ impl RerunSink {
     }
 
     fn iteration(&mut self, ev: IterationEvent<'_>) {
+        self.rows.set(true);
         let Some(rec) = self.rec.clone() else {
             return;
         };
@@ -1186,6 +1205,7 @@ impl RerunSink {
 
     /// A line in `events/bookmarks` at (step, t, iteration).
     fn bookmark(&mut self, step: u64, t: f64, iteration: i64, text: String) {
+        self.rows.set(true);
         let Some(rec) = self.rec.clone() else {
             return;
         };
@@ -1240,14 +1260,14 @@ impl RerunSink {
             .unwrap_or_else(|| r.to_string())
     }
 
-    /// Send the buffered columns and make the file readable up to here: the rows logged so
-    /// far (events, iterates, the sparse entities) close their chunks here too, so the
-    /// chunking of those is the same in every run of the same data (`replay show` and the
-    /// live run agree chunk for chunk). (Until 2026-11-24 the stream was flushed at every flush
-    /// point, ten times as often as the columns were sent: a round trip through the SDK's
-    /// threads each time, and a chunk per sparse entity and flush.) The wait for the SDK's
-    /// writer thread is bounded: a writer that died (disk full) or hangs fails the recording
-    /// instead of the run waiting forever.
+    /// Send the buffered columns and make the file readable up to here. The rows logged one by
+    /// one (events, iterates, the sparse entities) close their chunks here and at every other
+    /// flush point after which rows were logged ([`Self::flush_stream`]), so the chunking of
+    /// those is the same in every run of the same data (`replay show` and the live run agree
+    /// chunk for chunk); a flush point with nothing logged since the last flush skips the
+    /// round trip through the SDK's threads (a flush with nothing pending writes nothing). The
+    /// wait for the SDK's writer thread is bounded: a writer that died (disk full) or hangs
+    /// fails the recording instead of the run waiting forever.
     fn flush(&mut self, rec: &RecordingStream) {
         let mut r = self.per_step.send(rec);
         for s in &mut self.per_iteration {
@@ -1257,6 +1277,12 @@ impl RerunSink {
             r = r.and_then(|_| c.send(rec, e));
         }
         self.check(r);
+        self.flush_stream(rec);
+    }
+
+    /// Make the file readable up to here (what the stream holds is written).
+    fn flush_stream(&mut self, rec: &RecordingStream) {
+        self.rows.set(false);
         if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
             let e = match e {
                 ::rerun::sink::SinkFlushError::Timeout => format!(
@@ -1271,8 +1297,8 @@ impl RerunSink {
 }
 
 /// The `.rrd` sink sends its buffered per-step columns at every this many-th flush point (a
-/// step that is a multiple of `flush_every`: every 1 000 steps by default) and flushes the
-/// stream there (the rows logged one by one close their chunks then)...
+/// step that is a multiple of `flush_every`: every 1 000 steps by default; the rows logged
+/// one by one close their chunks at every flush point after which some were logged)...
 pub const RRD_FLUSH_POINTS: u32 = 10;
 
 /// ... or at an earlier flush point once they hold this many bytes of column data (values and
