@@ -10,7 +10,8 @@
 //! `RECORDING_COST_ROWS=mcap` runs only the rows whose name contains `mcap` (and the row
 //! without sinks, the reference of the ratios), e.g. to profile one sink under `perf`.
 //! `RECORDING_COST_FLUSH_EVERY=N` overrides the scenario's `[output] flush_every` (the steps
-//! per `.rrd` chunk and MCAP chunk).
+//! per `.rrd` chunk and MCAP chunk). `RECORDING_COST_ZSTD=N` sets the MCAP's zstd level and
+//! `RECORDING_COST_PRECISION=f64` its /sim/step precision (defaults: the sink's, 1 and f32).
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
 //! (default 7), the mean CPU time of the process per run (all threads, from /proc/self/stat;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
@@ -55,8 +56,20 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>)
         ));
     }
     if case.mcap {
+        // `RECORDING_COST_ZSTD=N`: the MCAP's zstd level (default: the sink's, level 1);
+        // `RECORDING_COST_PRECISION=f64`: exact doubles in /sim/step.
+        let mut mcap = gripsim::record::mcap::McapOptions::default();
+        if let Some(l) = std::env::var("RECORDING_COST_ZSTD")
+            .ok()
+            .and_then(|v| v.parse().ok())
+        {
+            mcap.zstd_level = l;
+        }
+        if std::env::var("RECORDING_COST_PRECISION").as_deref() == Ok("f64") {
+            mcap.precision = gripsim::scenario::Precision::F64;
+        }
         sinks.push(Box::new(
-            McapSink::create(&dir.join("bench.mcap"), opts).unwrap(),
+            McapSink::create_with(&dir.join("bench.mcap"), opts, mcap).unwrap(),
         ));
     }
     if case.csv {

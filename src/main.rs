@@ -83,6 +83,11 @@ enum Command {
         /// from the run's largest force, printed in the scene) or log.
         #[arg(long, value_enum, default_value_t = ArrowsArg::Linear)]
         arrows: ArrowsArg,
+        /// How the MCAP stores the per-node numbers of /sim/step and /sim/iteration: f32
+        /// (with an exact fingerprint of each step) or f64 (exact) [default: the scenario's
+        /// [output] precision, else f32].
+        #[arg(long, value_enum)]
+        precision: Option<PrecisionArg>,
         /// Do not write the default recordings (recordings/<name>.rrd and .mcap).
         #[arg(long, conflicts_with_all = ["rrd", "mcap", "csv"])]
         no_record: bool,
@@ -159,6 +164,15 @@ enum Command {
         after_help = "Examples:\n  gripsim replay check recordings/point-mass-plane-dt1e-4.mcap\n  gripsim replay diff recordings/golden/point-mass-plane-dt1e-4.mcap out/now.mcap\n  gripsim replay show recordings/seed-grasp-r5.mcap --rrd out/r5.rrd"
     )]
     Replay(gripsim::replay::ReplayArgs),
+}
+
+/// `--precision`: the MCAP's per-node numbers.
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum PrecisionArg {
+    /// protobuf float, with an exact 64-bit fingerprint of every step's state.
+    F32,
+    /// protobuf double: the exact values.
+    F64,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -243,6 +257,8 @@ struct Outputs {
     /// `--auto-every`.
     auto_every: Option<u64>,
     flush_every: Option<u64>,
+    /// `--precision`.
+    precision: Option<gripsim::scenario::Precision>,
     /// `--check`: the thresholds and where to write the report.
     check: Option<(gripsim::replay::Thresholds, Option<PathBuf>)>,
     arrows: gripsim::record::ArrowScale,
@@ -260,6 +276,7 @@ fn main() -> ExitCode {
             auto_every,
             flush_every,
             arrows,
+            precision,
             no_record,
             summary,
             mut sets,
@@ -284,6 +301,10 @@ fn main() -> ExitCode {
                 },
                 auto_every,
                 flush_every,
+                precision: precision.map(|p| match p {
+                    PrecisionArg::F32 => gripsim::scenario::Precision::F32,
+                    PrecisionArg::F64 => gripsim::scenario::Precision::F64,
+                }),
                 check: check.then_some((thresholds, check_json)),
                 arrows: match arrows {
                     ArrowsArg::Linear => gripsim::record::ArrowScale::Linear,
@@ -464,7 +485,13 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
             sinks.push(Box::new(RerunSink::create(p, opts, &sc)?.with_view(view)));
         }
         if let Some(p) = &out.mcap {
-            sinks.push(Box::new(McapSink::create(p, opts)?.with_view(view)));
+            let mcap = gripsim::record::mcap::McapOptions {
+                precision: out.precision.unwrap_or(sc.precision),
+                ..Default::default()
+            };
+            sinks.push(Box::new(
+                McapSink::create_with(p, opts, mcap)?.with_view(view),
+            ));
         }
         if let Some(p) = &out.csv {
             sinks.push(Box::new(CsvSink::create(p, opts)?));

@@ -96,6 +96,111 @@ pub struct TriangleListPrimitive {
     pub indices: Vec<u32>,
 }
 
+/// `foxglove.PointCloud`: points packed in `data`, `point_stride` bytes each, laid out by
+/// `fields` (the MCAP's `/scene/nodes`).
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct PointCloud {
+    #[prost(message, optional, tag = "1")]
+    pub timestamp: Option<Timestamp>,
+    #[prost(string, tag = "2")]
+    pub frame_id: String,
+    #[prost(message, optional, tag = "3")]
+    pub pose: Option<Pose>,
+    #[prost(fixed32, tag = "4")]
+    pub point_stride: u32,
+    #[prost(message, repeated, tag = "5")]
+    pub fields: Vec<PackedElementField>,
+    #[prost(bytes = "vec", tag = "6")]
+    pub data: Vec<u8>,
+}
+
+/// `foxglove.PackedElementField`: one field of every packed point.
+#[derive(Clone, PartialEq, prost::Message, serde::Serialize)]
+pub struct PackedElementField {
+    #[prost(string, tag = "1")]
+    pub name: String,
+    #[prost(fixed32, tag = "2")]
+    pub offset: u32,
+    /// `foxglove.PackedElementField.NumericType`: 1 = UINT8, 7 = FLOAT32 (the two used here).
+    #[prost(int32, tag = "3")]
+    pub r#type: i32,
+}
+
+/// `PackedElementField.NumericType` UINT8 and FLOAT32.
+pub const UINT8: i32 = 1;
+pub const FLOAT32: i32 = 7;
+
+/// The bytes per node of `/scene/nodes`: f32 x, y, z and u8 red, green, blue, alpha.
+pub const NODE_POINT_STRIDE: u32 = 16;
+
+/// The fields of a `/scene/nodes` point (Foxglove's 3D panel colours them with its
+/// "RGBA (separate fields)" colour mode).
+pub fn node_point_fields() -> Vec<PackedElementField> {
+    [
+        ("x", 0, FLOAT32),
+        ("y", 4, FLOAT32),
+        ("z", 8, FLOAT32),
+        ("red", 12, UINT8),
+        ("green", 13, UINT8),
+        ("blue", 14, UINT8),
+        ("alpha", 15, UINT8),
+    ]
+    .into_iter()
+    .map(|(name, offset, ty)| PackedElementField {
+        name: name.into(),
+        offset,
+        r#type: ty,
+    })
+    .collect()
+}
+
+impl PointCloud {
+    /// The points as `[x, y, z, red, green, blue, alpha]` (f64 of the f32 and u8 values), read
+    /// through `fields` and `point_stride`; None if a field of those is missing or the data do
+    /// not fit.
+    pub fn points(&self) -> Option<Vec<[f64; 7]>> {
+        let stride = self.point_stride as usize;
+        let at = |name: &str, ty: i32| {
+            self.fields
+                .iter()
+                .find(|f| f.name == name && f.r#type == ty)
+                .map(|f| f.offset as usize)
+        };
+        let f32s = [at("x", FLOAT32)?, at("y", FLOAT32)?, at("z", FLOAT32)?];
+        let u8s = [
+            at("red", UINT8)?,
+            at("green", UINT8)?,
+            at("blue", UINT8)?,
+            at("alpha", UINT8)?,
+        ];
+        if stride == 0 || self.data.len() % stride != 0 {
+            return None;
+        }
+        let mut out = Vec::with_capacity(self.data.len() / stride);
+        for p in self.data.chunks_exact(stride) {
+            let mut v = [0.0; 7];
+            for (k, &o) in f32s.iter().enumerate() {
+                v[k] = f32::from_le_bytes(p.get(o..o + 4)?.try_into().ok()?) as f64;
+            }
+            for (k, &o) in u8s.iter().enumerate() {
+                v[3 + k] = *p.get(o)? as f64;
+            }
+            out.push(v);
+        }
+        Some(out)
+    }
+
+    /// The message as JSON: its fields, with `data` decoded to `points` ([`Self::points`]).
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut v = serde_json::json!({
+            "timestamp": self.timestamp, "frame_id": self.frame_id, "pose": self.pose,
+            "point_stride": self.point_stride, "fields": self.fields,
+        });
+        v["points"] = serde_json::to_value(self.points()).expect("numbers serialise");
+        v
+    }
+}
+
 /// `google.protobuf.Timestamp`.
 #[derive(Clone, Copy, PartialEq, prost::Message, serde::Serialize)]
 pub struct Timestamp {
@@ -269,7 +374,7 @@ type EnumDef = (&'static str, &'static [(&'static str, i32)]);
 
 /// Every message of the package `foxglove` that `SceneUpdate` reaches, with its fields and
 /// nested enums.
-pub const MESSAGES: [(&str, &[Field], Option<EnumDef>); 17] = [
+pub const MESSAGES: [(&str, &[Field], Option<EnumDef>); 19] = [
     (
         "SceneUpdate",
         &[
@@ -461,10 +566,57 @@ pub const MESSAGES: [(&str, &[Field], Option<EnumDef>); 17] = [
         ],
         None,
     ),
+    (
+        "PointCloud",
+        &[
+            ("timestamp", 1, TIMESTAMP, false),
+            ("frame_id", 2, K::Str, false),
+            ("pose", 3, POSE, false),
+            ("point_stride", 4, K::Fixed32, false),
+            (
+                "fields",
+                5,
+                K::Message(".foxglove.PackedElementField"),
+                true,
+            ),
+            ("data", 6, K::Bytes, false),
+        ],
+        None,
+    ),
+    (
+        "PackedElementField",
+        &[
+            ("name", 1, K::Str, false),
+            ("offset", 2, K::Fixed32, false),
+            (
+                "type",
+                3,
+                K::Enum(".foxglove.PackedElementField.NumericType"),
+                false,
+            ),
+        ],
+        Some((
+            "NumericType",
+            &[
+                ("UNKNOWN", 0),
+                ("UINT8", 1),
+                ("INT8", 2),
+                ("UINT16", 3),
+                ("INT16", 4),
+                ("UINT32", 5),
+                ("INT32", 6),
+                ("FLOAT32", 7),
+                ("FLOAT64", 8),
+            ],
+        )),
+    ),
 ];
 
 /// The schema name of the scene channels.
 pub const SCHEMA: &str = "foxglove.SceneUpdate";
+
+/// The schema name of `/scene/nodes` (its schema data the same set as [`SCHEMA`]'s).
+pub const POINT_CLOUD: &str = "foxglove.PointCloud";
 
 impl SceneUpdate {
     /// The message as JSON with the protobuf field names (absent sub-messages `null`), for
@@ -697,6 +849,36 @@ mod tests {
             SceneUpdate::decode(update.encode_to_vec().as_slice()).unwrap(),
             update
         );
+        let cloud = PointCloud {
+            timestamp: Some(ts),
+            frame_id: "world".into(),
+            pose: Some(pose),
+            point_stride: NODE_POINT_STRIDE,
+            fields: node_point_fields(),
+            data: [1.5f32, -2.0, 0.25]
+                .iter()
+                .flat_map(|x| x.to_le_bytes())
+                .chain([10, 20, 30, 255])
+                .collect(),
+        };
+        let one_field = PointCloud {
+            fields: cloud.fields[..1].to_vec(),
+            ..cloud.clone()
+        };
+        check(
+            "PointCloud",
+            &one_field.encode_to_vec(),
+            &[1, 2, 3, 4, 5, 6],
+        );
+        check(
+            "PackedElementField",
+            &cloud.fields[1].encode_to_vec(),
+            &[1, 2, 3],
+        );
+        assert_eq!(
+            cloud.points().unwrap(),
+            [[1.5, -2.0, 0.25, 10.0, 20.0, 30.0, 255.0]]
+        );
     }
 
     #[test]
@@ -733,7 +915,7 @@ mod tests {
                 }
             }
         }
-        assert_eq!(refs, 42);
+        assert_eq!(refs, 46);
         let scene = &set.file[2];
         assert_eq!(scene.package(), "foxglove");
         assert_eq!(scene.message_type[0].name(), "SceneUpdate");

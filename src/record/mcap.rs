@@ -39,6 +39,7 @@ use crate::scenario::Mode;
 use crate::world::body::BodySpec;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::fmt::Write as _;
 use std::io::BufWriter;
 use std::path::Path;
 
@@ -46,14 +47,22 @@ use std::path::Path;
 /// Format 2: `/sim/step` and `/sim/iteration` are protobuf (format 1: JSON; still read).
 /// Format 3: `/scene` and `/scene/static` are protobuf; a rod's `q_predictor` in `/sim/step` is
 /// empty on steps without a corrector pass (it equals `q` then).
-pub const FORMAT_VERSION: u32 = 3;
+/// Format 4: `/sim/step` and `/sim/iteration` store their per-node numbers as protobuf `float`
+/// (`gripsim.Step`, `gripsim.Iteration`) or, at `output.precision = "f64"`, `double`
+/// (`gripsim.Step64`, `gripsim.Iteration64`); every step carries the 64-bit `fingerprint` of its
+/// exact state; the nodes are drawn as one `foxglove.PointCloud` on `/scene/nodes` instead of a
+/// sphere per node in `/scene`; `/sim/meta` says `precision`.
+pub const FORMAT_VERSION: u32 = 4;
+
+/// The zstd level of the MCAP's chunks (docs/performance.md, fifth pass: level 1 against 3).
+pub const ZSTD_LEVEL: u32 = 1;
 
 /// The `library` string in the MCAP header.
 pub const LIBRARY: &str = concat!("gripsim ", env!("CARGO_PKG_VERSION"));
 
 /// Every channel: topic, schema name, schema text (JSON schema; empty for the protobuf
 /// channels, whose schema is a `FileDescriptorSet`: [`super::proto`], [`super::foxglove`]).
-pub const CHANNELS: [(&str, &str, &str); 7] = [
+pub const CHANNELS: [(&str, &str, &str); 8] = [
     (
         "/sim/meta",
         "gripsim.Meta",
@@ -83,6 +92,8 @@ pub const CHANNELS: [(&str, &str, &str); 7] = [
     ("/scene", super::foxglove::SCHEMA, ""),
     // What never moves (obstacle outlines, the legend): one message before the first step.
     ("/scene/static", super::foxglove::SCHEMA, ""),
+    // The nodes of every rod, one point each, coloured as in the .rrd (format 4).
+    ("/scene/nodes", super::foxglove::POINT_CLOUD, ""),
 ];
 
 const META: usize = 0;
@@ -92,9 +103,28 @@ const CONTACT: usize = 3;
 const EVENT: usize = 4;
 const SCENE: usize = 5;
 const SCENE_STATIC: usize = 6;
+const NODES: usize = 7;
 
 /// The channels written as protobuf (the others are JSON).
-pub const PROTOBUF: [usize; 4] = [STEP, ITERATION, SCENE, SCENE_STATIC];
+pub const PROTOBUF: [usize; 5] = [STEP, ITERATION, SCENE, SCENE_STATIC, NODES];
+
+/// What an MCAP file stores besides [`RecordOptions`].
+#[derive(Debug, Clone, Copy)]
+pub struct McapOptions {
+    /// `/sim/step` and `/sim/iteration` in f32 (with a fingerprint) or f64.
+    pub precision: super::proto::Precision,
+    /// The chunks' zstd level ([`ZSTD_LEVEL`]).
+    pub zstd_level: u32,
+}
+
+impl Default for McapOptions {
+    fn default() -> Self {
+        Self {
+            precision: Default::default(),
+            zstd_level: ZSTD_LEVEL,
+        }
+    }
+}
 
 type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 
@@ -104,8 +134,8 @@ pub struct McapSink {
     /// The writer thread (compression and writing happen there); None after an error.
     writer: Option<Pipe>,
     opts: RecordOptions,
-    channels: [u16; 7],
-    sequence: [u32; 7],
+    channels: [u16; 8],
+    sequence: [u32; 8],
     buf: Vec<u8>,
     step_encoder: super::proto::StepEncoder,
     static_mode: bool,
@@ -121,6 +151,8 @@ pub struct McapSink {
     body_points: BTreeMap<usize, Vec<super::foxglove::Vector3>>,
     /// The `/scene` message, its buffers reused from step to step.
     scene: super::foxglove::SceneUpdate,
+    /// The `/scene/nodes` message, likewise.
+    nodes: super::foxglove::PointCloud,
     /// Simulated time of the current step's start: the log time of its Newton iterations and
     /// contact changes.
     step_start: f64,
@@ -135,6 +167,15 @@ impl McapSink {
     /// Create `path` (as its `.partial` sibling until the run completes) and write the header,
     /// schemas and channels.
     pub fn create(path: &Path, opts: RecordOptions) -> Result<Self, RecordError> {
+        Self::create_with(path, opts, McapOptions::default())
+    }
+
+    /// [`McapSink::create`] with the MCAP's own options (precision, zstd level).
+    pub fn create_with(
+        path: &Path,
+        opts: RecordOptions,
+        mcap: McapOptions,
+    ) -> Result<Self, RecordError> {
         let out = OutputFile::new(path);
         let file = out.create()?;
         let err = |e: ::mcap::McapError| RecordError::write(out.writing(), error_chain(&e));
@@ -143,14 +184,22 @@ impl McapSink {
             .library(LIBRARY)
             // One thread: zstd's output then depends on nothing but the input.
             .compression_threads(0)
+            .compression_level(mcap.zstd_level)
             .create(BufWriter::with_capacity(1 << 16, file))
             .map_err(err)?;
-        let mut channels = [0u16; 7];
+        let mut channels = [0u16; 8];
+        let step_encoder = super::proto::StepEncoder::new(mcap.precision);
+        let (step_schema, iteration_schema) = step_encoder.schemas();
         let descriptors = super::proto::file_descriptor_set();
         let scene_descriptors = super::foxglove::file_descriptor_set();
-        for (k, (topic, schema, text)) in CHANNELS.iter().enumerate() {
+        for (k, &(topic, schema, text)) in CHANNELS.iter().enumerate() {
+            let schema = match k {
+                STEP => step_schema,
+                ITERATION => iteration_schema,
+                _ => schema,
+            };
             let (sid, encoding) = if PROTOBUF.contains(&k) {
-                let set = if k == SCENE || k == SCENE_STATIC {
+                let set = if k == SCENE || k == SCENE_STATIC || k == NODES {
                     &scene_descriptors
                 } else {
                     &descriptors
@@ -179,9 +228,9 @@ impl McapSink {
                 ..opts
             },
             channels,
-            sequence: [0; 7],
+            sequence: [0; 8],
             buf: Vec::with_capacity(1 << 14),
-            step_encoder: Default::default(),
+            step_encoder,
             static_mode: false,
             last_time: 0,
             rods: Vec::new(),
@@ -191,6 +240,7 @@ impl McapSink {
             style: None,
             body_points: BTreeMap::new(),
             scene: Default::default(),
+            nodes: Default::default(),
             step_start: 0.0,
             completed: false,
             end: BTreeMap::new(),
@@ -272,6 +322,7 @@ impl McapSink {
             scenario_text: info.scenario_text,
             mode,
             detail: self.opts.detail.as_str(),
+            precision: self.step_encoder.precision.as_str(),
             auto_every: self.opts.detail.auto().map(|a| a.every),
             auto_window: self.opts.detail.auto().map(|a| a.window),
             flush_every: self.opts.flush_every,
@@ -292,6 +343,10 @@ impl McapSink {
                 ("scenario_name".into(), info.scenario_name.into()),
                 ("mode".into(), mode.into()),
                 ("detail".into(), self.opts.detail.as_str().into()),
+                (
+                    "precision".into(),
+                    self.step_encoder.precision.as_str().into(),
+                ),
             ]),
         };
         let mut record = record;
@@ -355,33 +410,41 @@ impl McapSink {
     }
 
     /// The `/scene` message: one entity per rod and per free body (the obstacles are on
-    /// `/scene/static`).
+    /// `/scene/static`), and the `/scene/nodes` point cloud. Both messages keep their buffers
+    /// from step to step.
     fn scene(&mut self, time: u64, rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) {
         let Some(style) = self.style.as_ref() else {
             return;
         };
         let msg = &mut self.scene;
-        msg.entities.clear();
-        for (r, v) in rods.iter().enumerate() {
-            msg.entities
-                .push(rod_entity(&self.rods[r], style, r, v, time));
+        msg.entities
+            .resize_with(rods.len() + bodies.len(), Default::default);
+        let (rod_entities, body_entities) = msg.entities.split_at_mut(rods.len());
+        for (r, (e, v)) in rod_entities.iter_mut().zip(rods).enumerate() {
+            rod_entity(e, &self.rods[r], style, r, v, time);
         }
-        for b in bodies {
+        for (e, b) in body_entities.iter_mut().zip(bodies) {
             // The outline in the body's frame is the same every step (made once); the line's
             // pose places it.
             let points = self.body_points.entry(b.obstacle).or_insert_with(|| {
                 body_points(&self.obstacles[b.obstacle], &self.bodies, b, style)
             });
-            let mut e = entity(format!("body/{}", b.name), time);
-            let mut line = strip(std::iter::empty(), 2.0, rgb(BODY_COLOR));
+            reset_entity(e, time, |id| {
+                let _ = write!(id, "body/{}", b.name);
+            });
+            e.lines.resize_with(1, Default::default);
+            let line = &mut e.lines[0];
+            line_style(line, 2.0, rgb(BODY_COLOR));
             line.pose = Some(pose(b.position[0], b.position[1], b.angle));
             line.points.clone_from(points);
-            e.lines.push(line);
-            msg.entities.push(e);
         }
+        node_cloud(&mut self.nodes, &self.rods, style, rods, time);
         self.buf.clear();
-        prost::Message::encode(&*msg, &mut self.buf).expect("a Vec grows as needed");
+        prost::Message::encode(&self.scene, &mut self.buf).expect("a Vec grows as needed");
         self.write_buf(SCENE, time);
+        self.buf.clear();
+        prost::Message::encode(&self.nodes, &mut self.buf).expect("a Vec grows as needed");
+        self.write_buf(NODES, time);
     }
 
     fn contact(&mut self, c: &ContactChange, released: Option<ReleaseReason>) {
@@ -453,11 +516,18 @@ impl Observer for McapSink {
             } => {
                 if self.opts.detail.iterations() {
                     let time = self.time(step, self.step_start.min(t));
-                    let msg = super::proto::iteration(
-                        step, t, phase, pass, iteration, rod, residual, update, q,
+                    self.step_encoder.encode_iteration(
+                        step,
+                        t,
+                        phase,
+                        pass,
+                        iteration,
+                        rod,
+                        residual,
+                        update,
+                        q,
+                        &mut self.buf,
                     );
-                    self.buf.clear();
-                    prost::Message::encode(&msg, &mut self.buf).expect("a Vec grows as needed");
                     self.write_buf(ITERATION, time);
                 }
             }
@@ -800,6 +870,8 @@ struct Meta<'a> {
     scenario_text: &'a str,
     mode: &'a str,
     detail: &'a str,
+    /// `f32` or `f64`: the per-node numbers of `/sim/step` and `/sim/iteration` (format 4).
+    precision: &'a str,
     /// `--detail auto`: every k-th step outside the windows, and the window (steps).
     #[serde(skip_serializing_if = "Option::is_none")]
     auto_every: Option<u64>,
@@ -1057,45 +1129,104 @@ fn body_points(
         .collect()
 }
 
-/// One rod: centre line, nodes coloured by reaction (the recording's colour map), reactions
-/// (length by the recording's force scale, from the node's edge) with their magnitudes as text,
-/// normals beside them, and the predictor's positions on corrected steps.
+/// An entity kept until replaced (lifetime 0), emptied for refilling: its id is written by
+/// `id` the first time (a slot of the scene message always holds the same rod or body).
+fn reset_entity(e: &mut fx::SceneEntity, ns: u64, id: impl FnOnce(&mut String)) {
+    e.timestamp = Some(stamp(ns));
+    if e.frame_id.is_empty() {
+        e.frame_id.push_str(FRAME);
+    }
+    if e.id.is_empty() {
+        id(&mut e.id);
+    }
+    e.lifetime = Some(fx::Duration::default());
+    e.frame_locked = false;
+    e.arrows.clear();
+    e.spheres.clear();
+}
+
+/// A LINE_STRIP's style (its points are set by the caller).
+fn line_style(line: &mut fx::LinePrimitive, thickness_px: f64, color: fx::Color) {
+    line.r#type = 0;
+    line.pose = Some(pose(0.0, 0.0, 0.0));
+    line.thickness = thickness_px;
+    line.scale_invariant = true;
+    line.color = Some(color);
+}
+
+/// The `/scene/nodes` point cloud: every rod's nodes as packed f32 x, y, z (z = 0) and u8
+/// red, green, blue, alpha (the node colours of the scene: driven nodes, or the reaction's
+/// colour), 16 bytes per point, in frame `world`.
+fn node_cloud(
+    pc: &mut fx::PointCloud,
+    infos: &[RodInfo],
+    style: &SceneStyle,
+    rods: &[RodStepView<'_>],
+    ns: u64,
+) {
+    pc.timestamp = Some(stamp(ns));
+    if pc.frame_id.is_empty() {
+        pc.frame_id.push_str(FRAME);
+    }
+    pc.pose = Some(pose(0.0, 0.0, 0.0));
+    pc.point_stride = fx::NODE_POINT_STRIDE;
+    if pc.fields.is_empty() {
+        pc.fields = fx::node_point_fields();
+    }
+    pc.data.clear();
+    for (info, v) in infos.iter().zip(rods) {
+        for i in 0..v.in_contact.len() {
+            let color = if info.clamped.get(i).copied().unwrap_or(false) {
+                DRIVEN_COLOR
+            } else {
+                style.forces.color(node_norm(v.reaction, i))
+            };
+            for x in [v.q[2 * i] as f32, v.q[2 * i + 1] as f32, 0.0] {
+                pc.data.extend_from_slice(&x.to_le_bytes());
+            }
+            pc.data
+                .extend_from_slice(&[color[0], color[1], color[2], 255]);
+        }
+    }
+}
+
+/// One rod, refilled in place: centre line, reactions (length by the recording's force scale,
+/// from the node's edge) with their magnitudes as text, normals beside them, and the
+/// predictor's positions on corrected steps. The nodes themselves are on `/scene/nodes`.
 fn rod_entity(
+    e: &mut fx::SceneEntity,
     info: &RodInfo,
     style: &SceneStyle,
     r: usize,
     v: &RodStepView<'_>,
     ns: u64,
-) -> fx::SceneEntity {
+) {
     let rs = &style.rods[r];
-    let mut e = entity(format!("rod/{}", info.name), ns);
+    reset_entity(e, ns, |id| {
+        let _ = write!(id, "rod/{}", info.name);
+    });
     let n = v.in_contact.len();
     let p = |i: usize| [v.q[2 * i], v.q[2 * i + 1]];
-    e.lines.push(strip((0..n).map(p), 2.0, rgb(ROD_COLOR)));
+    e.lines.resize_with(1, Default::default);
+    line_style(&mut e.lines[0], 2.0, rgb(ROD_COLOR));
+    e.lines[0].points.clear();
+    e.lines[0]
+        .points
+        .extend((0..n).map(|i| xy(p(i)[0], p(i)[1])));
     let rad = rs.node_radius;
-    let sphere = |x: f64, y: f64, d: f64, color: fx::Color| fx::SpherePrimitive {
-        pose: Some(pose(x, y, 0.0)),
-        size: Some(fx::Vector3 {
-            x: r32(d),
-            y: r32(d),
-            z: r32(d),
-        }),
-        color: Some(color),
-    };
     let corrected = v.q_predictor.len() == v.q.len() && v.q_predictor != v.q;
+    let mut texts = 0;
     for i in 0..n {
         let [x, y] = p(i);
         let f = node_norm(v.reaction, i);
-        let color = if info.clamped.get(i).copied().unwrap_or(false) {
-            DRIVEN_COLOR
-        } else {
-            style.forces.color(f)
-        };
-        e.spheres.push(sphere(x, y, 2.0 * rad, rgb(color)));
         if corrected {
             let (px, py) = (v.q_predictor[2 * i], v.q_predictor[2 * i + 1]);
-            e.spheres
-                .push(sphere(px, py, 3.2 * rad, rgba(PREDICTOR_COLOR, 0.45)));
+            let d = r32(3.2 * rad);
+            e.spheres.push(fx::SpherePrimitive {
+                pose: Some(pose(px, py, 0.0)),
+                size: Some(fx::Vector3 { x: d, y: d, z: d }),
+                color: Some(rgba(PREDICTOR_COLOR, 0.45)),
+            });
         }
         if v.in_contact[i] {
             let nrm = [v.normal[2 * i], v.normal[2 * i + 1]];
@@ -1115,12 +1246,16 @@ fn rod_entity(
             let (ox, oy) = (x + rad * dir[0], y + rad * dir[1]);
             e.arrows
                 .push(arrow(ox, oy, dir, len, 0.9 * rad, rgb(REACTION_COLOR)));
-            e.texts.push(label(
-                ox + len * dir[0],
-                oy + len * dir[1],
-                format!("{} N", super::fmt_force(f)),
-            ));
+            // The labels' strings are reused from step to step.
+            if texts == e.texts.len() {
+                e.texts.push(label(0.0, 0.0, String::new()));
+            }
+            let t = &mut e.texts[texts];
+            t.pose = Some(pose(ox + len * dir[0], oy + len * dir[1], 0.0));
+            t.text.clear();
+            let _ = write!(t.text, "{} N", super::fmt_force(f));
+            texts += 1;
         }
     }
-    e
+    e.texts.truncate(texts);
 }

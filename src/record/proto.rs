@@ -15,65 +15,333 @@ use prost::Message as _;
 use prost_types::field_descriptor_proto::{Label, Type};
 use prost_types::{DescriptorProto, FieldDescriptorProto, FileDescriptorProto, FileDescriptorSet};
 
-/// `gripsim.Step`: the state at the end of a step.
-#[derive(Clone, PartialEq, prost::Message)]
-pub struct Step {
-    #[prost(uint64, tag = "1")]
-    pub step: u64,
-    #[prost(double, tag = "2")]
-    pub t: f64,
-    #[prost(double, tag = "3")]
-    pub dt: f64,
-    #[prost(uint32, tag = "4")]
-    pub newton_iterations: u32,
-    #[prost(uint32, tag = "5")]
-    pub passes: u32,
-    #[prost(message, repeated, tag = "6")]
-    pub rods: Vec<Rod>,
-    #[prost(message, repeated, tag = "7")]
-    pub bodies: Vec<Body>,
-    #[prost(message, repeated, tag = "8")]
-    pub contacts: Vec<Contact>,
+/// Defines a `/sim/step` message family (`Step`, `Rod`, `Iteration`) with its per-node arrays
+/// of one float type: protobuf `float` (f32, the default precision) or `double` (f64,
+/// `output.precision = "f64"`). The per-step scalars (`t`, `dt`, a residual) are `double` in
+/// both; the field names and numbers are the same, so a Foxglove plot path
+/// (`/sim/step.rods[0].q[4]`) reads either.
+macro_rules! step_messages {
+    ($step:ident, $rod:ident, $contact:ident, $iteration:ident, $pty:ident, $t:ty, $schema:literal) => {
+        #[doc = concat!("`gripsim.", $schema, "`: the state at the end of a step.")]
+        #[derive(Clone, PartialEq, prost::Message)]
+        pub struct $step {
+            #[prost(uint64, tag = "1")]
+            pub step: u64,
+            #[prost(double, tag = "2")]
+            pub t: f64,
+            #[prost(double, tag = "3")]
+            pub dt: f64,
+            #[prost(uint32, tag = "4")]
+            pub newton_iterations: u32,
+            #[prost(uint32, tag = "5")]
+            pub passes: u32,
+            #[prost(message, repeated, tag = "6")]
+            pub rods: Vec<$rod>,
+            #[prost(message, repeated, tag = "7")]
+            pub bodies: Vec<Body>,
+            #[prost(message, repeated, tag = "8")]
+            pub contacts: Vec<$contact>,
+            /// FNV-1a 64 of the exact f64 bits of every rod's q and u and every body's state
+            /// ([`Fingerprint`]); 0 in files of format 3 and older (format 4).
+            #[prost(fixed64, tag = "9")]
+            pub fingerprint: u64,
+        }
+
+        /// One rod of a step (interleaved vectors `[x0, y0, x1, y1, …]`).
+        #[derive(Clone, PartialEq, prost::Message)]
+        pub struct $rod {
+            #[prost($pty, repeated, tag = "1")]
+            pub q: Vec<$t>,
+            #[prost($pty, repeated, tag = "2")]
+            pub u: Vec<$t>,
+            #[prost($pty, repeated, tag = "3")]
+            pub reaction: Vec<$t>,
+            #[prost($pty, repeated, tag = "4")]
+            pub reaction_norm: Vec<$t>,
+            #[prost($pty, repeated, tag = "5")]
+            pub impulse: Vec<$t>,
+            #[prost($pty, repeated, tag = "6")]
+            pub drive_force: Vec<$t>,
+            #[prost($pty, repeated, tag = "7")]
+            pub normal: Vec<$t>,
+            #[prost(bool, repeated, tag = "8")]
+            pub in_contact: Vec<bool>,
+            /// −1: free.
+            #[prost(sint64, repeated, tag = "9")]
+            pub contact_obstacle: Vec<i64>,
+            #[prost($pty, repeated, tag = "10")]
+            pub normal2: Vec<$t>,
+            /// −1: none.
+            #[prost(sint64, repeated, tag = "11")]
+            pub contact_obstacle2: Vec<i64>,
+            #[prost($pty, repeated, tag = "12")]
+            pub bending_stress: Vec<$t>,
+            /// +∞: no obstacle.
+            #[prost($pty, repeated, tag = "13")]
+            pub gap: Vec<$t>,
+            /// Empty on a step without a corrector pass (then it equals `q`; format 3).
+            #[prost($pty, repeated, tag = "14")]
+            pub q_predictor: Vec<$t>,
+        }
+
+        /// `gripsim.ContactState`: an active contact at the end of a step.
+        #[derive(Clone, PartialEq, prost::Message)]
+        pub struct $contact {
+            /// −1: a free body's own contact with a fixed obstacle (then `node` is the body).
+            #[prost(sint64, tag = "1")]
+            pub rod: i64,
+            #[prost(uint64, tag = "2")]
+            pub node: u64,
+            #[prost(uint64, tag = "3")]
+            pub obstacle: u64,
+            /// −1: a fixed obstacle.
+            #[prost(sint64, tag = "4")]
+            pub body: i64,
+            #[prost($pty, repeated, tag = "5")]
+            pub point: Vec<$t>,
+            #[prost($pty, repeated, tag = "6")]
+            pub normal: Vec<$t>,
+            #[prost($pty, tag = "7")]
+            pub normal_force: $t,
+            #[prost($pty, tag = "8")]
+            pub friction_force: $t,
+            #[prost($pty, tag = "9")]
+            pub slip_velocity: $t,
+            #[prost(bool, tag = "10")]
+            pub stuck: bool,
+            #[prost($pty, tag = "11")]
+            pub utilisation: $t,
+            #[prost($pty, tag = "12")]
+            pub mu_s: $t,
+            /// A compliant fruit's contact (0 at a rigid obstacle): indentation (m), contact
+            /// half-width (m), peak pressure (Pa), the fruit's bruise threshold (Pa) and the
+            /// half-width above it (m).
+            #[prost($pty, tag = "13")]
+            pub indentation: $t,
+            #[prost($pty, tag = "14")]
+            pub half_width: $t,
+            #[prost($pty, tag = "15")]
+            pub peak_pressure: $t,
+            #[prost($pty, tag = "16")]
+            pub bruise_pressure: $t,
+            #[prost($pty, tag = "17")]
+            pub bruise_half_width: $t,
+        }
+
+        impl $contact {
+            /// Refill from a contact view, reusing the buffers.
+            pub fn fill(&mut self, c: &ContactView) {
+                self.rod = index(c.rod);
+                self.node = c.node as u64;
+                self.obstacle = c.obstacle as u64;
+                self.body = index(c.body);
+                self.point.clear();
+                self.point.extend(c.point.iter().map(|&x| x as $t));
+                self.normal.clear();
+                self.normal.extend(c.normal.iter().map(|&x| x as $t));
+                self.normal_force = c.normal_force as $t;
+                self.friction_force = c.friction_force as $t;
+                self.slip_velocity = c.slip_velocity as $t;
+                self.stuck = c.stuck;
+                self.utilisation = c.utilisation as $t;
+                self.mu_s = c.mu_s as $t;
+                self.indentation = c.indentation as $t;
+                self.half_width = c.half_width as $t;
+                self.peak_pressure = c.peak_pressure as $t;
+                self.bruise_pressure = c.bruise_pressure as $t;
+                self.bruise_half_width = c.bruise_half_width as $t;
+            }
+
+            /// The JSON form of format 1 (f64 values).
+            pub fn to_json(&self) -> serde_json::Value {
+                let w = |x: $t| x as f64;
+                serde_json::json!({
+                    "rod": opt_index(self.rod), "node": self.node, "obstacle": self.obstacle,
+                    "body": opt_index(self.body),
+                    "point": self.point.iter().map(|&x| w(x)).collect::<Vec<f64>>(),
+                    "normal": self.normal.iter().map(|&x| w(x)).collect::<Vec<f64>>(),
+                    "normal_force": w(self.normal_force),
+                    "friction_force": w(self.friction_force),
+                    "slip_velocity": w(self.slip_velocity), "stuck": self.stuck,
+                    "utilisation": w(self.utilisation), "mu_s": w(self.mu_s),
+                    "indentation": w(self.indentation), "half_width": w(self.half_width),
+                    "peak_pressure": w(self.peak_pressure),
+                    "bruise_pressure": w(self.bruise_pressure),
+                    "bruise_half_width": w(self.bruise_half_width),
+                })
+            }
+        }
+
+        /// One Newton iteration of one rod.
+        #[derive(Clone, PartialEq, prost::Message)]
+        pub struct $iteration {
+            #[prost(uint64, tag = "1")]
+            pub step: u64,
+            #[prost(double, tag = "2")]
+            pub t: f64,
+            /// `predictor`, `corrector` or `static`.
+            #[prost(string, tag = "3")]
+            pub phase: String,
+            #[prost(uint32, tag = "4")]
+            pub pass: u32,
+            #[prost(uint32, tag = "5")]
+            pub iteration: u32,
+            #[prost(uint64, tag = "6")]
+            pub rod: u64,
+            #[prost(double, tag = "7")]
+            pub residual: f64,
+            #[prost(double, tag = "8")]
+            pub update: f64,
+            #[prost($pty, repeated, tag = "9")]
+            pub q: Vec<$t>,
+        }
+
+        impl $rod {
+            /// Refill from a step view, reusing the buffers (f64 values rounded to the
+            /// message's float type).
+            pub fn fill(&mut self, v: &RodStepView<'_>) {
+                fn set(dst: &mut Vec<$t>, src: &[f64]) {
+                    dst.clear();
+                    dst.extend(src.iter().map(|&x| x as $t));
+                }
+                set(&mut self.q, v.q);
+                set(&mut self.u, v.u);
+                set(&mut self.reaction, v.reaction);
+                self.reaction_norm.clear();
+                self.reaction_norm.extend(
+                    (0..v.reaction.len() / 2).map(|i| super::node_norm(v.reaction, i) as $t),
+                );
+                set(&mut self.impulse, v.impulse);
+                set(&mut self.drive_force, v.drive_force);
+                set(&mut self.normal, v.normal);
+                self.in_contact.clear();
+                self.in_contact.extend_from_slice(v.in_contact);
+                self.contact_obstacle.clear();
+                self.contact_obstacle
+                    .extend(v.contact_obstacle.iter().map(|&k| index(k)));
+                set(&mut self.normal2, v.normal2);
+                self.contact_obstacle2.clear();
+                self.contact_obstacle2
+                    .extend(v.contact_obstacle2.iter().map(|&k| index(k)));
+                set(&mut self.bending_stress, v.bending_stress);
+                set(&mut self.gap, v.gap);
+                // Only on steps with a corrector pass: elsewhere it equals q (format 3).
+                if v.q_predictor == v.q {
+                    self.q_predictor.clear();
+                } else {
+                    set(&mut self.q_predictor, v.q_predictor);
+                }
+            }
+        }
+
+        impl $step {
+            /// Refill from a step's fields, reusing every buffer.
+            pub fn fill(&mut self, s: &StepFields<'_, '_>) {
+                self.step = s.step;
+                self.t = s.t;
+                self.dt = s.dt;
+                self.newton_iterations = s.newton_iterations;
+                self.passes = s.passes;
+                self.rods.resize_with(s.rods.len(), $rod::default);
+                for (dst, v) in self.rods.iter_mut().zip(s.rods) {
+                    dst.fill(v);
+                }
+                self.bodies.resize_with(s.bodies.len(), Body::default);
+                for (dst, b) in self.bodies.iter_mut().zip(s.bodies) {
+                    dst.fill(b);
+                }
+                self.contacts.resize_with(s.contacts.len(), $contact::default);
+                for (dst, c) in self.contacts.iter_mut().zip(s.contacts) {
+                    dst.fill(c);
+                }
+                self.fingerprint = fingerprint(s.rods, s.bodies);
+            }
+
+            /// The same message in the JSON form of format 1 (`null` for absent indices and
+            /// gaps; each number the f64 value of the recorded one), for tools and tests that
+            /// read both encodings alike.
+            pub fn to_json(&self) -> serde_json::Value {
+                use serde_json::json;
+                fn w(v: &[$t]) -> Vec<f64> {
+                    v.iter().map(|&x| x as f64).collect()
+                }
+                let rods: Vec<serde_json::Value> = self
+                    .rods
+                    .iter()
+                    .map(|r| {
+                        json!({
+                            "q": w(&r.q), "u": w(&r.u), "reaction": w(&r.reaction),
+                            "reaction_norm": w(&r.reaction_norm),
+                            "impulse": w(&r.impulse), "drive_force": w(&r.drive_force),
+                            "normal": w(&r.normal),
+                            "in_contact": r.in_contact,
+                            "contact_obstacle": r.contact_obstacle.iter().map(|&k| opt_index(k)).collect::<Vec<_>>(),
+                            "normal2": w(&r.normal2),
+                            "contact_obstacle2": r.contact_obstacle2.iter().map(|&k| opt_index(k)).collect::<Vec<_>>(),
+                            "bending_stress": w(&r.bending_stress),
+                            "gap": r.gap.iter().map(|&g| finite_or_null(g as f64)).collect::<Vec<_>>(),
+                            "q_predictor": w(&r.q_predictor),
+                        })
+                    })
+                    .collect();
+                let mut v = json!({
+                    "step": self.step, "t": self.t, "dt": self.dt,
+                    "newton_iterations": self.newton_iterations, "passes": self.passes,
+                    "rods": rods, "fingerprint": self.fingerprint,
+                });
+                bodies_json(&mut v, &self.bodies);
+                if !self.contacts.is_empty() {
+                    v["contacts"] = self.contacts.iter().map(|c| c.to_json()).collect();
+                }
+                v
+            }
+        }
+
+        impl $iteration {
+            /// Refill, reusing the buffers.
+            #[allow(clippy::too_many_arguments)]
+            pub fn fill(
+                &mut self,
+                step: u64,
+                t: f64,
+                phase: Phase,
+                pass: u32,
+                iteration: u32,
+                rod: usize,
+                residual: f64,
+                update: f64,
+                q: &[f64],
+            ) {
+                self.step = step;
+                self.t = t;
+                self.phase.clear();
+                self.phase.push_str(phase.as_str());
+                self.pass = pass;
+                self.iteration = iteration;
+                self.rod = rod as u64;
+                self.residual = residual;
+                self.update = update;
+                self.q.clear();
+                self.q.extend(q.iter().map(|&x| x as $t));
+            }
+
+            /// The JSON form of format 1.
+            pub fn to_json(&self) -> serde_json::Value {
+                serde_json::json!({
+                    "step": self.step, "t": self.t, "phase": self.phase, "pass": self.pass,
+                    "iteration": self.iteration, "rod": self.rod, "residual": self.residual,
+                    "update": self.update,
+                    "q": self.q.iter().map(|&x| x as f64).collect::<Vec<f64>>(),
+                })
+            }
+        }
+    };
 }
 
-/// `gripsim.Rod`: one rod of a step (interleaved vectors `[x0, y0, x1, y1, …]`).
-#[derive(Clone, PartialEq, prost::Message)]
-pub struct Rod {
-    #[prost(double, repeated, tag = "1")]
-    pub q: Vec<f64>,
-    #[prost(double, repeated, tag = "2")]
-    pub u: Vec<f64>,
-    #[prost(double, repeated, tag = "3")]
-    pub reaction: Vec<f64>,
-    #[prost(double, repeated, tag = "4")]
-    pub reaction_norm: Vec<f64>,
-    #[prost(double, repeated, tag = "5")]
-    pub impulse: Vec<f64>,
-    #[prost(double, repeated, tag = "6")]
-    pub drive_force: Vec<f64>,
-    #[prost(double, repeated, tag = "7")]
-    pub normal: Vec<f64>,
-    #[prost(bool, repeated, tag = "8")]
-    pub in_contact: Vec<bool>,
-    /// −1: free.
-    #[prost(sint64, repeated, tag = "9")]
-    pub contact_obstacle: Vec<i64>,
-    #[prost(double, repeated, tag = "10")]
-    pub normal2: Vec<f64>,
-    /// −1: none.
-    #[prost(sint64, repeated, tag = "11")]
-    pub contact_obstacle2: Vec<i64>,
-    #[prost(double, repeated, tag = "12")]
-    pub bending_stress: Vec<f64>,
-    /// +∞: no obstacle.
-    #[prost(double, repeated, tag = "13")]
-    pub gap: Vec<f64>,
-    /// Empty on a step without a corrector pass (then it equals `q`; format 3).
-    #[prost(double, repeated, tag = "14")]
-    pub q_predictor: Vec<f64>,
-}
+step_messages!(Step, Rod, Contact, Iteration, float, f32, "Step");
+step_messages!(Step64, Rod64, Contact64, Iteration64, double, f64, "Step64");
 
-/// `gripsim.Body`: a free body (fruit) at the end of a step.
+/// `gripsim.Body`: a free body (fruit) at the end of a step (`double` in both precisions).
 #[derive(Clone, PartialEq, prost::Message)]
 pub struct Body {
     #[prost(string, tag = "1")]
@@ -96,78 +364,69 @@ pub struct Body {
     pub mass: f64,
 }
 
-/// `gripsim.ContactState`: an active contact at the end of a step.
-#[derive(Clone, PartialEq, prost::Message)]
-pub struct Contact {
-    /// −1: a free body's own contact with a fixed obstacle (then `node` is the body).
-    #[prost(sint64, tag = "1")]
-    pub rod: i64,
-    #[prost(uint64, tag = "2")]
-    pub node: u64,
-    #[prost(uint64, tag = "3")]
-    pub obstacle: u64,
-    /// −1: a fixed obstacle.
-    #[prost(sint64, tag = "4")]
-    pub body: i64,
-    #[prost(double, repeated, tag = "5")]
-    pub point: Vec<f64>,
-    #[prost(double, repeated, tag = "6")]
-    pub normal: Vec<f64>,
-    #[prost(double, tag = "7")]
-    pub normal_force: f64,
-    #[prost(double, tag = "8")]
-    pub friction_force: f64,
-    #[prost(double, tag = "9")]
-    pub slip_velocity: f64,
-    #[prost(bool, tag = "10")]
-    pub stuck: bool,
-    #[prost(double, tag = "11")]
-    pub utilisation: f64,
-    #[prost(double, tag = "12")]
-    pub mu_s: f64,
-    /// A compliant fruit's contact (0 at a rigid obstacle): indentation (m), contact
-    /// half-width (m), peak pressure (Pa), the fruit's bruise threshold (Pa) and the
-    /// half-width above it (m).
-    #[prost(double, tag = "13")]
-    pub indentation: f64,
-    #[prost(double, tag = "14")]
-    pub half_width: f64,
-    #[prost(double, tag = "15")]
-    pub peak_pressure: f64,
-    #[prost(double, tag = "16")]
-    pub bruise_pressure: f64,
-    #[prost(double, tag = "17")]
-    pub bruise_half_width: f64,
+/// The 64-bit fingerprint of a step's exact state: FNV-1a (64-bit: offset basis
+/// 0xcbf29ce484222325, prime 0x100000001b3) over the little-endian bytes of the f64 bits of,
+/// in order, every rod's `q` then its `u` (rods in `/sim/meta` order), then every free body's
+/// position x, y, angle, velocity x, y and angular velocity. Two runs whose fingerprints
+/// differ at a step differ there bit for bit, however close their f32 values are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Fingerprint(pub u64);
+
+impl Default for Fingerprint {
+    fn default() -> Self {
+        Fingerprint(0xcbf2_9ce4_8422_2325)
+    }
 }
 
-/// `gripsim.Iteration`: one Newton iteration of one rod.
-#[derive(Clone, PartialEq, prost::Message)]
-pub struct Iteration {
-    #[prost(uint64, tag = "1")]
-    pub step: u64,
-    #[prost(double, tag = "2")]
-    pub t: f64,
-    /// `predictor`, `corrector` or `static`.
-    #[prost(string, tag = "3")]
-    pub phase: String,
-    #[prost(uint32, tag = "4")]
-    pub pass: u32,
-    #[prost(uint32, tag = "5")]
-    pub iteration: u32,
-    #[prost(uint64, tag = "6")]
-    pub rod: u64,
-    #[prost(double, tag = "7")]
-    pub residual: f64,
-    #[prost(double, tag = "8")]
-    pub update: f64,
-    #[prost(double, repeated, tag = "9")]
-    pub q: Vec<f64>,
+impl Fingerprint {
+    /// Add one number's exact bits.
+    #[inline]
+    pub fn add(&mut self, x: f64) {
+        for b in x.to_bits().to_le_bytes() {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    /// Add every number of `xs`.
+    pub fn add_all(&mut self, xs: &[f64]) {
+        for &x in xs {
+            self.add(x);
+        }
+    }
 }
+
+/// The fingerprint of a step (see [`Fingerprint`]).
+pub fn fingerprint(rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) -> u64 {
+    let mut h = Fingerprint::default();
+    for r in rods {
+        h.add_all(r.q);
+        h.add_all(r.u);
+    }
+    for b in bodies {
+        h.add_all(&[
+            b.position[0],
+            b.position[1],
+            b.angle,
+            b.velocity[0],
+            b.velocity[1],
+            b.angular_velocity,
+        ]);
+    }
+    h.0
+}
+
+/// How `/sim/step` and `/sim/iteration` store their per-node arrays (`[output] precision`,
+/// `--precision`): `f32` (protobuf `float`, the default) or `f64` (`double`, exact).
+pub use crate::scenario::Precision;
 
 /// The type of a field in a descriptor table.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
     Double,
+    /// `float` in the f32 messages (`Step`, `Rod`, `Iteration`), `double` in their f64 twins.
+    Float,
+    Fixed64,
     Bool,
     Uint32,
     Uint64,
@@ -195,25 +454,26 @@ pub const MESSAGES: [(&str, &[Field]); 5] = [
             ("rods", 6, K::Message("Rod"), true),
             ("bodies", 7, K::Message("Body"), true),
             ("contacts", 8, K::Message("ContactState"), true),
+            ("fingerprint", 9, K::Fixed64, false),
         ],
     ),
     (
         "Rod",
         &[
-            ("q", 1, K::Double, true),
-            ("u", 2, K::Double, true),
-            ("reaction", 3, K::Double, true),
-            ("reaction_norm", 4, K::Double, true),
-            ("impulse", 5, K::Double, true),
-            ("drive_force", 6, K::Double, true),
-            ("normal", 7, K::Double, true),
+            ("q", 1, K::Float, true),
+            ("u", 2, K::Float, true),
+            ("reaction", 3, K::Float, true),
+            ("reaction_norm", 4, K::Float, true),
+            ("impulse", 5, K::Float, true),
+            ("drive_force", 6, K::Float, true),
+            ("normal", 7, K::Float, true),
             ("in_contact", 8, K::Bool, true),
             ("contact_obstacle", 9, K::Sint64, true),
-            ("normal2", 10, K::Double, true),
+            ("normal2", 10, K::Float, true),
             ("contact_obstacle2", 11, K::Sint64, true),
-            ("bending_stress", 12, K::Double, true),
-            ("gap", 13, K::Double, true),
-            ("q_predictor", 14, K::Double, true),
+            ("bending_stress", 12, K::Float, true),
+            ("gap", 13, K::Float, true),
+            ("q_predictor", 14, K::Float, true),
         ],
     ),
     (
@@ -237,19 +497,19 @@ pub const MESSAGES: [(&str, &[Field]); 5] = [
             ("node", 2, K::Uint64, false),
             ("obstacle", 3, K::Uint64, false),
             ("body", 4, K::Sint64, false),
-            ("point", 5, K::Double, true),
-            ("normal", 6, K::Double, true),
-            ("normal_force", 7, K::Double, false),
-            ("friction_force", 8, K::Double, false),
-            ("slip_velocity", 9, K::Double, false),
+            ("point", 5, K::Float, true),
+            ("normal", 6, K::Float, true),
+            ("normal_force", 7, K::Float, false),
+            ("friction_force", 8, K::Float, false),
+            ("slip_velocity", 9, K::Float, false),
             ("stuck", 10, K::Bool, false),
-            ("utilisation", 11, K::Double, false),
-            ("mu_s", 12, K::Double, false),
-            ("indentation", 13, K::Double, false),
-            ("half_width", 14, K::Double, false),
-            ("peak_pressure", 15, K::Double, false),
-            ("bruise_pressure", 16, K::Double, false),
-            ("bruise_half_width", 17, K::Double, false),
+            ("utilisation", 11, K::Float, false),
+            ("mu_s", 12, K::Float, false),
+            ("indentation", 13, K::Float, false),
+            ("half_width", 14, K::Float, false),
+            ("peak_pressure", 15, K::Float, false),
+            ("bruise_pressure", 16, K::Float, false),
+            ("bruise_half_width", 17, K::Float, false),
         ],
     ),
     (
@@ -263,7 +523,7 @@ pub const MESSAGES: [(&str, &[Field]); 5] = [
             ("rod", 6, K::Uint64, false),
             ("residual", 7, K::Double, false),
             ("update", 8, K::Double, false),
-            ("q", 9, K::Double, true),
+            ("q", 9, K::Float, true),
         ],
     ),
 ];
@@ -275,6 +535,8 @@ pub const PACKAGE: &str = "gripsim";
 pub(crate) fn field_proto(&(name, number, kind, repeated): &Field) -> FieldDescriptorProto {
     let (ty, type_name) = match kind {
         K::Double => (Type::Double, None),
+        K::Float => (Type::Float, None),
+        K::Fixed64 => (Type::Fixed64, None),
         K::Bool => (Type::Bool, None),
         K::Uint32 => (Type::Uint32, None),
         K::Uint64 => (Type::Uint64, None),
@@ -309,14 +571,52 @@ pub(crate) fn describe_field(
     f
 }
 
+/// The name of a message's f64 twin (`Step` → `Step64`); the others are shared.
+fn twin(name: &'static str) -> &'static str {
+    match name {
+        "Step" => "Step64",
+        "Rod" => "Rod64",
+        "Iteration" => "Iteration64",
+        "ContactState" => "ContactState64",
+        other => other,
+    }
+}
+
+/// Every message of the package with its fields: [`MESSAGES`] and the f64 twins of `Step`,
+/// `Rod` and `Iteration` (`Step64`, `Rod64`, `Iteration64`: the same fields, `double` where the
+/// f32 ones are `float`).
+pub fn all_messages() -> Vec<(&'static str, Vec<Field>)> {
+    let mut out: Vec<(&'static str, Vec<Field>)> =
+        MESSAGES.iter().map(|(n, f)| (*n, f.to_vec())).collect();
+    for (name, fields) in MESSAGES {
+        if twin(name) == name {
+            continue;
+        }
+        let wide = fields
+            .iter()
+            .map(|&(f, n, k, r)| {
+                let k = match k {
+                    K::Float => K::Double,
+                    K::Message(m) => K::Message(twin(m)),
+                    k => k,
+                };
+                (f, n, k, r)
+            })
+            .collect();
+        out.push((twin(name), wide));
+    }
+    out
+}
+
 /// The schema of every channel: a `FileDescriptorSet` holding `gripsim/recording.proto`
 /// (proto3, package `gripsim`) with all the messages, serialised. The channel's schema name
-/// says which message it carries (`gripsim.Step`, `gripsim.Iteration`).
+/// says which message it carries (`gripsim.Step` or `gripsim.Step64`, `gripsim.Iteration` or
+/// `gripsim.Iteration64`).
 pub fn file_descriptor_set() -> Vec<u8> {
     let file = FileDescriptorProto {
         name: Some("gripsim/recording.proto".into()),
         package: Some(PACKAGE.into()),
-        message_type: MESSAGES
+        message_type: all_messages()
             .iter()
             .map(|(name, fields)| DescriptorProto {
                 name: Some(name.to_string()),
@@ -345,81 +645,33 @@ fn set<T: Copy>(dst: &mut Vec<T>, src: &[T]) {
     dst.extend_from_slice(src);
 }
 
-impl Rod {
-    /// Refill from a step view, reusing the buffers.
-    pub fn fill(&mut self, v: &RodStepView<'_>) {
-        set(&mut self.q, v.q);
-        set(&mut self.u, v.u);
-        set(&mut self.reaction, v.reaction);
-        self.reaction_norm.clear();
-        self.reaction_norm
-            .extend((0..v.reaction.len() / 2).map(|i| super::node_norm(v.reaction, i)));
-        set(&mut self.impulse, v.impulse);
-        set(&mut self.drive_force, v.drive_force);
-        set(&mut self.normal, v.normal);
-        set(&mut self.in_contact, v.in_contact);
-        self.contact_obstacle.clear();
-        self.contact_obstacle
-            .extend(v.contact_obstacle.iter().map(|&k| index(k)));
-        set(&mut self.normal2, v.normal2);
-        self.contact_obstacle2.clear();
-        self.contact_obstacle2
-            .extend(v.contact_obstacle2.iter().map(|&k| index(k)));
-        set(&mut self.bending_stress, v.bending_stress);
-        set(&mut self.gap, v.gap);
-        // Only on steps with a corrector pass: elsewhere it equals q (format 3).
-        if v.q_predictor == v.q {
-            self.q_predictor.clear();
-        } else {
-            set(&mut self.q_predictor, v.q_predictor);
+impl Body {
+    /// Refill from a body view, reusing the buffers.
+    pub fn fill(&mut self, b: &BodyView<'_>) {
+        if self.name != b.name {
+            self.name.clear();
+            self.name.push_str(b.name);
         }
+        self.obstacle = b.obstacle as u64;
+        set(&mut self.position, &b.position);
+        self.angle = b.angle;
+        set(&mut self.velocity, &b.velocity);
+        self.angular_velocity = b.angular_velocity;
+        set(&mut self.contact_force, &b.contact_force);
+        self.contact_torque = b.contact_torque;
+        self.mass = b.mass;
     }
 }
 
-impl From<&BodyView<'_>> for Body {
-    fn from(b: &BodyView<'_>) -> Self {
-        Self {
-            name: b.name.to_string(),
-            obstacle: b.obstacle as u64,
-            position: b.position.to_vec(),
-            angle: b.angle,
-            velocity: b.velocity.to_vec(),
-            angular_velocity: b.angular_velocity,
-            contact_force: b.contact_force.to_vec(),
-            contact_torque: b.contact_torque,
-            mass: b.mass,
-        }
-    }
-}
-
-impl From<&ContactView> for Contact {
-    fn from(c: &ContactView) -> Self {
-        Self {
-            rod: index(c.rod),
-            node: c.node as u64,
-            obstacle: c.obstacle as u64,
-            body: index(c.body),
-            point: c.point.to_vec(),
-            normal: c.normal.to_vec(),
-            normal_force: c.normal_force,
-            friction_force: c.friction_force,
-            slip_velocity: c.slip_velocity,
-            stuck: c.stuck,
-            utilisation: c.utilisation,
-            mu_s: c.mu_s,
-            indentation: c.indentation,
-            half_width: c.half_width,
-            peak_pressure: c.peak_pressure,
-            bruise_pressure: c.bruise_pressure,
-            bruise_half_width: c.bruise_half_width,
-        }
-    }
-}
-
-/// A reusable `/sim/step` encoder: one [`Step`] whose buffers live from step to step.
+/// A reusable `/sim/step` and `/sim/iteration` encoder: one message of each precision whose
+/// buffers live from step to step (nothing is allocated per message once they have grown).
 #[derive(Default)]
 pub struct StepEncoder {
-    msg: Step,
+    pub precision: Precision,
+    step: Step,
+    step64: Step64,
+    iteration: Iteration,
+    iteration64: Iteration64,
 }
 
 /// The fields of a step to encode.
@@ -435,50 +687,66 @@ pub struct StepFields<'e, 'a> {
 }
 
 impl StepEncoder {
+    pub fn new(precision: Precision) -> Self {
+        Self {
+            precision,
+            ..Default::default()
+        }
+    }
+
+    /// The schema names of `/sim/step` and `/sim/iteration` at this precision.
+    pub fn schemas(&self) -> (&'static str, &'static str) {
+        match self.precision {
+            Precision::F32 => ("gripsim.Step", "gripsim.Iteration"),
+            Precision::F64 => ("gripsim.Step64", "gripsim.Iteration64"),
+        }
+    }
+
     /// Encode a step into `buf` (cleared first).
     pub fn encode(&mut self, s: &StepFields<'_, '_>, buf: &mut Vec<u8>) {
-        let m = &mut self.msg;
-        m.step = s.step;
-        m.t = s.t;
-        m.dt = s.dt;
-        m.newton_iterations = s.newton_iterations;
-        m.passes = s.passes;
-        m.rods.resize_with(s.rods.len(), Rod::default);
-        for (dst, v) in m.rods.iter_mut().zip(s.rods) {
-            dst.fill(v);
-        }
-        m.bodies.clear();
-        m.bodies.extend(s.bodies.iter().map(Body::from));
-        m.contacts.clear();
-        m.contacts.extend(s.contacts.iter().map(Contact::from));
         buf.clear();
-        m.encode(buf).expect("a Vec grows as needed");
+        match self.precision {
+            Precision::F32 => {
+                self.step.fill(s);
+                self.step.encode(buf)
+            }
+            Precision::F64 => {
+                self.step64.fill(s);
+                self.step64.encode(buf)
+            }
+        }
+        .expect("a Vec grows as needed");
     }
-}
 
-/// The iteration message of an [`crate::events::Event::Iteration`].
-#[allow(clippy::too_many_arguments)]
-pub fn iteration(
-    step: u64,
-    t: f64,
-    phase: Phase,
-    pass: u32,
-    iteration: u32,
-    rod: usize,
-    residual: f64,
-    update: f64,
-    q: &[f64],
-) -> Iteration {
-    Iteration {
-        step,
-        t,
-        phase: phase.as_str().to_string(),
-        pass,
-        iteration,
-        rod: rod as u64,
-        residual,
-        update,
-        q: q.to_vec(),
+    /// Encode an iteration (an [`crate::events::Event::Iteration`]) into `buf` (cleared first).
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_iteration(
+        &mut self,
+        step: u64,
+        t: f64,
+        phase: Phase,
+        pass: u32,
+        iteration: u32,
+        rod: usize,
+        residual: f64,
+        update: f64,
+        q: &[f64],
+        buf: &mut Vec<u8>,
+    ) {
+        buf.clear();
+        match self.precision {
+            Precision::F32 => {
+                let m = &mut self.iteration;
+                m.fill(step, t, phase, pass, iteration, rod, residual, update, q);
+                m.encode(buf)
+            }
+            Precision::F64 => {
+                let m = &mut self.iteration64;
+                m.fill(step, t, phase, pass, iteration, rod, residual, update, q);
+                m.encode(buf)
+            }
+        }
+        .expect("a Vec grows as needed");
     }
 }
 
@@ -494,88 +762,39 @@ fn finite_or_null(x: f64) -> serde_json::Value {
     serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
 }
 
-impl Step {
-    /// The same message in the JSON form of format 1 (`null` for absent indices and gaps), for
-    /// tools and tests that read both encodings alike.
-    pub fn to_json(&self) -> serde_json::Value {
-        use serde_json::json;
-        let rods: Vec<serde_json::Value> = self
-            .rods
+/// Add a step's bodies (when there are any) to its JSON form.
+fn bodies_json(v: &mut serde_json::Value, bodies: &[Body]) {
+    use serde_json::json;
+    if !bodies.is_empty() {
+        v["bodies"] = bodies
             .iter()
-            .map(|r| {
+            .map(|b| {
                 json!({
-                    "q": r.q, "u": r.u, "reaction": r.reaction, "reaction_norm": r.reaction_norm,
-                    "impulse": r.impulse, "drive_force": r.drive_force, "normal": r.normal,
-                    "in_contact": r.in_contact,
-                    "contact_obstacle": r.contact_obstacle.iter().map(|&k| opt_index(k)).collect::<Vec<_>>(),
-                    "normal2": r.normal2,
-                    "contact_obstacle2": r.contact_obstacle2.iter().map(|&k| opt_index(k)).collect::<Vec<_>>(),
-                    "bending_stress": r.bending_stress,
-                    "gap": r.gap.iter().map(|&g| finite_or_null(g)).collect::<Vec<_>>(),
-                    "q_predictor": r.q_predictor,
+                    "name": b.name, "obstacle": b.obstacle, "position": b.position,
+                    "angle": b.angle, "velocity": b.velocity,
+                    "angular_velocity": b.angular_velocity, "contact_force": b.contact_force,
+                    "contact_torque": b.contact_torque, "mass": b.mass,
                 })
             })
             .collect();
-        let mut v = json!({
-            "step": self.step, "t": self.t, "dt": self.dt,
-            "newton_iterations": self.newton_iterations, "passes": self.passes, "rods": rods,
-        });
-        if !self.bodies.is_empty() {
-            v["bodies"] = self
-                .bodies
-                .iter()
-                .map(|b| {
-                    json!({
-                        "name": b.name, "obstacle": b.obstacle, "position": b.position,
-                        "angle": b.angle, "velocity": b.velocity,
-                        "angular_velocity": b.angular_velocity, "contact_force": b.contact_force,
-                        "contact_torque": b.contact_torque, "mass": b.mass,
-                    })
-                })
-                .collect();
-        }
-        if !self.contacts.is_empty() {
-            v["contacts"] = self
-                .contacts
-                .iter()
-                .map(|c| {
-                    json!({
-                        "rod": opt_index(c.rod), "node": c.node, "obstacle": c.obstacle,
-                        "body": opt_index(c.body), "point": c.point, "normal": c.normal,
-                        "normal_force": c.normal_force, "friction_force": c.friction_force,
-                        "slip_velocity": c.slip_velocity, "stuck": c.stuck,
-                        "utilisation": c.utilisation, "mu_s": c.mu_s,
-                        "indentation": c.indentation, "half_width": c.half_width,
-                        "peak_pressure": c.peak_pressure, "bruise_pressure": c.bruise_pressure,
-                        "bruise_half_width": c.bruise_half_width,
-                    })
-                })
-                .collect();
-        }
-        v
-    }
-}
-
-impl Iteration {
-    /// The JSON form of format 1.
-    pub fn to_json(&self) -> serde_json::Value {
-        serde_json::json!({
-            "step": self.step, "t": self.t, "phase": self.phase, "pass": self.pass,
-            "iteration": self.iteration, "rod": self.rod, "residual": self.residual,
-            "update": self.update, "q": self.q,
-        })
     }
 }
 
 /// Decode a message of `schema` in `encoding` (`json` or `protobuf`) to its JSON form: what
-/// tests and tools that compare recordings of either encoding read. `None` for a schema or
-/// encoding this does not know, or bytes that do not decode.
+/// tests and tools that compare recordings of either encoding read (format 4's `gripsim.Step`
+/// is the f32 message; a format 3 file's `gripsim.Step` was the f64 layout, `Step64` here).
+/// `None` for a schema or encoding this does not know, or bytes that do not decode.
 pub fn decode_json(schema: &str, encoding: &str, data: &[u8]) -> Option<serde_json::Value> {
     match (encoding, schema) {
         ("json", _) => serde_json::from_slice(data).ok(),
         ("protobuf", "gripsim.Step") => Step::decode(data).ok().map(|s| s.to_json()),
+        ("protobuf", "gripsim.Step64") => Step64::decode(data).ok().map(|s| s.to_json()),
         ("protobuf", "gripsim.Iteration") => Iteration::decode(data).ok().map(|s| s.to_json()),
+        ("protobuf", "gripsim.Iteration64") => Iteration64::decode(data).ok().map(|s| s.to_json()),
         ("protobuf", super::foxglove::SCHEMA) => super::foxglove::SceneUpdate::decode(data)
+            .ok()
+            .map(|s| s.to_json()),
+        ("protobuf", super::foxglove::POINT_CLOUD) => super::foxglove::PointCloud::decode(data)
             .ok()
             .map(|s| s.to_json()),
         _ => None,
@@ -613,13 +832,15 @@ pub(crate) mod tests {
     fn expected_wire(kind: Kind, repeated: bool) -> WireType {
         match (kind, repeated) {
             (_, true) | (K::Str | K::Message(_), false) => WireType::LengthDelimited,
-            (K::Double, false) => WireType::SixtyFourBit,
+            (K::Double | K::Fixed64, false) => WireType::SixtyFourBit,
+            (K::Float, false) => WireType::ThirtyTwoBit,
             _ => WireType::Varint,
         }
     }
 
     fn check(name: &str, bytes: &[u8]) {
-        let fields = MESSAGES.iter().find(|(n, _)| *n == name).unwrap().1;
+        let all = all_messages();
+        let fields = &all.iter().find(|(n, _)| *n == name).unwrap().1;
         let got = wire_fields(bytes);
         let want: Vec<(u32, WireType)> = fields
             .iter()
@@ -646,7 +867,7 @@ pub(crate) mod tests {
             normal2: vec![1.0],
             contact_obstacle2: vec![2],
             bending_stress: vec![1.0],
-            gap: vec![f64::INFINITY],
+            gap: vec![f32::INFINITY],
             q_predictor: vec![1.0],
         };
         let body = Body {
@@ -679,6 +900,25 @@ pub(crate) mod tests {
             bruise_pressure: 1.0,
             bruise_half_width: 1.0,
         };
+        let contact64 = Contact64 {
+            rod: -1,
+            node: 1,
+            obstacle: 1,
+            body: 1,
+            point: vec![1.0],
+            normal: vec![1.0],
+            normal_force: 1.0,
+            friction_force: 1.0,
+            slip_velocity: 1.0,
+            stuck: true,
+            utilisation: 1.0,
+            mu_s: 1.0,
+            indentation: 1.0,
+            half_width: 1.0,
+            peak_pressure: 1.0,
+            bruise_pressure: 1.0,
+            bruise_half_width: 1.0,
+        };
         let step = Step {
             step: 1,
             t: 1.0,
@@ -688,6 +928,7 @@ pub(crate) mod tests {
             rods: vec![rod.clone()],
             bodies: vec![body.clone()],
             contacts: vec![contact.clone()],
+            fingerprint: 1,
         };
         let it = Iteration {
             step: 1,
@@ -705,6 +946,52 @@ pub(crate) mod tests {
         check("Body", &body.encode_to_vec());
         check("ContactState", &contact.encode_to_vec());
         check("Iteration", &it.encode_to_vec());
+        // The f64 twins: the same fields, `double` for `float`.
+        let wide = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
+        let rod64 = Rod64 {
+            q: wide(&rod.q),
+            u: wide(&rod.u),
+            reaction: wide(&rod.reaction),
+            reaction_norm: wide(&rod.reaction_norm),
+            impulse: wide(&rod.impulse),
+            drive_force: wide(&rod.drive_force),
+            normal: wide(&rod.normal),
+            in_contact: rod.in_contact.clone(),
+            contact_obstacle: rod.contact_obstacle.clone(),
+            normal2: wide(&rod.normal2),
+            contact_obstacle2: rod.contact_obstacle2.clone(),
+            bending_stress: wide(&rod.bending_stress),
+            gap: wide(&rod.gap),
+            q_predictor: wide(&rod.q_predictor),
+        };
+        let step64 = Step64 {
+            step: 1,
+            t: 1.0,
+            dt: 1.0,
+            newton_iterations: 1,
+            passes: 1,
+            rods: vec![rod64.clone()],
+            bodies: vec![body.clone()],
+            contacts: vec![contact64.clone()],
+            fingerprint: 1,
+        };
+        let it64 = Iteration64 {
+            step: 1,
+            t: 1.0,
+            phase: "predictor".into(),
+            pass: 1,
+            iteration: 1,
+            rod: 1,
+            residual: 1.0,
+            update: 1.0,
+            q: vec![1.0],
+        };
+        check("Step64", &step64.encode_to_vec());
+        check("Rod64", &rod64.encode_to_vec());
+        check("Iteration64", &it64.encode_to_vec());
+        check("ContactState64", &contact64.encode_to_vec());
+        // The f32 and f64 forms of one message give the same JSON (values exact in f32).
+        assert_eq!(step.to_json(), step64.to_json());
         // Round trip, with the JSON form of format 1.
         let back = Step::decode(step.encode_to_vec().as_slice()).unwrap();
         assert_eq!(back, step);
@@ -723,12 +1010,43 @@ pub(crate) mod tests {
         assert_eq!(f.package(), "gripsim");
         assert_eq!(f.syntax(), "proto3");
         let names: Vec<&str> = f.message_type.iter().map(|m| m.name()).collect();
-        assert_eq!(names, ["Step", "Rod", "Body", "ContactState", "Iteration"]);
+        assert_eq!(
+            names,
+            [
+                "Step",
+                "Rod",
+                "Body",
+                "ContactState",
+                "Iteration",
+                "Step64",
+                "Rod64",
+                "ContactState64",
+                "Iteration64"
+            ]
+        );
         let rod = &f.message_type[1];
         assert_eq!(rod.field.len(), 14);
         assert_eq!(rod.field[8].name(), "contact_obstacle");
         assert_eq!(rod.field[8].r#type(), Type::Sint64);
         assert_eq!(rod.field[8].label(), Label::Repeated);
         assert_eq!(f.message_type[0].field[5].type_name(), ".gripsim.Rod");
+        assert_eq!(rod.field[0].r#type(), Type::Float);
+        assert_eq!(f.message_type[0].field[8].r#type(), Type::Fixed64);
+        let rod64 = &f.message_type[6];
+        assert_eq!(rod64.field[0].r#type(), Type::Double);
+        assert_eq!(f.message_type[5].field[5].type_name(), ".gripsim.Rod64");
+    }
+
+    #[test]
+    fn the_fingerprint_is_fnv1a_over_the_f64_bytes() {
+        // FNV-1a 64 of the bytes "abcdefgh" (the reference algorithm gives 0x25da8c1836a8d66d;
+        // of "foobar", the published test vector, 0x85944171f73967e8).
+        let mut h = Fingerprint::default();
+        h.add(f64::from_bits(u64::from_le_bytes(*b"abcdefgh")));
+        assert_eq!(h.0, 0x25da_8c18_36a8_d66d);
+        // One bit of one number changes it.
+        let mut g = Fingerprint::default();
+        g.add(f64::from_bits(u64::from_le_bytes(*b"abcdefgh") ^ 1));
+        assert_ne!(g.0, h.0);
     }
 }

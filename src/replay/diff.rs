@@ -118,6 +118,9 @@ pub struct Divergence {
     /// The step of each run at or just after `t`.
     pub step_a: u64,
     pub step_b: u64,
+    /// What the f32 rounding of the recorded values can account for (0 when both runs are
+    /// recorded in f64): a difference counts only beyond `tolerance + resolution`.
+    pub resolution: f64,
 }
 
 /// The largest difference of one quantity at one node, and when.
@@ -146,6 +149,23 @@ pub struct NodeDiff {
     pub reaction: Max,
     /// The quantities over their tolerance.
     pub exceeds: Vec<&'static str>,
+    /// Per quantity: over `tolerance + resolution` at some time.
+    #[serde(skip)]
+    over: [bool; 3],
+}
+
+/// The first step both runs hold that differs bit for bit (format 4 fingerprints).
+#[derive(Debug, Clone, Serialize)]
+pub struct BitwiseDivergence {
+    pub step: u64,
+    /// The step's end in run A.
+    pub t: f64,
+    /// `state`: the fingerprints of the exact f64 state differ; `time`: the step ends at
+    /// another time in each run.
+    pub what: &'static str,
+    /// Every recorded value of the step (positions, velocities, reactions, in the files' f32)
+    /// is the same in both runs: they differ below the recording's f32 resolution.
+    pub below_f32_resolution: bool,
 }
 
 /// A contact event found in one run only, or in both at different times.
@@ -215,6 +235,11 @@ pub struct DiffReport {
     #[serde(skip_serializing_if = "is_zero")]
     pub skipped_in_gaps: usize,
     pub first_divergence: Option<Divergence>,
+    /// Both runs carry a fingerprint on every step (format 4): the bitwise comparison ran.
+    pub fingerprints: bool,
+    /// The first step where the runs differ bit for bit (None: identical at every step both
+    /// hold, or no fingerprints).
+    pub first_bitwise_divergence: Option<BitwiseDivergence>,
     pub nodes: Vec<NodeDiff>,
     pub contact_event_counts: EventCounts,
     pub contact_events: Vec<EventDiff>,
@@ -705,18 +730,45 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
                 velocity: Max::default(),
                 reaction: Max::default(),
                 exceeds: Vec::new(),
+                over: [false; 3],
             });
         }
     }
     a.advance()?;
     b.advance()?;
     let mut first: Option<Divergence> = None;
+    let mut bitwise: Option<BitwiseDivergence> = None;
+    let mut fingerprints = true;
+    // Half an f32 unit in the last place, relative, per run recorded in f32.
+    let half_ulp = |f32: bool| if f32 { 2f64.powi(-24) } else { 0.0 };
+    let (ra_res, rb_res) = (half_ulp(a.head.meta.f32()), half_ulp(b.head.meta.f32()));
     let mut samples = 0usize;
     let mut skipped_in_gaps = 0usize;
     // The union of both runs' step times, while both runs reach it.
     while let (Some(na), Some(nb)) = (&a.next, &b.next) {
         let t = na.t.min(nb.t);
         let (step_a, step_b) = (na.step, nb.step);
+        fingerprints &= na.fingerprint.is_some() && nb.fingerprint.is_some();
+        if bitwise.is_none() && fingerprints && step_a == step_b {
+            let what = if na.t != nb.t {
+                Some("time")
+            } else if na.fingerprint != nb.fingerprint {
+                Some("state")
+            } else {
+                None
+            };
+            bitwise = what.map(|what| BitwiseDivergence {
+                step: step_a,
+                t: na.t,
+                what,
+                below_f32_resolution: what == "state"
+                    && na
+                        .rods
+                        .iter()
+                        .zip(&nb.rods)
+                        .all(|(x, y)| x.q == y.q && x.u == y.u && x.reaction == y.reaction),
+            });
+        }
         if a.in_gap(t) || b.in_gap(t) {
             // A decimated recording has no state here: nothing to compare.
             skipped_in_gaps += 1;
@@ -739,12 +791,17 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
                 for (q, (name, field, tolerance)) in quantities.iter().enumerate() {
                     let (va, vb) = (a.vec2(t, r, i, *field), b.vec2(t, r, i, *field));
                     let d = (va[0] - vb[0]).hypot(va[1] - vb[1]);
+                    // The f32 rounding of each recorded component: at most half an ulp.
+                    let resolution = (ra_res * va[0].abs() + rb_res * vb[0].abs())
+                        .hypot(ra_res * va[1].abs() + rb_res * vb[1].abs());
                     match q {
                         0 => nd.position.add(d, t),
                         1 => nd.velocity.add(d, t),
                         _ => nd.reaction.add(d, t),
                     }
-                    if first.is_none() && d > *tolerance {
+                    let over = d > *tolerance + resolution;
+                    nd.over[q] |= over;
+                    if first.is_none() && over {
                         let ratio = if *tolerance > 0.0 {
                             d / tolerance
                         } else {
@@ -765,6 +822,7 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
                                     tolerance: *tolerance,
                                     step_a,
                                     step_b,
+                                    resolution,
                                 },
                             ));
                         }
@@ -791,12 +849,8 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
         b.advance()?;
     }
     for nd in &mut nodes {
-        for (name, m, tolerance) in [
-            ("position", nd.position, tol.tol_position),
-            ("velocity", nd.velocity, tol.tol_velocity),
-            ("reaction", nd.reaction, tol.tol_reaction),
-        ] {
-            if m.max > tolerance {
+        for (q, name) in ["position", "velocity", "reaction"].into_iter().enumerate() {
+            if nd.over[q] {
                 nd.exceeds.push(name);
             }
         }
@@ -840,6 +894,8 @@ fn run_diff(mut a: Side<'_>, mut b: Side<'_>, tol: &Tolerances) -> Result<DiffRe
         samples,
         skipped_in_gaps,
         first_divergence: first,
+        fingerprints,
+        first_bitwise_divergence: bitwise,
         nodes,
         contact_event_counts: counts,
         contact_events: events,
@@ -1087,6 +1143,37 @@ pub fn format_diff(rep: &DiffReport) -> String {
                 g(d.tolerance),
                 d.step_a,
                 d.step_b
+            );
+            if d.resolution > 0.0 {
+                let _ = writeln!(
+                    s,
+                    "                 (beyond the f32 rounding of the recorded values, {})",
+                    g(d.resolution)
+                );
+            }
+        }
+    }
+    match (&rep.first_bitwise_divergence, rep.fingerprints) {
+        (_, false) => {
+            let _ = writeln!(
+                s,
+                "bit for bit      not compared: a run without step fingerprints (format 3 or older)"
+            );
+        }
+        (None, true) => {
+            let _ = writeln!(s, "bit for bit      identical at every step both runs hold");
+        }
+        (Some(b), true) => {
+            let why = match (b.what, b.below_f32_resolution) {
+                ("time", _) => "the step ends at another time".to_string(),
+                (_, true) => "the exact states differ (fingerprints), below the recording's f32 resolution: every recorded value is the same".to_string(),
+                _ => "the exact states differ (fingerprints)".to_string(),
+            };
+            let _ = writeln!(
+                s,
+                "first bitwise    step {} (t = {} s): {why}",
+                b.step,
+                g(b.t)
             );
         }
     }

@@ -34,6 +34,9 @@ pub struct Meta {
     pub mode: String,
     #[serde(default)]
     pub detail: String,
+    /// `f32` or `f64`: the per-node numbers of `/sim/step` (format 4; older files: `f64`).
+    #[serde(default = "exact")]
+    pub precision: String,
     #[serde(default)]
     pub flush_every: u64,
     /// `detail` = auto: every k-th step outside the windows, and the window (steps).
@@ -42,6 +45,17 @@ pub struct Meta {
     #[serde(default)]
     pub auto_window: Option<u64>,
     pub rods: Vec<RodMeta>,
+}
+
+fn exact() -> String {
+    "f64".into()
+}
+
+impl Meta {
+    /// The per-node numbers of `/sim/step` are f32-rounded (format 4 at the default precision).
+    pub fn f32(&self) -> bool {
+        self.precision == "f32"
+    }
 }
 
 /// One entry of `/sim/meta` `rods[]`.
@@ -95,6 +109,11 @@ pub struct Step {
     pub bodies: Vec<BodyState>,
     #[serde(default)]
     pub contacts: Vec<ContactState>,
+    /// The 64-bit fingerprint of the step's exact state (format 4: FNV-1a of the f64 bits of
+    /// every rod's q and u and every body's state, `record::proto::Fingerprint`); None in older
+    /// files.
+    #[serde(default)]
+    pub fingerprint: Option<u64>,
 }
 
 /// A free body of a `/sim/step` message (what replay uses of it).
@@ -309,85 +328,186 @@ fn pair(what: &str, v: &[f64]) -> Result<[f64; 2], String> {
     <[f64; 2]>::try_from(v).map_err(|_| format!("`{what}` has {} numbers, expected 2", v.len()))
 }
 
+/// The f64 values of f32 ones.
+fn wide(v: Vec<f32>) -> Vec<f64> {
+    v.into_iter().map(f64::from).collect()
+}
+
+impl From<proto::Rod> for RodState {
+    fn from(r: proto::Rod) -> Self {
+        RodState {
+            q: wide(r.q),
+            u: wide(r.u),
+            reaction: wide(r.reaction),
+            impulse: wide(r.impulse),
+            drive_force: wide(r.drive_force),
+            normal: wide(r.normal),
+            in_contact: r.in_contact,
+            contact_obstacle: r.contact_obstacle.into_iter().map(pb_index).collect(),
+            bending_stress: wide(r.bending_stress),
+            gap: wide(r.gap),
+            q_predictor: wide(r.q_predictor),
+            normal2: wide(r.normal2),
+            contact_obstacle2: r.contact_obstacle2.into_iter().map(pb_index).collect(),
+        }
+    }
+}
+
+impl From<proto::Rod64> for RodState {
+    fn from(r: proto::Rod64) -> Self {
+        RodState {
+            q: r.q,
+            u: r.u,
+            reaction: r.reaction,
+            impulse: r.impulse,
+            drive_force: r.drive_force,
+            normal: r.normal,
+            in_contact: r.in_contact,
+            contact_obstacle: r.contact_obstacle.into_iter().map(pb_index).collect(),
+            bending_stress: r.bending_stress,
+            gap: r.gap,
+            q_predictor: r.q_predictor,
+            normal2: r.normal2,
+            contact_obstacle2: r.contact_obstacle2.into_iter().map(pb_index).collect(),
+        }
+    }
+}
+
 impl TryFrom<proto::Step> for Step {
     type Error = String;
     fn try_from(s: proto::Step) -> Result<Self, String> {
-        let rods = s
-            .rods
-            .into_iter()
-            .map(|r| RodState {
-                q: r.q,
-                u: r.u,
-                reaction: r.reaction,
-                impulse: r.impulse,
-                drive_force: r.drive_force,
-                normal: r.normal,
-                in_contact: r.in_contact,
-                contact_obstacle: r.contact_obstacle.into_iter().map(pb_index).collect(),
-                bending_stress: r.bending_stress,
-                gap: r.gap,
-                q_predictor: r.q_predictor,
-                normal2: r.normal2,
-                contact_obstacle2: r.contact_obstacle2.into_iter().map(pb_index).collect(),
-            })
-            .collect();
-        let bodies = s
-            .bodies
-            .iter()
-            .map(|b| {
-                Ok(BodyState {
-                    obstacle: b.obstacle as usize,
-                    position: pair("position", &b.position)?,
-                    velocity: pair("velocity", &b.velocity)?,
-                })
-            })
-            .collect::<Result<_, String>>()?;
-        let contacts = s
-            .contacts
-            .iter()
-            .map(|c| ContactState {
-                rod: pb_index(c.rod),
-                obstacle: c.obstacle as usize,
-                node: c.node as usize,
-                peak_pressure: c.peak_pressure,
-                bruise_pressure: c.bruise_pressure,
-                bruise_half_width: c.bruise_half_width,
-            })
-            .collect();
-        Ok(Step {
-            step: s.step,
-            t: s.t,
-            dt: s.dt,
-            newton_iterations: s.newton_iterations,
-            passes: s.passes,
-            rods,
-            bodies,
-            contacts,
-        })
+        let rods = s.rods.into_iter().map(RodState::from).collect();
+        let head = (s.step, s.t, s.dt, s.newton_iterations, s.passes);
+        let contacts = s.contacts.iter().map(ContactState::from).collect();
+        step_from(head, rods, &s.bodies, contacts, Some(s.fingerprint))
     }
+}
+
+impl TryFrom<proto::Step64> for Step {
+    type Error = String;
+    /// Also a format 3 file's `gripsim.Step` (the same layout without the fingerprint).
+    fn try_from(s: proto::Step64) -> Result<Self, String> {
+        let rods = s.rods.into_iter().map(RodState::from).collect();
+        let head = (s.step, s.t, s.dt, s.newton_iterations, s.passes);
+        let fingerprint = (s.fingerprint != 0).then_some(s.fingerprint);
+        let contacts = s.contacts.iter().map(ContactState::from).collect();
+        step_from(head, rods, &s.bodies, contacts, fingerprint)
+    }
+}
+
+impl From<&proto::Contact> for ContactState {
+    fn from(c: &proto::Contact) -> Self {
+        ContactState {
+            rod: pb_index(c.rod),
+            obstacle: c.obstacle as usize,
+            node: c.node as usize,
+            peak_pressure: c.peak_pressure.into(),
+            bruise_pressure: c.bruise_pressure.into(),
+            bruise_half_width: c.bruise_half_width.into(),
+        }
+    }
+}
+
+impl From<&proto::Contact64> for ContactState {
+    fn from(c: &proto::Contact64) -> Self {
+        ContactState {
+            rod: pb_index(c.rod),
+            obstacle: c.obstacle as usize,
+            node: c.node as usize,
+            peak_pressure: c.peak_pressure,
+            bruise_pressure: c.bruise_pressure,
+            bruise_half_width: c.bruise_half_width,
+        }
+    }
+}
+
+/// A step from its decoded parts (step, t, dt, Newton iterations, passes).
+fn step_from(
+    (step, t, dt, newton_iterations, passes): (u64, f64, f64, u32, u32),
+    rods: Vec<RodState>,
+    bodies: &[proto::Body],
+    contacts: Vec<ContactState>,
+    fingerprint: Option<u64>,
+) -> Result<Step, String> {
+    let bodies = bodies
+        .iter()
+        .map(|b| {
+            Ok(BodyState {
+                obstacle: b.obstacle as usize,
+                position: pair("position", &b.position)?,
+                velocity: pair("velocity", &b.velocity)?,
+            })
+        })
+        .collect::<Result<_, String>>()?;
+    Ok(Step {
+        step,
+        t,
+        dt,
+        newton_iterations,
+        passes,
+        rods,
+        bodies,
+        contacts,
+        fingerprint,
+    })
 }
 
 impl TryFrom<proto::Iteration> for Iteration {
     type Error = String;
     fn try_from(i: proto::Iteration) -> Result<Self, String> {
-        let phase = match i.phase.as_str() {
-            "predictor" => Phase::Predictor,
-            "corrector" => Phase::Corrector,
-            "static" => Phase::Static,
-            other => return Err(format!("unknown phase {other:?}")),
-        };
-        Ok(Iteration {
-            step: i.step,
-            t: i.t,
-            phase,
-            pass: i.pass,
-            iteration: i.iteration,
-            rod: usize::try_from(i.rod).map_err(|_| format!("rod {}", i.rod))?,
-            residual: i.residual,
-            update: i.update,
-            q: i.q,
-        })
+        let head = (
+            i.step,
+            i.t,
+            i.pass,
+            i.iteration,
+            i.rod,
+            i.residual,
+            i.update,
+        );
+        iteration_from(head, &i.phase, wide(i.q))
     }
+}
+
+impl TryFrom<proto::Iteration64> for Iteration {
+    type Error = String;
+    /// Also a format 3 file's `gripsim.Iteration` (the same layout).
+    fn try_from(i: proto::Iteration64) -> Result<Self, String> {
+        let head = (
+            i.step,
+            i.t,
+            i.pass,
+            i.iteration,
+            i.rod,
+            i.residual,
+            i.update,
+        );
+        iteration_from(head, &i.phase, i.q)
+    }
+}
+
+/// An iteration from its decoded parts (step, t, pass, iteration, rod, residual, update).
+fn iteration_from(
+    (step, t, pass, iteration, rod, residual, update): (u64, f64, u32, u32, u64, f64, f64),
+    phase: &str,
+    q: Vec<f64>,
+) -> Result<Iteration, String> {
+    let phase = match phase {
+        "predictor" => Phase::Predictor,
+        "corrector" => Phase::Corrector,
+        "static" => Phase::Static,
+        other => return Err(format!("unknown phase {other:?}")),
+    };
+    Ok(Iteration {
+        step,
+        t,
+        phase,
+        pass,
+        iteration,
+        rod: usize::try_from(rod).map_err(|_| format!("rod {rod}"))?,
+        residual,
+        update,
+        q,
+    })
 }
 
 /// A decoded message, in file order.
@@ -544,8 +664,11 @@ pub fn read_messages(
     let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
     // id -> topic
     let mut channels: HashMap<u16, String> = HashMap::new();
-    // ids of the channels whose messages are protobuf (format 2 /sim/step, /sim/iteration)
-    let mut protobuf: std::collections::HashSet<u16> = Default::default();
+    // ids of the channels whose messages are protobuf (format 2 /sim/step, /sim/iteration),
+    // with whether their schema is the f64 twin (`gripsim.Step64`, `gripsim.Iteration64`)
+    let mut protobuf: HashMap<u16, bool> = HashMap::new();
+    // `/sim/meta` format_version: format 3 and older wrote the f64 layout as `gripsim.Step`
+    let mut format = 0u32;
     let mut status = ReadStatus::default();
     let mut shape: Option<Shape> = None;
     let mut steps = 0u64;
@@ -578,12 +701,17 @@ pub fn read_messages(
                 let binary = ["/sim/step", "/sim/iteration"].contains(&c.topic.as_str())
                     && c.message_encoding == "protobuf"
                     && got.is_some_and(|(_, enc)| enc == "protobuf");
+                let wide = got.is_some_and(|(name, _)| name.ends_with("64"));
                 if binary {
-                    protobuf.insert(c.id);
+                    protobuf.insert(c.id, wide);
                 }
                 if let Some((_, want)) = REQUIRED.iter().find(|(t, _)| *t == c.topic) {
+                    // Format 4 at precision f64: `gripsim.Step64`.
+                    let named = |name: &String| {
+                        name == want || (binary && name.strip_suffix("64") == Some(*want))
+                    };
                     let ok = got
-                        .is_some_and(|(name, enc)| name == want && (enc == "jsonschema" || binary))
+                        .is_some_and(|(name, enc)| named(name) && (enc == "jsonschema" || binary))
                         && (c.message_encoding == "json" || binary);
                     if !ok {
                         return Err(err(format!(
@@ -633,6 +761,7 @@ pub fn read_messages(
                         if shape.is_some() {
                             return Err(err("a second /sim/meta message".into()));
                         }
+                        format = meta.format_version;
                         for (r, rod) in meta.rods.iter().enumerate() {
                             let n = rod.nodes;
                             let ok = n > 0
@@ -669,10 +798,17 @@ pub fn read_messages(
                                 steps + 1
                             ))
                         };
-                        let mut s: Step = if protobuf.contains(&header.channel_id) {
-                            let pb = <proto::Step as prost::Message>::decode(data.as_ref())
-                                .map_err(|e| bad(e.to_string()))?;
-                            Step::try_from(pb).map_err(bad)?
+                        let mut s: Step = if let Some(&wide) = protobuf.get(&header.channel_id) {
+                            use prost::Message as _;
+                            if wide || format <= 3 {
+                                let pb = proto::Step64::decode(data.as_ref())
+                                    .map_err(|e| bad(e.to_string()))?;
+                                Step::try_from(pb).map_err(bad)?
+                            } else {
+                                let pb = proto::Step::decode(data.as_ref())
+                                    .map_err(|e| bad(e.to_string()))?;
+                                Step::try_from(pb).map_err(bad)?
+                            }
                         } else {
                             serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
                         };
@@ -730,10 +866,17 @@ pub fn read_messages(
                                 "a /sim/iteration message does not match schema gripsim.Iteration: {e}"
                             ))
                         };
-                        let it: Iteration = if protobuf.contains(&header.channel_id) {
-                            let pb = <proto::Iteration as prost::Message>::decode(data.as_ref())
-                                .map_err(|e| bad(e.to_string()))?;
-                            Iteration::try_from(pb).map_err(bad)?
+                        let it: Iteration = if let Some(&wide) = protobuf.get(&header.channel_id) {
+                            use prost::Message as _;
+                            if wide || format <= 3 {
+                                let pb = proto::Iteration64::decode(data.as_ref())
+                                    .map_err(|e| bad(e.to_string()))?;
+                                Iteration::try_from(pb).map_err(bad)?
+                            } else {
+                                let pb = proto::Iteration::decode(data.as_ref())
+                                    .map_err(|e| bad(e.to_string()))?;
+                                Iteration::try_from(pb).map_err(bad)?
+                            }
                         } else {
                             serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
                         };

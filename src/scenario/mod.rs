@@ -21,6 +21,26 @@ pub use reader::ScenarioError;
 use reader::TableReader;
 use toml::Value;
 
+/// `[output] precision`: how the MCAP's `/sim/step` and `/sim/iteration` store their per-node
+/// numbers: `f32` (protobuf `float`, with an exact 64-bit fingerprint of each step's state;
+/// the default) or `f64` (`double`, the exact values).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    #[default]
+    F32,
+    F64,
+}
+
+impl Precision {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
@@ -278,6 +298,8 @@ pub struct Scenario {
     pub materials: Vec<Option<crate::contact::compliant::Material>>,
     /// Flush recordings every this many steps.
     pub flush_every: u64,
+    /// `[output] precision` of the MCAP's per-node numbers.
+    pub precision: Precision,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
     #[serde(skip)]
     pub text: String,
@@ -341,7 +363,7 @@ const ROD_KEYS: &[&str] = &[
     "loss_frequency",
 ];
 const PARTICLE_KEYS: &[&str] = &["name", "position", "velocity", "mass", "force"];
-const OUTPUT_KEYS: &[&str] = &["flush_every"];
+const OUTPUT_KEYS: &[&str] = &["flush_every", "precision"];
 
 impl Scenario {
     /// Read a scenario file, apply `--set` overrides, validate.
@@ -660,12 +682,24 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
     let expect = expect::parse(&top)?;
     let contact = contact::parse(&top)?;
     let mut flush_every = 100;
+    let mut precision = Precision::F32;
     if let Some(o) = top.opt_table("output", OUTPUT_KEYS)? {
         if let Some(n) = o.opt_usize("flush_every")? {
             if n == 0 {
                 return Err(o.err("flush_every", o.get("flush_every"), "must be at least 1"));
             }
             flush_every = n as u64;
+        }
+        match o.opt_str("precision")? {
+            None | Some("f32") => {}
+            Some("f64") => precision = Precision::F64,
+            Some(other) => {
+                return Err(o.err(
+                    "precision",
+                    o.get("precision"),
+                    format!("unknown precision {other:?}: use \"f32\" or \"f64\""),
+                ))
+            }
         }
         o.finish()?;
     }
@@ -684,6 +718,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         contact,
         materials,
         flush_every,
+        precision,
         text: String::new(),
         file: file.into(),
     })
