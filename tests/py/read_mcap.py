@@ -28,6 +28,14 @@ of format 2) with Google's `protobuf` library from the FileDescriptorSet the fil
                 number on the topic = its step), and per entity its id, the points of its
                 first line, its spheres' centres, the number of arrows, texts and cubes and
                 the point counts of its triangle lists (3D format 3: the same protobuf)
+  node_samples  the first /scene/nodes messages and every 250th after (format 4: protobuf
+                foxglove.PointCloud, decoded by Google's library; its packed `data` unpacked
+                with `struct` through the message's own `fields` and `point_stride`): index,
+                frame_id, and per point {x, y, z, red, green, blue, alpha}
+  fingerprints  format 4: {steps, checked, matched}: steps carrying a fingerprint, and of the
+                gripsim.Step64 (f64) ones how many were recomputed here (FNV-1a 64 over the
+                little-endian f64 bytes of every rod's q then u, then every body's position,
+                angle, velocity, angular velocity) and how many matched
   scene_static  the /scene/static message's entity ids, line counts and triangle lists' point
                 counts
   last_step3    (3D runs, schema gripsim.Step3) the last /sim/step as decoded: per rod x (x, y, z
@@ -43,6 +51,7 @@ record; `error` then says where reading stopped.
 
 import json
 import math
+import struct
 import sys
 
 import jsonschema
@@ -82,7 +91,42 @@ def step_sample(msg):
         "dt": get(msg, "dt"),
         "rods": rods,
         "contacts": contacts,
+        "fingerprint": None if isinstance(msg, dict) else int(getattr(msg, "fingerprint", 0)),
     }
+
+
+FNV_OFFSET, FNV_PRIME = 0xCBF29CE484222325, 0x100000001B3
+
+
+def fingerprint(msg):
+    """FNV-1a 64 of the exact f64 state of a gripsim.Step64 message (docs/recording-format.md)."""
+    h = FNV_OFFSET
+    xs = []
+    for r in msg.rods:
+        xs += list(r.q) + list(r.u)
+    for b in msg.bodies:
+        xs += list(b.position) + [b.angle] + list(b.velocity) + [b.angular_velocity]
+    for byte in struct.pack("<%dd" % len(xs), *xs):
+        h = ((h ^ byte) * FNV_PRIME) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+# PackedElementField.NumericType -> struct format
+NUMERIC = {1: "B", 2: "b", 3: "H", 4: "h", 5: "I", 6: "i", 7: "f", 8: "d"}
+
+
+def node_sample(msg, index):
+    """What the report shows of a /scene/nodes foxglove.PointCloud."""
+    points = []
+    data = bytes(msg.data)
+    for start in range(0, len(data), msg.point_stride):
+        points.append(
+            {
+                f.name: struct.unpack_from("<" + NUMERIC[f.type], data, start + f.offset)[0]
+                for f in msg.fields
+            }
+        )
+    return {"index": index, "frame_id": msg.frame_id, "stride": msg.point_stride, "points": points}
 
 
 def xyz(v):
@@ -156,6 +200,7 @@ def main(path):
     seen, validated, error = {}, 0, None
     protobuf, decoders, samples = DecoderFactory(), {}, []
     scene_samples, scene_static = [], None
+    node_samples, prints = [], {"steps": 0, "checked": 0, "matched": 0}
     last_step3 = None
     with open(path, "rb") as f:
         try:
@@ -208,6 +253,14 @@ def main(path):
                         steps.append(int(step))
                         if n < 20 or n % 250 == 0:
                             samples.append(step_sample(msg))
+                        if not isinstance(msg, dict) and msg.fingerprint:
+                            prints["steps"] += 1
+                            if schema.name == "gripsim.Step64":
+                                prints["checked"] += 1
+                                prints["matched"] += fingerprint(msg) == msg.fingerprint
+                    elif topic == "/scene/nodes":
+                        if n < 20 or n % 250 == 0:
+                            node_samples.append(node_sample(msg, n))
                     elif topic == "/sim/event":
                         last_event = msg
                     elif topic == "/scene" and not isinstance(msg, dict):
@@ -251,6 +304,8 @@ def main(path):
         validated=validated,
         step_samples=samples,
         scene_samples=scene_samples,
+        node_samples=node_samples,
+        fingerprints=prints,
         scene_static=scene_static,
         last_step3=last_step3,
         error=error,

@@ -77,22 +77,32 @@ fn read_mcap_rust(path: &Path) -> (Vec<Msg>, Option<String>) {
     (msgs, None)
 }
 
-const CHANNELS: [(&str, &str); 6] = [
+const CHANNELS: [(&str, &str); 7] = [
     ("/sim/meta", "gripsim.Meta"),
     ("/sim/step", "gripsim.Step"),
     ("/sim/iteration", "gripsim.Iteration"),
     ("/sim/contact", "gripsim.Contact"),
     ("/sim/event", "gripsim.Event"),
     ("/scene", "foxglove.SceneUpdate"),
+    ("/scene/nodes", "foxglove.PointCloud"),
 ];
 
-fn assert_channels(report: &Value) {
+/// The channels and their schemas; `f64`: a run at `--precision f64` (`gripsim.Step64`,
+/// `gripsim.Iteration64`).
+fn assert_channels(report: &Value, f64: bool) {
     for (topic, schema) in CHANNELS {
         let t = &report["topics"][topic];
-        assert_eq!(t["schema"], schema, "{topic}: {t}");
+        let schema = match (topic, f64) {
+            ("/sim/step" | "/sim/iteration", true) => format!("{schema}64"),
+            _ => schema.to_string(),
+        };
+        if topic == "/sim/iteration" && t.is_null() {
+            continue; // step detail: the channel is declared, its messages absent
+        }
+        assert_eq!(t["schema"], schema.as_str(), "{topic}: {t}");
         // The high-rate channels and the scene are protobuf with the schema in the file, the
         // rest JSON.
-        let binary = ["/sim/step", "/sim/iteration", "/scene"].contains(&topic);
+        let binary = ["/sim/step", "/sim/iteration", "/scene", "/scene/nodes"].contains(&topic);
         let (schema_encoding, message_encoding) = if binary {
             ("protobuf", "protobuf")
         } else {
@@ -178,7 +188,9 @@ fn seed_grasp_recordings_agree_with_the_summary() {
         gripsim()
             .arg("run")
             .arg(scenario("seed-grasp-r5"))
-            .args(["--detail", "iteration", "--rrd"])
+            // Exact doubles in /sim/step: the numbers below are compared bit for bit with the
+            // summary and the CSV (the default f32 file: f32_recording_* below).
+            .args(["--precision", "f64", "--detail", "iteration", "--rrd"])
             .arg(&rrd)
             .arg("--mcap")
             .arg(&mcap)
@@ -206,7 +218,10 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     assert_rrd_verifies(&rrd);
     let report = read_mcap_py(&mcap);
     assert_eq!(report["error"], Value::Null, "{report}");
-    assert_channels(&report);
+    assert_channels(&report, true);
+    // Every step's fingerprint, recomputed in Python from the exact doubles, matches.
+    assert_eq!(report["fingerprints"]["steps"], steps + 1);
+    assert_eq!(report["fingerprints"]["matched"], steps + 1);
     assert_eq!(report["summary"]["footer"], true);
     assert_eq!(report["summary"]["statistics"], true);
     assert_eq!(
@@ -217,6 +232,7 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     assert!(report["validated"].as_u64().unwrap() > 100);
     assert_eq!(report["topics"]["/sim/step"]["messages"], steps + 1);
     assert_eq!(report["topics"]["/scene"]["messages"], steps + 1);
+    assert_eq!(report["topics"]["/scene/nodes"]["messages"], steps + 1);
     // Obstacles and legend once, not in every /scene message.
     assert_eq!(report["topics"]["/scene/static"]["messages"], 1);
     assert_eq!(
@@ -304,15 +320,23 @@ fn seed_grasp_recordings_agree_with_the_summary() {
     }
     assert!(contact_samples > 0, "a sample in contact");
 
-    // The protobuf /scene, as Google's library decodes it: the prong's centre line and node
-    // spheres at the step's positions (rounded to f32), a red and a white arrow and a label
-    // per pressed node on steps in contact, the obstacles and legend once on /scene/static.
+    // The protobuf /scene, as Google's library decodes it: the prong's centre line at the
+    // step's positions (rounded to f32), the predictor's spheres on corrected steps, a red and
+    // a white arrow and a label per pressed node on steps in contact, the obstacles and
+    // legend once on /scene/static; the nodes as the /scene/nodes point cloud.
     let statics = report["scene_static"].as_array().unwrap();
     let ids: Vec<&str> = statics.iter().map(|e| e["id"].as_str().unwrap()).collect();
     assert_eq!(ids, ["obstacles", "legend"]);
     assert!(statics[0]["lines"].as_u64().unwrap() >= 1);
     let scenes = report["scene_samples"].as_array().unwrap();
     assert_eq!(scenes.len(), samples.len());
+    let nodes_at: BTreeMap<u64, &Value> = report["node_samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| (n["index"].as_u64().unwrap(), n))
+        .collect();
+    assert_eq!(nodes_at.len(), samples.len());
     let mut labelled = 0;
     for sc in scenes {
         let step = sc["index"].as_u64().unwrap();
@@ -331,18 +355,35 @@ fn seed_grasp_recordings_agree_with_the_summary() {
             .map(f64s)
             .collect();
         assert_eq!(line, want, "centre line at step {step}");
-        let spheres: Vec<Vec<f64>> = e["spheres"].as_array().unwrap().iter().map(f64s).collect();
-        let corrected = spheres.len() == 2 * want.len();
-        assert!(
-            corrected || spheres.len() == want.len(),
-            "{step}: {}",
-            spheres.len()
-        );
-        let nodes: Vec<Vec<f64>> = spheres
-            .into_iter()
-            .step_by(1 + corrected as usize)
+        let spheres = e["spheres"].as_array().unwrap().len();
+        let corrected = !steps_json[&step]["rods"][0]["q_predictor"]
+            .as_array()
+            .unwrap()
+            .is_empty();
+        assert_eq!(spheres, if corrected { want.len() } else { 0 }, "{step}");
+        let cloud = nodes_at
+            .get(&step)
+            .expect("a /scene/nodes sample per /scene one");
+        assert_eq!(cloud["frame_id"], "world");
+        assert_eq!(cloud["stride"], 16);
+        let points: Vec<Vec<f64>> = cloud["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                vec![
+                    p["x"].as_f64().unwrap(),
+                    p["y"].as_f64().unwrap(),
+                    p["z"].as_f64().unwrap(),
+                ]
+            })
             .collect();
-        assert_eq!(nodes, want, "node spheres at step {step}");
+        assert_eq!(points, want, "node points at step {step}");
+        assert!(cloud["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|p| p["alpha"] == 255));
         let pressed = f64s(&rod["reaction_norm"])
             .iter()
             .filter(|&&f| f > 0.0)
@@ -408,7 +449,8 @@ fn seed_grasp_recordings_agree_with_the_summary() {
 
     // The MCAP alone rebuilds the run: its scenario text runs to the same summary.
     let meta = &msgs.iter().find(|m| m.topic == "/sim/meta").unwrap().json;
-    assert_eq!(meta["format_version"], 3);
+    assert_eq!(meta["format_version"], 4);
+    assert_eq!(meta["precision"], "f64");
     let replay = d.join("replay.toml");
     std::fs::write(&replay, meta["scenario_text"].as_str().unwrap()).unwrap();
     let again = d.join("again.json");
@@ -585,7 +627,7 @@ fn sigkill_leaves_files_readable_up_to_the_last_flush() {
     assert!(report["error"].is_string(), "{}", report["error"]);
     assert_eq!(report["summary"]["footer"], false);
     assert_eq!(report["steps"].as_array().unwrap().len() as u64, last + 1);
-    assert_channels(&report);
+    assert_channels(&report, false);
 
     // The .rrd decodes up to its last flush (it has no footer, so `verify` would refuse it).
     let out = rerun_rrd(&[&d.join("long.partial.rrd")], "stats");
@@ -841,11 +883,96 @@ fn contact_pressure_reaches_the_mcap() {
             "peak_pressure",
             "bruise_half_width",
         ] {
+            // The CSV's exact double, rounded to the MCAP's f32 (format 4's default).
             let x: f64 = rec[col(key)].parse().unwrap();
             let want = c.map_or(0.0, |c| c[key].as_f64().unwrap());
-            assert_eq!(x, want, "{key} at step {step} node {node}");
+            assert_eq!(x as f32 as f64, want, "{key} at step {step} node {node}");
         }
         rows_pressed += c.is_some() as usize;
     }
     assert_eq!(rows_pressed, pressed, "a CSV row per pressed contact");
+}
+
+/// Format 4's default precision: `/sim/step` is the f64 recording's numbers rounded to f32,
+/// with the same fingerprint of the exact state on every step; Google's protobuf library reads
+/// it from the file's schema (`gripsim.Step`, `float` fields) and the `/scene/nodes` cloud.
+#[test]
+fn the_default_f32_recording_is_the_exact_one_rounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (f32_file, f64_file) = (d.join("f32.mcap"), d.join("f64.mcap"));
+    for (file, precision) in [(&f32_file, "f32"), (&f64_file, "f64")] {
+        run_ok(
+            gripsim()
+                .arg("run")
+                .arg(scenario("two-prong-grasp"))
+                .args(["-q", "--detail", "step"])
+                .args(["--precision", precision, "--mcap"])
+                .arg(file),
+        );
+    }
+    let steps = |p: &Path| {
+        let mut out = Vec::new();
+        gripsim::replay::read::read_messages(p, false, |m| {
+            if let gripsim::replay::read::Message::Step(s) = m {
+                out.push(s);
+            }
+            Ok(())
+        })
+        .unwrap();
+        out
+    };
+    let (short, exact) = (steps(&f32_file), steps(&f64_file));
+    assert_eq!(short.len(), 6001);
+    assert_eq!(short.len(), exact.len());
+    let round = |v: &[f64]| v.iter().map(|&x| x as f32 as f64).collect::<Vec<f64>>();
+    let mut contacts = 0;
+    for (s, e) in short.iter().zip(&exact) {
+        assert_eq!((s.step, s.t, s.dt), (e.step, e.t, e.dt));
+        assert!(s.fingerprint.is_some());
+        assert_eq!(s.fingerprint, e.fingerprint, "step {}", s.step);
+        for (r, x) in s.rods.iter().zip(&e.rods) {
+            assert_eq!(r.q, round(&x.q), "q at step {}", s.step);
+            assert_eq!(r.u, round(&x.u), "u at step {}", s.step);
+            assert_eq!(r.reaction, round(&x.reaction));
+            assert_eq!(r.bending_stress, round(&x.bending_stress));
+            assert_eq!(r.in_contact, x.in_contact);
+            contacts += r.in_contact.iter().filter(|&&c| c).count();
+        }
+        assert_eq!(s.contacts.len(), e.contacts.len());
+    }
+    assert!(contacts > 100, "{contacts} node-steps in contact");
+    let (a, b) = (
+        std::fs::metadata(&f32_file).unwrap().len(),
+        std::fs::metadata(&f64_file).unwrap().len(),
+    );
+    assert!(a < b, "f32 {a} bytes, f64 {b} bytes");
+    // The independent reader.
+    let report = read_mcap_py(&f32_file);
+    assert_eq!(report["error"], Value::Null, "{report}");
+    assert_channels(&report, false);
+    assert_eq!(report["fingerprints"]["steps"], 6001);
+    assert_eq!(report["fingerprints"]["checked"], 0);
+    let samples = report["step_samples"].as_array().unwrap();
+    for s in samples {
+        let k = s["step"].as_u64().unwrap() as usize;
+        assert_eq!(f64s(&s["rods"][0]["q"]), round(&exact[k].rods[0].q));
+        assert_eq!(s["fingerprint"].as_u64(), exact[k].fingerprint);
+    }
+    // /scene/nodes: every node of both prongs at its f32 position.
+    for n in report["node_samples"].as_array().unwrap() {
+        let k = n["index"].as_u64().unwrap() as usize;
+        let want: Vec<f64> = exact[k].rods.iter().flat_map(|r| round(&r.q)).collect();
+        let got: Vec<f64> = n["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|p| [p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap()])
+            .collect();
+        assert_eq!(got, want, "/scene/nodes at step {k}");
+    }
+    // The f64 file's fingerprints, recomputed in Python from its doubles, all match.
+    let report = read_mcap_py(&f64_file);
+    assert_eq!(report["fingerprints"]["checked"], 6001);
+    assert_eq!(report["fingerprints"]["matched"], 6001);
 }

@@ -575,6 +575,65 @@ fn two_runs_of_one_scenario_diff_empty() {
     }
 }
 
+/// Format 4: every step's fingerprint of the exact state finds the first step where two runs
+/// differ bit for bit, also when their f32 values agree; an f32 and an f64 recording of one
+/// run are the same run; a format 3 file (no fingerprints) is compared on values alone.
+#[test]
+fn diff_finds_the_first_bitwise_divergence_from_the_fingerprints() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scenario("seed-grasp-r5");
+    let (a, a64, b) = (d.join("a.mcap"), d.join("a64.mcap"), d.join("b.mcap"));
+    run_to(&sc, &a, &["solve.t_end=0.002"]);
+    run_to(&sc, &a64, &["solve.t_end=0.002", "output.precision=f64"]);
+    // Gravity one double ulp stronger: different bits from step 1, far below f32.
+    run_to(
+        &sc,
+        &b,
+        &[
+            "solve.t_end=0.002",
+            "solve.gravity=[0.0,-9.800000000000002]",
+        ],
+    );
+    let rep = diff(&a, &a64, &[], 0);
+    assert_eq!(rep["fingerprints"], true);
+    assert_eq!(rep["first_bitwise_divergence"], Value::Null, "{rep:#}");
+    assert_eq!(rep["first_divergence"], Value::Null);
+    // The f32 rounding of A is within its resolution: no node over tolerance.
+    assert!(rep["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|n| n["exceeds"] == Value::Array(vec![])));
+    let rep = diff(&a, &b, &[], 0);
+    assert_eq!(rep["within_tolerance"], true);
+    let first = &rep["first_bitwise_divergence"];
+    assert_eq!(first["step"], 1, "{first:#}");
+    assert_eq!(first["what"], "state");
+    assert_eq!(first["below_f32_resolution"], true);
+    let out = gripsim()
+        .args(["replay", "diff"])
+        .arg(&a)
+        .arg(&b)
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stdout)
+        .contains("first bitwise    step 1 (t = 1.000e-5 s): the exact states differ (fingerprints), below the recording's f32 resolution"));
+    // A golden file of format 3 has no fingerprints.
+    let golden = Path::new(ROOT).join("recordings/golden/point-mass-plane-dt1e-4.mcap");
+    let now = d.join("plane.mcap");
+    run_to(
+        &Path::new(ROOT).join("recordings/golden/point-mass-plane-dt1e-4.toml"),
+        &now,
+        &["solve.t_end=0.12"],
+    );
+    // (The report is written beside the first file: the new one, not the golden.)
+    let rep = diff(&now, &golden, &[], 0);
+    assert_eq!(rep["fingerprints"], false);
+    assert_eq!(rep["first_bitwise_divergence"], Value::Null);
+    assert_eq!(rep["within_tolerance"], true, "{rep:#}");
+}
+
 #[test]
 fn a_stiffer_rod_diverges_at_the_first_contact() {
     let dir = tempfile::tempdir().unwrap();
@@ -678,8 +737,9 @@ mass = 0.01
     )
     .unwrap();
     let (a, b) = (d.join("a.mcap"), d.join("b.mcap"));
-    run_to(&sc, &a, &[]);
-    run_to(&sc, &b, &["solve.dt=7e-4"]);
+    // Exact doubles: the interpolation is checked to 1e-12 below (f32 would round at ~1e-9).
+    run_to(&sc, &a, &["output.precision=f64"]);
+    run_to(&sc, &b, &["solve.dt=7e-4", "output.precision=f64"]);
     let rep = diff(&a, &b, &[], 0);
     assert_eq!(
         rep["parameters"],
@@ -695,7 +755,11 @@ mass = 0.01
     run_to(
         &sc,
         &c,
-        &["solve.dt=7e-4", "particle.0.velocity=[0.501, 0.25]"],
+        &[
+            "solve.dt=7e-4",
+            "particle.0.velocity=[0.501, 0.25]",
+            "output.precision=f64",
+        ],
     );
     let rep = diff(&a, &c, &[], 1);
     let first = &rep["first_divergence"];
@@ -738,6 +802,10 @@ fn show_gives_the_rrd_of_a_live_run() {
                 "solve.t_end=0.042",
                 "--detail",
                 "iteration",
+                // The MCAP with exact doubles: `rerun rrd compare` below wants the same data
+                // (an f32 recording shows f32-rounded values).
+                "--precision",
+                "f64",
                 "--rrd",
             ])
             .arg(&live)
