@@ -695,7 +695,7 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions, auto: Optio
         let size = std::fs::metadata(&f.path).map(|m| m.len()).unwrap_or(0);
         let how = match *format {
             "rerun" => format!("open: rerun {}", f.path.display()),
-            "mcap" => "open in Foxglove: Open local file; 3D panel on /scene, Plot panel on /sim/step.rods[0].reaction_norm[i]".to_string(),
+            "mcap" => "open in Foxglove: Open local file; 3D panel on /scene and /scene/nodes, Plot panel on /sim/step.rods[0].reaction_norm[i]".to_string(),
             _ => "tidy table: one row per step, rod and node".to_string(),
         };
         say!(
