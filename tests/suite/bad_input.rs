@@ -864,6 +864,22 @@ fn zero_flush_every() {
 }
 
 #[test]
+fn unknown_precision() {
+    let err = reject(&edit(
+        "flush_every = 10",
+        "flush_every = 10\nprecision = \"f16\"",
+    ));
+    has(
+        &err,
+        &[
+            &kv("output.precision", "\"f16\""),
+            "unknown precision",
+            "\"f32\" or \"f64\"",
+        ],
+    );
+}
+
+#[test]
 fn solver_limits_out_of_range() {
     let err = reject(&edit(
         "gravity = [0.0, -9.8]",
