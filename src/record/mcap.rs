@@ -8,15 +8,16 @@
 //! | topic | schema | messages |
 //! |---|---|---|
 //! | `/sim/meta` | `gripsim.Meta` | one, first: scenario text, rods, obstacles, units |
-//! | `/sim/step` | `gripsim.Step` (protobuf) | one per step, from step 0 (the initial state) |
-//! | `/sim/iteration` | `gripsim.Iteration` (protobuf) | one per Newton iteration (`--detail iteration`) |
+//! | `/sim/step` | `gripsim.Step` (protobuf; f64: `gripsim.Step64`) | one per step, from step 0 (the initial state) |
+//! | `/sim/iteration` | `gripsim.Iteration` (protobuf; f64: `gripsim.Iteration64`) | one per Newton iteration (`--detail iteration`) |
 //! | `/sim/contact` | `gripsim.Contact` | one per constraint added or released |
 //! | `/sim/event` | `gripsim.Event` | dt changes, Newton failures, warnings, run end |
 //! | `/scene` | `foxglove.SceneUpdate` (protobuf) | one per step: the rods and free bodies for Foxglove's 3D panel |
 //! | `/scene/static` | `foxglove.SceneUpdate` (protobuf) | one, before the first step: obstacles and legend |
+//! | `/scene/nodes` | `foxglove.PointCloud` (protobuf) | one per step: every rod's nodes, coloured |
 //!
-//! The file is chunked and zstd-compressed with message indexes and a summary (the `mcap`
-//! writer's defaults). Log times are simulated time in ns (static runs: step number in s),
+//! The file is chunked and zstd-compressed (level [`ZSTD_LEVEL`]) with message indexes and a
+//! summary (the `mcap` writer's defaults). Log times are simulated time in ns (static runs: step number in s),
 //! clamped so they never decrease. Nothing depends on the wall clock or the machine (single
 //! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
 //!

@@ -9,6 +9,11 @@
 //! The fields mirror the JSON encoding of format 1 (docs/recording-format.md) with two
 //! differences protobuf forces: an absent index (a free node's obstacle, a body's own contact
 //! with no rod) is −1 instead of `null`, and a gap with no obstacle is +∞ instead of `null`.
+//!
+//! Format 4: each message with per-node numbers comes twice, `Step`/`Rod`/`ContactState`/
+//! `Iteration` with protobuf `float` (the default precision) and their `…64` twins with
+//! `double` (`output.precision = "f64"`), the same field names and numbers; every step carries
+//! the [`Fingerprint`] of its exact f64 state.
 
 use crate::events::{BodyView, ContactView, Phase, RodStepView};
 use prost::Message as _;
