@@ -12,7 +12,7 @@
 //!
 //!     cargo bench --bench rod3d [-- --planar | --grasp | --grasp3]
 //!
-//! (`--grasp3`: the undamped 3D grasp alone, for a profiler.)
+//! (`--grasp3`: the undamped 3D grasp alone, for a profiler; `--grasp3 --once`: one run.)
 
 use gripsim::bench::SEED_R5;
 use gripsim::events::NullObserver;
@@ -298,8 +298,10 @@ fn main() {
         return;
     }
     if std::env::args().any(|a| a == "--grasp3") {
-        // The undamped 3D grasp at dt = 1e-5 alone (for a profiler).
-        let (us, n, it, passes) = grasp3(1e-5, false, 3);
+        // The undamped 3D grasp at dt = 1e-5 alone (for a profiler; `--once`: one run, for
+        // an instruction counter).
+        let runs = if std::env::args().any(|a| a == "--once") { 1 } else { 3 };
+        let (us, n, it, passes) = grasp3(1e-5, false, runs);
         println!("3d-two-finger-sphere, undamped, dt 1e-5: {n} steps, {us:.2} µs/step, {it:.2} it/step, {passes:.3} passes/step");
         return;
     }
