@@ -300,7 +300,11 @@ fn main() {
     if std::env::args().any(|a| a == "--grasp3") {
         // The undamped 3D grasp at dt = 1e-5 alone (for a profiler; `--once`: one run, for
         // an instruction counter).
-        let runs = if std::env::args().any(|a| a == "--once") { 1 } else { 3 };
+        let runs = if std::env::args().any(|a| a == "--once") {
+            1
+        } else {
+            3
+        };
         let (us, n, it, passes) = grasp3(1e-5, false, runs);
         println!("3d-two-finger-sphere, undamped, dt 1e-5: {n} steps, {us:.2} µs/step, {it:.2} it/step, {passes:.3} passes/step");
         return;

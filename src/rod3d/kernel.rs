@@ -127,7 +127,8 @@ fn dot_grad(
     g[th] += s * wp;
 }
 
-/// Adds s ∇²(w·u) (symmetric), same arguments as [`dot_grad`].
+/// Adds s ∇²(w·u) (symmetric: its lower triangle only, row ≥ column), same arguments as
+/// [`dot_grad`]. The angle `th` comes after both edges' variables.
 #[allow(clippy::too_many_arguments)]
 fn dot_hess(
     own: &Edge,
@@ -143,8 +144,9 @@ fn dot_hess(
     let (w, t, v, il, io) = (oth.t, own.t, own.v, own.il, oth.il);
     let (wt, wu, wp) = (dot(w, t), dot(w, u), dot(w, up));
     let (il2, io2) = (s * il * il, s * io * io);
+    debug_assert!(th > o && th > oo);
     for i in 0..3 {
-        for j in 0..3 {
+        for j in 0..=i {
             let own_ij = il2
                 * (-0.5 * (w[i] * u[j] + w[j] * u[i]) + 1.5 * wt * (t[i] * u[j] + t[j] * u[i]))
                 + s * (-wt * (v[i] * up[j] + v[j] * up[i]) * il
@@ -153,19 +155,20 @@ fn dot_hess(
             h[o + i][o + j] += own_ij;
             let d = if i == j { 1.0 } else { 0.0 };
             h[oo + i][oo + j] -= io2 * (w[i] * u[j] + w[j] * u[i] + wu * (d - 3.0 * w[i] * w[j]));
-            // ∂/∂w_i of the own gradient: P_w ∂u/∂e_j.
+        }
+        for j in 0..3 {
+            // ∂/∂w_i of the own gradient: P_w ∂u/∂e_j (into the lower of its two places).
             let pt = (t[i] - w[i] * wt) * io;
             let pp = (up[i] - w[i] * wp) * io;
             let c = s * (-pt * u[j] * il + pp * v[j]);
-            h[oo + i][o + j] += c;
-            h[o + j][oo + i] += c;
+            if oo > o {
+                h[oo + i][o + j] += c;
+            } else {
+                h[o + j][oo + i] += c;
+            }
         }
-        let pp = s * (up[i] - w[i] * wp) * io;
-        h[oo + i][th] += pp;
-        h[th][oo + i] += pp;
-        let c = s * (-wt * up[i] * il - wu * v[i]);
-        h[o + i][th] += c;
-        h[th][o + i] += c;
+        h[th][oo + i] += s * (up[i] - w[i] * wp) * io;
+        h[th][o + i] += s * (-wt * up[i] * il - wu * v[i]);
     }
     h[th][th] -= s * wu;
 }
@@ -181,7 +184,7 @@ fn chi_grad(a: &Edge, b: &Edge) -> G8 {
     g
 }
 
-/// Adds s ∇²χ.
+/// Adds s ∇²χ (lower triangle).
 fn chi_hess(a: &Edge, b: &Edge, s: f64, h: &mut H8) {
     let c = dot(a.t, b.t);
     let (x, y) = (a.t, b.t);
@@ -189,11 +192,11 @@ fn chi_hess(a: &Edge, b: &Edge, s: f64, h: &mut H8) {
     for i in 0..3 {
         for j in 0..3 {
             let d = if i == j { 1.0 } else { 0.0 };
-            h[E + i][E + j] -= sa * (x[i] * y[j] + x[j] * y[i] + c * (d - 3.0 * x[i] * x[j]));
-            h[F + i][F + j] -= sb * (x[i] * y[j] + x[j] * y[i] + c * (d - 3.0 * y[i] * y[j]));
-            let ef = sab * (d - x[i] * x[j] - y[i] * y[j] + c * x[i] * y[j]);
-            h[E + i][F + j] += ef;
-            h[F + j][E + i] += ef;
+            if j <= i {
+                h[E + i][E + j] -= sa * (x[i] * y[j] + x[j] * y[i] + c * (d - 3.0 * x[i] * x[j]));
+                h[F + i][F + j] -= sb * (x[i] * y[j] + x[j] * y[i] + c * (d - 3.0 * y[i] * y[j]));
+            }
+            h[F + j][E + i] += sab * (d - x[i] * x[j] - y[i] * y[j] + c * x[i] * y[j]);
         }
     }
 }
@@ -210,7 +213,7 @@ fn twist_grad(a: &Edge, b: &Edge, kb: V) -> G8 {
     g
 }
 
-/// Adds s ∇²m (only the reference twist has a second derivative).
+/// Adds s ∇²m (only the reference twist has a second derivative; lower triangle).
 fn twist_hess(a: &Edge, b: &Edge, kb: V, chi: f64, s: f64, h: &mut H8) {
     let sum = add(a.t, b.t);
     let x = a.t;
@@ -221,17 +224,17 @@ fn twist_hess(a: &Edge, b: &Edge, kb: V, chi: f64, s: f64, h: &mut H8) {
     let tx = [[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]];
     for i in 0..3 {
         for j in 0..3 {
-            let ks = kb[i] * sum[j] + sum[i] * kb[j];
-            let ee = -ks * cee
-                - (kb[i] * a.t[j] + a.t[i] * kb[j]) * ia2
-                - 0.5 * (a.jv[i][j] + a.jv[j][i]);
-            let ff = -ks * cff - (kb[i] * b.t[j] + b.t[i] * kb[j]) * ib2
-                + 0.5 * (b.jv[i][j] + b.jv[j][i]);
-            let ef = (2.0 * tx[i][j] - kb[i] * sum[j]) * cef;
-            h[E + i][E + j] += s * ee;
-            h[F + i][F + j] += s * ff;
-            h[E + i][F + j] += s * ef;
-            h[F + j][E + i] += s * ef;
+            if j <= i {
+                let ks = kb[i] * sum[j] + sum[i] * kb[j];
+                let ee = -ks * cee
+                    - (kb[i] * a.t[j] + a.t[i] * kb[j]) * ia2
+                    - 0.5 * (a.jv[i][j] + a.jv[j][i]);
+                let ff = -ks * cff - (kb[i] * b.t[j] + b.t[i] * kb[j]) * ib2
+                    + 0.5 * (b.jv[i][j] + b.jv[j][i]);
+                h[E + i][E + j] += s * ee;
+                h[F + i][F + j] += s * ff;
+            }
+            h[F + j][E + i] += s * ((2.0 * tx[i][j] - kb[i] * sum[j]) * cef);
         }
     }
 }
@@ -346,11 +349,13 @@ pub fn stencil(
     };
     // Σ wᵢ ∇²κᵢ = [Σ wᵢ ∇²Nᵢ − (Σ wᵢ κᵢ) ∇²χ − (∇χ cᵀ + c ∇χᵀ)]/χ, c = Σ wᵢ ∇κᵢ. The
     // outer products k₁ ∇κ₁∇κ₁ᵀ + k₂ ∇κ₂∇κ₂ᵀ + k_m ∇m∇mᵀ and the last term in one pass.
+    // The Hessian is symmetric: every term below fills its lower triangle (row ≥ column),
+    // the upper one is copied from it at the end.
     let ichi = 1.0 / chi;
     let c: G8 = std::array::from_fn(|i| (w1 * g1[i] + w2 * g2[i]) * ichi);
     for i in 0..8 {
         let (a1, a2, am) = (p.ei1 * g1[i], p.ei2 * g2[i], p.gj * gm[i]);
-        for j in 0..8 {
+        for j in 0..=i {
             h[i][j] = a1 * g1[j] + a2 * g2[j] + am * gm[j] - (gc[i] * c[j] + c[i] * gc[j]);
         }
     }
@@ -362,6 +367,11 @@ pub fn stencil(
     dot_hess(b, F, TF, ub, upb, a, E, -ichi, h);
     chi_hess(a, b, -(w1 * k1 + w2 * k2) * ichi, h);
     twist_hess(a, b, kb, chi, wm, h);
+    for i in 0..8 {
+        for j in i + 1..8 {
+            h[i][j] = h[j][i];
+        }
+    }
     energy
 }
 
