@@ -10,7 +10,7 @@
 //! back to [`BandLu`].
 
 use crate::solver::banded::BandLu;
-use nalgebra::{Matrix3, Vector6};
+use nalgebra::Matrix3;
 
 /// Something the assembly can add Hessian entries to.
 pub trait BandSink {
@@ -135,26 +135,23 @@ impl SymBand {
     }
 
     /// Make coordinate j prescribed: its column (= row) leaves the matrix, the rows `l` not in
-    /// `elim` adding A[l][j] × `p` to their border row when j follows a body (`follow`), and
-    /// its diagonal becomes 1. `rows` are the rows that can couple with j.
+    /// `elim` adding A[l][j] to the border column `border` when j follows a body, and its
+    /// diagonal becomes 1. `rows` are the rows that can couple with j.
     pub fn eliminate(
         &mut self,
         j: usize,
         rows: std::ops::RangeInclusive<usize>,
-        follow: Option<(usize, Vector6<f64>)>,
+        mut border: Option<&mut [f64]>,
         elim: &[bool],
-        border: &mut [Vec<f64>],
     ) {
         for l in rows.filter(|&l| l != j) {
             let v = self.get(l, j);
             if v == 0.0 {
                 continue;
             }
-            if let Some((b, p)) = follow {
+            if let Some(col) = border.as_deref_mut() {
                 if !elim[l] {
-                    for (c, pc) in p.iter().enumerate() {
-                        border[l][6 * b + c] += v * pc;
-                    }
+                    col[l] += v;
                 }
             }
             self.set(l, j, 0.0);
@@ -306,7 +303,7 @@ impl SymBand {
 
     /// Solve A X = B for several right-hand sides in one pass over the factor, in place.
     /// Rows before `first` must be zero in every column (the forward pass starts there).
-    pub fn solve_many(&self, cols: &mut [&mut [f64]], first: usize) {
+    pub fn solve_many<C: AsMut<[f64]>>(&self, cols: &mut [C], first: usize) {
         let (n, k, w) = (self.n, self.k, self.k + 1);
         for i in first..n {
             let lo = i.saturating_sub(k).max(first);
@@ -314,18 +311,21 @@ impl SymBand {
             let row = &self.a[ri + lo..ri + i];
             if k == K && lo + K == i {
                 for b in cols.iter_mut() {
+                    let b = b.as_mut();
                     let s = b[i] - dotn::<K>(row, &b[lo..]);
                     b[i] = s * self.inv[i];
                 }
                 continue;
             }
             for b in cols.iter_mut() {
+                let b = b.as_mut();
                 let s = b[i] - dot(row, &b[lo..i]);
                 b[i] = s * self.inv[i];
             }
         }
         for i in (0..n).rev() {
             for b in cols.iter_mut() {
+                let b = b.as_mut();
                 b[i] *= self.inv[i];
                 self.axpy_row(i, b);
             }

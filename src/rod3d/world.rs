@@ -17,7 +17,9 @@ use super::rod::{angle, pos};
 use super::section::Section3;
 use super::solver::{Sim3, Solve3Error};
 use super::symband::SymBand;
-use super::system::{solve_bordered, BlockFactor, KineticRow, RodBlock};
+use super::system::{
+    solve_bordered, BlockFactor, Border, Dense, KineticRow, Kkt, RodBlock, Weight,
+};
 use crate::contact::friction::FrictionTable;
 use crate::obstacle3::{Obstacle3, Proximity3, V3};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector6};
@@ -49,15 +51,20 @@ struct Work3 {
     factor: BlockFactor,
     /// The contact nodes of the rod and their local bases (rows n, t₁, t₂).
     bases: Vec<(usize, Matrix3<f64>)>,
-    /// Z = A⁻¹ B of the bordered solve.
+    /// Z = A⁻¹ B of the bordered solve: its columns and their weights.
     z: Vec<Vec<f64>>,
+    zw: Vec<Weight>,
     grad: Vec<f64>,
     rhs: Vec<f64>,
     qn: Vec<f64>,
     elim: Vec<bool>,
     follow: Vec<Option<(usize, Vector6<f64>)>>,
-    border: Vec<Vec<f64>>,
+    border: Border,
+    /// Per prescribed coordinate that follows a body, its column of the border.
+    border_col: Vec<usize>,
     rows: Vec<(usize, usize, f64)>,
+    /// The kinetic rows' storage, kept from step to step.
+    kinetic_pool: Vec<Vec<(usize, f64)>>,
     released: Vec<bool>,
     /// (segment, surface) pairs whose edge contact was released in this step.
     edge_released: Vec<(usize, Surface3)>,
@@ -94,6 +101,31 @@ pub struct World3 {
     /// The bodies' predicted displacements while the contacts are re-linearised (kept from
     /// step to step: no allocation).
     guesses: Vec<Vector6<f64>>,
+    /// The bodies' equations of the last linearisation and the dense system's storage.
+    sys: BodySystem,
+    dense: Dense,
+}
+
+/// The bodies' own equations (without contact forces) and their contacts' constraint rows,
+/// with Σ Gᵀ f of their last forces (for the convergence test); storage kept from call to
+/// call.
+struct BodySystem {
+    s: DMatrix<f64>,
+    fb: DVector<f64>,
+    forces: DVector<f64>,
+    kkt: Kkt,
+}
+
+impl BodySystem {
+    /// No bodies, no rows (no allocation).
+    fn empty() -> BodySystem {
+        BodySystem {
+            s: DMatrix::zeros(0, 0),
+            fb: DVector::zeros(0),
+            forces: DVector::zeros(0),
+            kkt: Kkt::default(),
+        }
+    }
 }
 
 impl World3 {
@@ -119,6 +151,8 @@ impl World3 {
             steps: 0,
             work: Vec::new(),
             guesses: Vec::new(),
+            sys: BodySystem::empty(),
+            dense: Dense::default(),
         }
     }
 
@@ -132,13 +166,16 @@ impl World3 {
             factor: BlockFactor::new(nd),
             bases: Vec::new(),
             z: Vec::new(),
+            zw: Vec::new(),
             grad: vec![0.0; nd],
             rhs: vec![0.0; nd],
             qn: sim.q.clone(),
             elim: vec![false; nd],
             follow: vec![None; nd],
-            border: vec![Vec::new(); nd],
+            border: Border::new(nd),
+            border_col: vec![usize::MAX; nd],
             rows: Vec::new(),
+            kinetic_pool: Vec::new(),
             released: vec![false; n],
             edge_released: Vec::new(),
         });

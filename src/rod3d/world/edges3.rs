@@ -377,10 +377,12 @@ impl World3 {
                             s[(col, 6 * b + k)] -= gd[k];
                         }
                     }
+                    let w = &mut self.work[r];
+                    let at = (col, w.border.push(Weight::Unknown(col)));
                     for (k, wt) in e.weights().into_iter().enumerate() {
                         let ct = self.contacts[r][e.segment + k];
                         let node = e.segment + k;
-                        node_column(&mut self.work[r], node, (c * wt, d * wt), ct, col, s);
+                        node_column(w, node, (c * wt, d * wt), ct, at, s);
                     }
                 }
                 col += 1;
@@ -389,11 +391,11 @@ impl World3 {
     }
 
     /// After a solve: each edge contact's multipliers take their increments.
-    pub(super) fn update_edge_forces(&mut self, dx: &DVector<f64>) {
+    pub(super) fn update_edge_forces(&mut self, dx: &[f64]) {
         let mut k = 6 * self.bodies.len();
         for e in self.edges.iter_mut().flatten() {
             let m = e.unknowns();
-            e.take_increments(&dx.as_slice()[k..k + m]);
+            e.take_increments(&dx[k..k + m]);
             k += m;
         }
     }
@@ -414,7 +416,7 @@ pub(super) fn add_edge_forces(w: &mut Work3, edges: &[EdgeContact3]) {
     }
 }
 
-/// Node i's part of edge unknown `col`: the unit force `fw.0` (world) it takes per unit
+/// Node i's part of edge unknown `at.0` (border column `at.1`): the unit force `fw.0` (world) it takes per unit
 /// multiplier and the direction `fw.1` the row holds it along, in its contact basis when it
 /// has one. Free coordinates get the border entry −f (a sliding node's t₁ row also
 /// −μ_k f_n, its kinetic combination) and the row entry d; prescribed coordinates that follow
@@ -425,9 +427,10 @@ fn node_column(
     i: usize,
     fw: (V3, V3),
     ct: Option<Contact3>,
-    col: usize,
+    at: (usize, usize),
     s: &mut DMatrix<f64>,
 ) {
+    let (col, bcol) = at;
     let (f, d, mu) = match &ct {
         Some(c) => (c.basis() * fw.0, c.basis() * fw.1, c.kinetic()),
         None => (fw.0, fw.1, 0.0),
@@ -436,7 +439,7 @@ fn node_column(
         let l = pos(i) + c;
         if !w.elim[l] {
             let kinetic = if c == 1 { mu * f[0] } else { 0.0 };
-            w.border[l][col] -= f[c] + kinetic;
+            w.border.col_mut(bcol)[l] -= f[c] + kinetic;
             w.rows.push((col, l, d[c]));
         } else if let Some((b, p)) = w.follow[l] {
             for e in 0..6 {

@@ -5,9 +5,6 @@ use crate::rod3d::solver::{assemble_into, damping_into};
 use crate::rod3d::symband::BandSink;
 use crate::rod3d::system::band_range;
 
-/// The constraint rows of the bodies' own contacts: (J row, force column, right-hand side).
-type Kkt = Vec<(Vec<f64>, Vec<f64>, f64)>;
-
 impl World3 {
     /// Largest force of the problem, the scale of the residual tolerance.
     fn force_scale(&self) -> f64 {
@@ -63,7 +60,7 @@ impl World3 {
     ) -> f64 {
         let w = &mut self.work[r];
         let contacts = &self.contacts[r];
-        inertia_and_elasticity(&self.rods[r], w, dt, fb.len(), jac);
+        inertia_and_elasticity(&self.rods[r], w, dt, jac);
         super::edges3::add_edge_forces(w, &self.edges[r]);
         contact_bases(w, contacts, &mut self.reactions[r], jac);
         body_rows(w, contacts, s, fb, jac);
@@ -73,8 +70,11 @@ impl World3 {
                 let j = pos(i) + a;
                 if jac {
                     let rows = band_range(w.rhs.len(), j);
-                    w.band
-                        .eliminate(j, rows, w.follow[j], &w.elim, &mut w.border);
+                    // A coordinate that follows a body: its own column of the border.
+                    let col = w.follow[j].map(|(b, p)| w.border.push(Weight::Body(b, p)));
+                    w.border_col[j] = col.unwrap_or(usize::MAX);
+                    let col = col.map(|k| w.border.col_mut(k));
+                    w.band.eliminate(j, rows, col, &w.elim);
                 }
                 w.rhs[j] = 0.0;
             }
@@ -90,19 +90,26 @@ impl World3 {
     }
 
     /// The bodies' own equations (without contact forces) and their contacts' constraint rows;
-    /// also Σ Gᵀ f of their last forces (for the convergence test).
-    fn body_system(&self, dt: f64) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, Kkt) {
+    /// also Σ Gᵀ f of their last forces (for the convergence test). Into `sys`, in place.
+    fn body_system(&self, dt: f64, sys: &mut BodySystem) {
         // The bodies' unknowns, then one per edge contact (src/rod3d/world/edges3.rs).
         let nx = 6 * self.bodies.len() + self.edge_count();
-        let mut s = DMatrix::zeros(nx, nx);
-        let mut fb = DVector::zeros(nx);
+        if sys.s.nrows() != nx {
+            sys.s = DMatrix::zeros(nx, nx);
+            sys.fb = DVector::zeros(nx);
+            sys.forces = DVector::zeros(nx);
+        } else {
+            sys.s.fill(0.0);
+            sys.fb.fill(0.0);
+            sys.forces.fill(0.0);
+        }
+        let (s, fb, forces, kkt) = (&mut sys.s, &mut sys.fb, &mut sys.forces, &mut sys.kkt);
         for (b, body) in self.bodies.iter().enumerate() {
             let (rb, jb) = body.residual(dt, &self.gravity);
             s.view_mut((6 * b, 6 * b), (6, 6)).copy_from(&jb);
             fb.rows_mut(6 * b, 6).copy_from(&-rb);
         }
-        let mut forces = DVector::zeros(nx);
-        let mut kkt = Vec::new();
+        kkt.clear();
         for bc in &self.body_contacts {
             let g = lever_map(&bc.lever);
             let f = g.transpose() * bc.force;
@@ -110,44 +117,40 @@ impl World3 {
                 forces[6 * bc.body + e] += f[e];
             }
             let dx = self.bodies[bc.body].dx;
-            let row = |j: nalgebra::RowVector6<f64>| {
-                let mut v = vec![0.0; nx];
-                for e in 0..6 {
-                    v[6 * bc.body + e] = j[e];
-                }
-                v
-            };
+            let at = 6 * bc.body;
             match bc.stuck {
                 Some(mv) => {
                     let now = g * dx;
                     for a in 0..3 {
                         let j = g.row(a).into_owned();
-                        kkt.push((row(j), row(-j), mv[a] - now[a]));
+                        kkt.push(at, j, -j, mv[a] - now[a]);
                     }
                 }
                 None => {
                     let j = bc.normal.transpose() * g;
                     let fdir = bc.normal - bc.dir * bc.coulomb.mu_k;
                     let col = -(fdir.transpose() * g);
-                    kkt.push((row(j), row(col), bc.gap - (j * dx)[0]));
+                    kkt.push(at, j, col, bc.gap - (j * dx)[0]);
                 }
             }
         }
-        (s, fb, forces, kkt)
     }
 
-    /// Every rod's and body's residual (and with `jac` the bordered system): the bodies'
-    /// block, its right-hand side, the bodies' contact rows and the largest free residual.
-    fn linearise(&mut self, dt: f64, jac: bool) -> (DMatrix<f64>, DVector<f64>, Kkt, f64) {
-        let (mut s, mut fb, forces, kkt) = self.body_system(dt);
+    /// Every rod's and body's residual (and with `jac` the bordered system) into `self.sys`:
+    /// the bodies' block, its right-hand side and the bodies' contact rows. Returns the
+    /// largest free residual.
+    fn linearise(&mut self, dt: f64, jac: bool) -> f64 {
+        let mut sys = std::mem::replace(&mut self.sys, BodySystem::empty());
+        self.body_system(dt, &mut sys);
         let mut res: f64 = 0.0;
         for r in 0..self.rods.len() {
-            res = res.max(self.linearise_rod(r, dt, &mut s, &mut fb, jac));
+            res = res.max(self.linearise_rod(r, dt, &mut sys.s, &mut sys.fb, jac));
         }
         // fb = −(r_b + Σ Gᵀ R_node); the bodies' own contacts add their last forces.
         let nb = 6 * self.bodies.len();
-        res = (0..nb).fold(res, |m, k| m.max((fb[k] + forces[k]).abs()));
-        (s, fb, kkt, res)
+        res = (0..nb).fold(res, |m, k| m.max((sys.fb[k] + sys.forces[k]).abs()));
+        self.sys = sys;
+        res
     }
 
     /// Newton with the current contact sets. Returns the iterations. Converged when every
@@ -162,22 +165,20 @@ impl World3 {
         let floor = self.step_tol * length;
         let mut it = 0u32;
         loop {
-            let (mut s, mut fb, mut kkt, res) = self.linearise(dt, it == 0);
+            let res = self.linearise(dt, it == 0);
             if !res.is_finite() {
                 return Err(fail(res, it, "non-finite residual"));
             }
-            if res <= tol && (it > 0 || (kkt.is_empty() && self.edge_count() == 0)) {
+            if res <= tol && (it > 0 || (self.sys.kkt.is_empty() && self.edge_count() == 0)) {
                 return Ok(it);
             }
             if it >= self.max_iterations {
                 return Err(fail(res, it, "Newton did not converge"));
             }
             if it > 0 {
-                (s, fb, kkt, _) = self.linearise(dt, true);
+                self.linearise(dt, true);
             }
-            let upd = self
-                .solve_and_update(&s, &fb, &kkt)
-                .map_err(|m| fail(res, it, m))?;
+            let upd = self.solve_and_update().map_err(|m| fail(res, it, m))?;
             it += 1;
             if upd <= floor {
                 // At the round-off floor: accept, with the reactions of the final iterate.
@@ -191,7 +192,7 @@ impl World3 {
 /// The inertia and elastic part of rod r's residual (`w.rhs` = −r) and with `jac` its
 /// Jacobian c M + ∇²E (identity rows on fixed DOFs); resets the prescribed set to the
 /// fixed DOFs.
-fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, nx: usize, jac: bool) {
+fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, jac: bool) {
     let c = 1.0 / (dt * dt);
     let band = if jac {
         w.band.clear();
@@ -216,13 +217,12 @@ fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, nx: usize, jac: bo
             &sim.fixed,
         );
     }
+    if jac {
+        w.border.clear();
+    }
     for k in 0..sim.q.len() {
         w.elim[k] = sim.fixed[k];
         w.follow[k] = None;
-        if jac {
-            w.border[k].clear();
-            w.border[k].resize(nx, 0.0);
-        }
         if sim.fixed[k] {
             w.rhs[k] = 0.0;
             continue;
@@ -319,7 +319,8 @@ fn body_rows(
 /// its prescribed columns out) into `w.kinetic`.
 fn kinetic_rows(w: &mut Work3, contacts: &[Option<Contact3>], jac: bool) {
     if jac {
-        w.kinetic.clear();
+        // Their column lists go back to the pool (no allocation from step to step).
+        w.kinetic_pool.extend(w.kinetic.drain(..).map(|k| k.n));
     }
     for &(i, _) in &w.bases {
         let mu = contacts[i].as_ref().unwrap().kinetic();
@@ -329,28 +330,31 @@ fn kinetic_rows(w: &mut Work3, contacts: &[Option<Contact3>], jac: bool) {
         let k0 = pos(i);
         w.rhs[k0 + 1] += mu * w.rhs[k0];
         if jac {
-            let n = band_range(w.rhs.len(), k0)
-                .map(|l| (l, w.band.get(k0, l)))
-                .filter(|&(_, v)| v != 0.0)
-                .collect();
+            let mut n = w.kinetic_pool.pop().unwrap_or_default();
+            n.clear();
+            n.extend(
+                band_range(w.rhs.len(), k0)
+                    .map(|l| (l, w.band.get(k0, l)))
+                    .filter(|&(_, v)| v != 0.0),
+            );
             w.kinetic.push(KineticRow { row: k0 + 1, mu, n });
         }
     }
 }
 
 /// After the eliminations: a kinetic row keeps its free columns; a prescribed column that
-/// follows a body goes to the border of the t₁ row (× μ P), as the symmetric part's did.
+/// follows a body goes to the t₁ row of that coordinate's border column (× μ), as the
+/// symmetric part's did.
 fn finish_kinetic_rows(w: &mut Work3) {
     for k in &mut w.kinetic {
         let (elim, follow, border) = (&w.elim, &w.follow, &mut w.border);
+        let cols = &w.border_col;
         k.n.retain(|&(l, v)| {
             if !elim[l] {
                 return true;
             }
-            if let Some((b, p)) = follow[l] {
-                for c in 0..6 {
-                    border[k.row][6 * b + c] += k.mu * v * p[c];
-                }
+            if follow[l].is_some() {
+                border.col_mut(cols[l])[k.row] += k.mu * v;
             }
             false
         });
@@ -358,13 +362,9 @@ fn finish_kinetic_rows(w: &mut Work3) {
 }
 
 impl World3 {
-    /// Solve the bordered system and apply the update. Returns the largest change.
-    fn solve_and_update(
-        &mut self,
-        s: &DMatrix<f64>,
-        fb: &DVector<f64>,
-        kkt: &Kkt,
-    ) -> Result<f64, &'static str> {
+    /// Solve the bordered system of the last linearisation and apply the update. Returns the
+    /// largest change.
+    fn solve_and_update(&mut self) -> Result<f64, &'static str> {
         let mut blocks: Vec<RodBlock<'_>> = self
             .work
             .iter_mut()
@@ -375,11 +375,25 @@ impl World3 {
                 rhs: &mut w.rhs,
                 border: &w.border,
                 z: &mut w.z,
+                zw: &mut w.zw,
                 rows: &w.rows,
             })
             .collect();
-        let (dx, lam) = solve_bordered(&mut blocks, s, fb, kkt)?;
+        let sys = &self.sys;
+        solve_bordered(&mut blocks, &sys.s, &sys.fb, &sys.kkt, &mut self.dense)?;
         drop(blocks);
+        let sol = std::mem::take(&mut self.dense.sol);
+        let upd = self.apply_update(&sol);
+        self.dense.sol = sol;
+        Ok(upd)
+    }
+
+    /// Apply the solution `sol` (δX, then the bodies' contact multipliers) and every rod's
+    /// y. Returns the largest change.
+    fn apply_update(&mut self, sol: &[f64]) -> f64 {
+        let nx = self.sys.fb.len();
+        let (dx, lam) = sol.split_at(nx);
+        let body = |b: usize| Vector6::from_column_slice(&dx[6 * b..6 * b + 6]);
         let mut upd: f64 = 0.0;
         for r in 0..self.rods.len() {
             let w = &mut self.work[r];
@@ -402,7 +416,7 @@ impl World3 {
                     du[a] = if !w.elim[k0 + a] {
                         w.rhs[k0 + a]
                     } else if let Some((b, p)) = w.follow[k0 + a] {
-                        p.dot(&dx.fixed_rows::<6>(6 * b))
+                        p.dot(&body(b))
                     } else {
                         0.0
                     };
@@ -414,11 +428,11 @@ impl World3 {
                 upd = upd.max(d.amax());
             }
         }
-        for (b, body) in self.bodies.iter_mut().enumerate() {
-            body.dx += dx.fixed_rows::<6>(6 * b);
-            body.place();
+        for (b, bd) in self.bodies.iter_mut().enumerate() {
+            bd.dx += body(b);
+            bd.place();
         }
-        self.update_edge_forces(&dx);
+        self.update_edge_forces(dx);
         let mut k = 0;
         for bc in &mut self.body_contacts {
             if bc.stuck.is_some() {
@@ -429,7 +443,7 @@ impl World3 {
                 k += 1;
             }
         }
-        Ok(upd)
+        upd
     }
 }
 
