@@ -22,7 +22,7 @@
 //! docs/recording-format.md.
 
 use super::AutoRule;
-use crate::events::{BodyView, ContactChange, ContactView, Event, Observer, Phase, RodStepView};
+use crate::events::{BodyView, ContactView, Event, Observer, Phase, RodStepView};
 use crate::replay::detect::{ContactSample, Detector, RodSample};
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -602,8 +602,12 @@ impl<O: Observer> AutoDetail<O> {
             return false;
         };
         for h in &self.cur.events {
-            if let Held::Plain(Event::ConstraintAdded(c) | Event::ConstraintReleased(c, _)) = h {
-                d.contact(sample(c));
+            match h {
+                Held::Plain(Event::ConstraintAdded(c)) => d.contact(ContactSample::of(c, true)),
+                Held::Plain(Event::ConstraintReleased(c, _)) => {
+                    d.contact(ContactSample::of(c, false))
+                }
+                _ => {}
             }
         }
         let samples: Vec<RodSample<'_>> = rods.iter().map(RodSample::from).collect();
@@ -695,15 +699,6 @@ impl<O: Observer> AutoDetail<O> {
     }
 }
 
-fn sample(c: &ContactChange) -> ContactSample {
-    ContactSample {
-        step: c.step,
-        t: c.t,
-        rod: c.rod,
-        node: c.node,
-    }
-}
-
 impl<O: Observer> Observer for AutoDetail<O> {
     fn wants_iterations(&self) -> bool {
         self.inner.wants_iterations()
@@ -737,7 +732,7 @@ impl<O: Observer> Observer for AutoDetail<O> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::events::ReleaseReason;
+    use crate::events::{ContactChange, ReleaseReason};
 
     /// Records the step numbers it gets and how many iterations came with each.
     #[derive(Default)]

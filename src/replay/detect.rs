@@ -503,13 +503,33 @@ impl RodSample<'_> {
 
 /// A constraint added or released, as the run reported it. Changes of attempts the solver threw
 /// away (a rejected adaptive step, a Newton back-off, a time-of-impact split) carry the same
-/// step number but another time than the accepted step; the detector drops them.
+/// step number but another time than the accepted step; the detector drops them. Under
+/// TR-BDF2 the changes of an accepted step's first stage carry the time t + γ dt (γ =
+/// [`crate::solver::TR_BDF2_GAMMA`]) and are kept.
 #[derive(Debug, Clone, Copy)]
 pub struct ContactSample {
     pub step: u64,
     pub t: f64,
     pub rod: usize,
     pub node: usize,
+    /// Added (else released).
+    pub added: bool,
+    /// The surface's outward normal.
+    pub normal: [f64; 2],
+}
+
+impl ContactSample {
+    /// The sample of a change the solver reported.
+    pub fn of(c: &crate::events::ContactChange, added: bool) -> Self {
+        ContactSample {
+            step: c.step,
+            t: c.t,
+            rod: c.rod,
+            node: c.node,
+            added,
+            normal: c.normal,
+        }
+    }
 }
 
 /// An open sticking episode.
@@ -547,6 +567,12 @@ pub struct Detector {
     /// Per rod and node: held since the end of the last step, which it reached on its own path
     /// (nothing stopped it yet), so its impact happens at the start of the next step.
     arrived: Vec<Vec<bool>>,
+    /// Per rod and node: the normal of a constraint added or released in the current step (the
+    /// last change's), which explains the jump of a node free at the step's end: it was held
+    /// for part of the step (docs/replay.md).
+    inside: Vec<Vec<Option<[f64; 2]>>>,
+    /// TR-BDF2: an accepted step's first-stage changes are kept (see [`ContactSample`]).
+    tr_bdf2: bool,
     have_prev: bool,
     force: Vec<f64>,
     nodes: Vec<Vec<NodeState>>,
@@ -581,6 +607,8 @@ impl Detector {
             prev_q: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
             prev_contact: rods.iter().map(|r| vec![false; r.n]).collect(),
             arrived: rods.iter().map(|r| vec![false; r.n]).collect(),
+            inside: rods.iter().map(|r| vec![None; r.n]).collect(),
+            tr_bdf2: sc.solve.integrator == crate::scenario::Integrator::TrBdf2,
             nodes: rods
                 .iter()
                 .map(|r| vec![NodeState::default(); r.n])
@@ -640,7 +668,7 @@ impl Detector {
 
     /// The end of an accepted step (step 0: the initial state).
     pub fn step(&mut self, step: u64, t: f64, dt: f64, rods: &[RodSample<'_>]) {
-        self.flush_contacts(step, t);
+        self.flush_contacts(step, t, dt);
         // A gap (a decimated recording): the previous step seen is not this step's start, so
         // nothing is compared across it; the stretch is reported instead.
         let gap = self.last_step.filter(|&s| step > s + 1);
@@ -658,6 +686,7 @@ impl Detector {
             }
         }
         self.close_stale(t);
+        self.inside.iter_mut().for_each(|n| n.fill(None));
         for (r, cur) in rods.iter().enumerate().take(self.rods.len()) {
             self.prev_u[r].copy_from_slice(cur.u);
             self.prev_q[r].copy_from_slice(cur.q);
@@ -711,18 +740,25 @@ impl Detector {
         &self.out
     }
 
-    /// `toggling`: the accepted changes of this step, in a window of simulated time.
-    fn flush_contacts(&mut self, step: u64, t: f64) {
+    /// `toggling`: the accepted changes of this step, in a window of simulated time. Also
+    /// notes the constraints added in this step (for [`Detector::spikes`]).
+    fn flush_contacts(&mut self, step: u64, t: f64, dt: f64) {
         let pending = std::mem::take(&mut self.pending);
         let (window, need) = (self.th.stick_window, self.th.stick_toggles);
+        // TR-BDF2's first stage ends at t + γ dt of the step's start, the last step's end
+        // (computed as the solver does, so it is the same number).
+        let stage1 = (self.tr_bdf2 && step > 0 && self.last_step == Some(step - 1))
+            .then(|| self.t_end + crate::solver::TR_BDF2_GAMMA * dt);
         for c in pending {
-            if c.step != step || (self.dynamic && c.t != t) {
+            let accepted_time = c.t == t || stage1 == Some(c.t);
+            if c.step != step || (self.dynamic && !accepted_time) {
                 // A change of an attempt that was thrown away (or of a step never recorded).
                 if c.step > step {
                     self.pending.push(c);
                 }
                 continue;
             }
+            self.inside[c.rod][c.node] = Some(c.normal);
             let n = &mut self.nodes[c.rod][c.node];
             n.changes.push_back((c.step, c.t));
             while n.changes.front().is_some_and(|&(_, t0)| c.t - t0 >= window) {
@@ -783,16 +819,20 @@ impl Detector {
             let fdv = [dt * f[2 * i] / m, dt * f[2 * i + 1] / m];
             let e = [dv[0] - fdv[0], dv[1] - fdv[1]];
             let node_ref = a_scene.max(norm([f[2 * i], f[2 * i + 1]]) / m);
-            let (impact, approach, rest) = if cur.in_contact[i] {
-                let (impact, approach, rest, held) =
-                    split_contact(e, fdv, prev, cur.normal(i), cur.normal2(i));
-                (
-                    impact,
-                    approach,
-                    within_cone(rest, cur.normal(i), self.mu[r] * held),
-                )
+            // The surface that explains the jump: the one the node is held on at the step's
+            // end, or one it was held on for part of the step (added or released in it: under
+            // TR-BDF2 a node can be stopped in the first stage and released in the second).
+            let surface = if cur.in_contact[i] {
+                Some((cur.normal(i), cur.normal2(i)))
             } else {
-                (0.0, 0.0, e)
+                self.inside[r][i].map(|n| (n, None))
+            };
+            let (impact, approach, rest) = match surface {
+                Some((n1, n2)) => {
+                    let (impact, approach, rest, held) = split_contact(e, fdv, prev, n1, n2);
+                    (impact, approach, within_cone(rest, n1, self.mu[r] * held))
+                }
+                None => (0.0, 0.0, e),
             };
             let unexplained = norm(rest);
             let large =
@@ -808,18 +848,17 @@ impl Detector {
             // length does not blur when the contact began: free at the end of the last step and not moving towards the
             // surface in this one (−n·Δq within round-off: it began on the surface), or held
             // since the end of the last step, which it reached unstopped.
-            let added = cur.in_contact[i] && !self.prev_contact[r][i];
-            let located = if added {
-                let n = cur.normal(i);
+            let added = surface.is_some() && !self.prev_contact[r][i];
+            let located = if let (true, Some((n, _))) = (added, surface) {
                 let dq = [
                     cur.q[2 * i] - self.prev_q[r][2 * i],
                     cur.q[2 * i + 1] - self.prev_q[r][2 * i + 1],
                 ];
                 -dot(n, dq) <= 1e-9 * self.scales.length
             } else {
-                cur.in_contact[i] && self.arrived[r][i]
+                surface.is_some() && self.arrived[r][i]
             };
-            self.arrived[r][i] = added && impact < th.spike_floor;
+            self.arrived[r][i] = added && cur.in_contact[i] && impact < th.spike_floor;
             let displacement = if located { 0.0 } else { impact * dt };
             let flag_impact = impact >= th.spike_floor && displacement >= th.spike_displacement;
             let make = |kind: &'static str, jump: f64, accel_ref: f64| Spike {
@@ -948,14 +987,8 @@ impl DetectObserver {
 impl Observer for DetectObserver {
     fn on_event(&mut self, event: &Event<'_>) {
         match event {
-            Event::ConstraintAdded(c) | Event::ConstraintReleased(c, _) => {
-                self.detector.contact(ContactSample {
-                    step: c.step,
-                    t: c.t,
-                    rod: c.rod,
-                    node: c.node,
-                })
-            }
+            Event::ConstraintAdded(c) => self.detector.contact(ContactSample::of(c, true)),
+            Event::ConstraintReleased(c, _) => self.detector.contact(ContactSample::of(c, false)),
             Event::StepEnd {
                 step,
                 t,
@@ -1032,5 +1065,82 @@ mod tests {
             ..Thresholds::DEFAULT
         };
         assert!(bad.validate().is_err());
+    }
+
+    /// A free node of the seed grasp's prong stopped from 1 m/s towards a surface within one
+    /// step and free at both of the step's ends: `unexplained` unless the step reports a
+    /// constraint on that node (added or released in it), whose normal then explains the stop.
+    fn spikes_of_a_stop_within_a_step(event: Option<ContactSample>) -> Vec<(String, usize)> {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/seed-grasp-r5.toml");
+        let sc = Scenario::load(&path, &[]).unwrap();
+        let mut d = Detector::new(&sc, &Thresholds::DEFAULT);
+        let rod = d.rods[0].clone();
+        let i = rod.n - 1;
+        let (q, zero) = (rod.q0.clone(), vec![0.0; 2 * rod.n]);
+        let mut u0 = zero.clone();
+        u0[2 * i + 1] = -1.0;
+        let flags = vec![false; rod.n];
+        let u1 = zero.clone();
+        let normal = zero.clone();
+        let s = |u| {
+            [RodSample {
+                q: &q,
+                u,
+                reaction: &zero,
+                normal: &normal,
+                normal2: &[],
+                in_contact: &flags,
+                q_predictor: &q,
+            }]
+        };
+        d.step(0, 0.0, 0.0, &s(u0.as_slice()));
+        if let Some(c) = event {
+            d.contact(c);
+        }
+        d.step(1, 1e-6, 1e-6, &s(u1.as_slice()));
+        d.finish()
+            .spikes
+            .iter()
+            .map(|sp| (sp.kind.to_string(), sp.node))
+            .collect()
+    }
+
+    #[test]
+    fn a_node_held_for_part_of_a_step_is_explained_by_that_constraint() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/seed-grasp-r5.toml");
+        let i = Rod::new(&Scenario::load(&path, &[]).unwrap().rods[0]).n - 1;
+        // No constraint change in the step: the stop is unexplained.
+        assert_eq!(
+            spikes_of_a_stop_within_a_step(None),
+            vec![("unexplained".to_string(), i)]
+        );
+        for added in [true, false] {
+            let c = ContactSample {
+                step: 1,
+                t: 1e-6,
+                rod: 0,
+                node: i,
+                added,
+                normal: [0.0, 1.0],
+            };
+            assert_eq!(spikes_of_a_stop_within_a_step(Some(c)), vec![], "{added}");
+            // A change of a thrown-away attempt (another time) explains nothing.
+            let stale = ContactSample { t: 2e-6, ..c };
+            assert_eq!(
+                spikes_of_a_stop_within_a_step(Some(stale)),
+                vec![("unexplained".to_string(), i)]
+            );
+            // Nor does a surface the node was not stopped against (normal along the rod's x).
+            let side = ContactSample {
+                normal: [1.0, 0.0],
+                ..c
+            };
+            assert_eq!(
+                spikes_of_a_stop_within_a_step(Some(side)),
+                vec![("unexplained".to_string(), i)]
+            );
+        }
     }
 }

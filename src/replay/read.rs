@@ -276,12 +276,7 @@ impl Contact {
 
     /// What the detector reads of this change.
     pub fn sample(&self) -> super::detect::ContactSample {
-        super::detect::ContactSample {
-            step: self.step,
-            t: self.t,
-            rod: self.rod,
-            node: self.node,
-        }
+        super::detect::ContactSample::of(&self.change(), self.added())
     }
 }
 

@@ -13,6 +13,10 @@ mod stability;
 mod step;
 mod trbdf2;
 
+/// TR-BDF2's stage fraction γ = 2 − √2: its first stage's constraint changes carry the time
+/// t + γ dt (the replay detector recognises them by it).
+pub use trbdf2::GAMMA as TR_BDF2_GAMMA;
+
 use crate::actuation::{clamp_centroid, Actuator, Measure};
 use crate::contact::{self, friction::Coulomb};
 use crate::events::{ContactView, Event, Observer, RodInfo, RunInfo};

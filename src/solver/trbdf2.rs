@@ -13,7 +13,7 @@ use crate::scenario::Stepping;
 
 /// γ = 2 − √2: the BDF2 stage's step ratio (1 − γ)/γ = 1/√2, and its β equals the
 /// trapezoidal stage's γ dt / 2.
-pub(super) const GAMMA: f64 = 2.0 - std::f64::consts::SQRT_2;
+pub const GAMMA: f64 = 2.0 - std::f64::consts::SQRT_2;
 
 /// The state a rejected TR-BDF2 step returns to.
 pub(super) struct StageStart {
