@@ -573,6 +573,9 @@ pub struct Detector {
     inside: Vec<Vec<Option<[f64; 2]>>>,
     /// TR-BDF2: an accepted step's first-stage changes are kept (see [`ContactSample`]).
     tr_bdf2: bool,
+    /// The relative rounding of the positions read (2⁻²⁴ for an f32 recording, 0 live or f64):
+    /// a displacement is known only to within it.
+    q_round: f64,
     have_prev: bool,
     force: Vec<f64>,
     nodes: Vec<Vec<NodeState>>,
@@ -595,6 +598,13 @@ pub struct Detector {
 }
 
 impl Detector {
+    /// A detector for a recording whose per-node numbers are f32 (`f32`) or exact.
+    pub fn for_recording(sc: &Scenario, th: &Thresholds, f32: bool) -> Detector {
+        let mut d = Detector::new(sc, th);
+        d.q_round = if f32 { 2f64.powi(-24) } else { 0.0 };
+        d
+    }
+
     pub fn new(sc: &Scenario, th: &Thresholds) -> Detector {
         let scales = Scales::of(sc);
         let rods: Vec<Rod> = sc.rods.iter().map(Rod::new).collect();
@@ -609,6 +619,7 @@ impl Detector {
             arrived: rods.iter().map(|r| vec![false; r.n]).collect(),
             inside: rods.iter().map(|r| vec![None; r.n]).collect(),
             tr_bdf2: sc.solve.integrator == crate::scenario::Integrator::TrBdf2,
+            q_round: 0.0,
             nodes: rods
                 .iter()
                 .map(|r| vec![NodeState::default(); r.n])
@@ -854,7 +865,14 @@ impl Detector {
                     cur.q[2 * i] - self.prev_q[r][2 * i],
                     cur.q[2 * i + 1] - self.prev_q[r][2 * i + 1],
                 ];
-                -dot(n, dq) <= 1e-9 * self.scales.length
+                // An f32 recording rounds each coordinate by up to 2⁻²⁴ of it: the test of a
+                // start on the surface allows that on top of the round-off of the live test.
+                let slack = self.q_round
+                    * (cur.q[2 * i].abs()
+                        + cur.q[2 * i + 1].abs()
+                        + self.prev_q[r][2 * i].abs()
+                        + self.prev_q[r][2 * i + 1].abs());
+                -dot(n, dq) <= 1e-9 * self.scales.length + slack
             } else {
                 surface.is_some() && self.arrived[r][i]
             };
@@ -1030,7 +1048,7 @@ impl Observer for DetectObserver {
 
 /// Scan a whole run held in memory (the streaming readers feed a [`Detector`] directly).
 pub fn detect(run: &super::read::Run, th: &Thresholds) -> Findings {
-    let mut d = Detector::new(&run.scenario, th);
+    let mut d = Detector::for_recording(&run.scenario, th, run.meta.f32());
     let mut contacts = run.contacts.iter().peekable();
     for st in &run.steps {
         while let Some(c) = contacts.next_if(|c| c.step <= st.step) {

@@ -494,7 +494,7 @@ struct Side<'a> {
 impl<'a> Side<'a> {
     fn new(head: Head, src: Source<'a>, th: &Thresholds) -> Self {
         Side {
-            det: Detector::new(&head.scenario, th),
+            det: Detector::for_recording(&head.scenario, th, head.meta.f32()),
             head,
             src,
             pending: Vec::new(),

@@ -245,7 +245,7 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<(CheckReport, Option<String
         match m {
             read::Message::Meta(meta) => {
                 let sc = read::parse_scenario(path, &meta)?;
-                det = Some((Detector::new(&sc, th), *meta));
+                det = Some((Detector::for_recording(&sc, th, meta.f32()), *meta));
             }
             read::Message::Contact(c) => {
                 if let Some((d, _)) = det.as_mut() {

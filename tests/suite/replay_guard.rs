@@ -1084,7 +1084,8 @@ fn every_shipped_3d_scenario_is_clean() {
 /// of a step is stopped in the next step's first stage and released in its second, so both
 /// ends of that step show it free. Its jump is explained by the constraint that held it for
 /// part of the step (its release event's normal); before, one `unexplained` spike per prong.
-/// The replay check of the same run's recording finds no unexplained spike either.
+/// The replay check of the same run's recording (f32 numbers) agrees: its test of an impact
+/// located at a step's start allows the f32 rounding of the positions.
 #[test]
 fn tr_bdf2_grasps_check_clean() {
     let dir = tempfile::tempdir().unwrap();
@@ -1107,12 +1108,12 @@ fn tr_bdf2_grasps_check_clean() {
             assert_eq!(code, 0, "{name} {rtol}: {rep:#}");
             let mcap = dir.path().join(format!("{name}-{rtol}.mcap"));
             run_to(&scenario(name), &mcap, &sets);
-            // The recording's check agrees on the rule this test is about. (Since main
-            // c561d96 the two-prong run at 1e-6 reads one located impact as unlocated
-            // from the .mcap (step 62, left node 4, in contact at the step's end): open,
-            // see notes/i13u.md.)
-            let (_, rep) = check(&mcap, &[]);
-            assert_eq!(count(&rep, "unexplained"), 0, "{name} {rtol}: {rep:#}");
+            let (code, rep) = check(&mcap, &[]);
+            assert_eq!(
+                (code, rep["flagged"].as_bool()),
+                (0, Some(false)),
+                "{rep:#}"
+            );
         }
     }
 }
