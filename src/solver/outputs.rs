@@ -45,33 +45,7 @@ impl Simulation {
                 o.reaction[2 * i] = g[0];
                 o.reaction[2 * i + 1] = g[1];
             }
-            if w.bdf.second[i] && w.bdf.trap && dt > 0.0 && !initial {
-                // TR-BDF2's trapezoidal stage: m (u₁ − u₀) = β (f₀ + R₀ + f₁ + R₁), so its
-                // impulse is β (R₀ + R₁) (R₀: the last step's end reaction, `old`).
-                for k in 2 * i..2 * i + 2 {
-                    o.impulse[k] = w.bdf.beta * (o.reaction[k] + old[k - 2 * i]);
-                }
-            } else if w.bdf.second[i] && dt > 0.0 {
-                // BDF2's contact impulse: m (Δu_k − α Δu_{k−1}) = β (f + R) per step, so the
-                // impulse J_k = β R + α J_{k−1} makes the impulses add up to the momentum
-                // change (R dt does not), and it is ∫ R dt to second order.
-                // The history's last interval is the last step's, or the step before a
-                // sliver and the sliver together (`impulse_hist`).
-                let b = &w.bdf;
-                for k in 2 * i..2 * i + 2 {
-                    o.impulse[k] = b.beta * o.reaction[k] + b.alpha * o.impulse_hist[k];
-                }
-            } else {
-                o.impulse[2 * i] = o.reaction[2 * i] * dt;
-                o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
-            }
-            for k in 2 * i..2 * i + 2 {
-                o.impulse_hist[k] = if w.bdf.merged && !initial {
-                    o.impulse_hist[k] + o.impulse[k]
-                } else {
-                    o.impulse[k]
-                };
-            }
+            node_impulse(o, w, i, dt, initial, old);
             let held = held_by(w, i, c, pressed, rod.clamped[i], initial);
             let n = held.map_or([0.0; 2], |h| h.0);
             o.normal[2 * i] = n[0];
@@ -448,4 +422,43 @@ fn held_by(
             .flat_map(|p| &p.regions)
             .find(|g| !initial && g.first <= i && i <= g.last)
             .map(|g| (g.normal, g.obstacle)))
+}
+
+/// Node `i`'s contact impulse over the step, by the integrator's rule, and the history the
+/// next BDF2 step's impulse builds on (`old`: the reaction at the step's start).
+fn node_impulse(
+    o: &mut super::RodOut,
+    w: &super::newton::RodWork,
+    i: usize,
+    dt: f64,
+    initial: bool,
+    old: [f64; 2],
+) {
+    if w.bdf.second[i] && w.bdf.trap && dt > 0.0 && !initial {
+        // TR-BDF2's trapezoidal stage: m (u₁ − u₀) = β (f₀ + R₀ + f₁ + R₁), so its
+        // impulse is β (R₀ + R₁) (R₀: the last step's end reaction, `old`).
+        for k in 2 * i..2 * i + 2 {
+            o.impulse[k] = w.bdf.beta * (o.reaction[k] + old[k - 2 * i]);
+        }
+    } else if w.bdf.second[i] && dt > 0.0 {
+        // BDF2's contact impulse: m (Δu_k − α Δu_{k−1}) = β (f + R) per step, so the
+        // impulse J_k = β R + α J_{k−1} makes the impulses add up to the momentum
+        // change (R dt does not), and it is ∫ R dt to second order.
+        // The history's last interval is the last step's, or the step before a
+        // sliver and the sliver together (`impulse_hist`).
+        let b = &w.bdf;
+        for k in 2 * i..2 * i + 2 {
+            o.impulse[k] = b.beta * o.reaction[k] + b.alpha * o.impulse_hist[k];
+        }
+    } else {
+        o.impulse[2 * i] = o.reaction[2 * i] * dt;
+        o.impulse[2 * i + 1] = o.reaction[2 * i + 1] * dt;
+    }
+    for k in 2 * i..2 * i + 2 {
+        o.impulse_hist[k] = if w.bdf.merged && !initial {
+            o.impulse_hist[k] + o.impulse[k]
+        } else {
+            o.impulse[k]
+        };
+    }
 }
