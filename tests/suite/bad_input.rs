@@ -2147,3 +2147,19 @@ fn a_grip_force_that_is_never_reached_is_a_run_time_error_naming_the_phase() {
         ],
     );
 }
+
+/// TR-BDF2 does not handle free bodies yet (jaw-grasp-hold dropped its fruit under it): a
+/// scene with a free obstacle and `integrator = "tr_bdf2"` is refused, naming the key.
+#[test]
+fn tr_bdf2_with_a_free_body() {
+    let text = std::fs::read_to_string(crate::common::scenario("jaw-grasp-hold")).unwrap();
+    let err = reject_set(&text, &["solve.integrator=\"tr_bdf2\""]);
+    has(
+        &err,
+        &[
+            &kv("solve.integrator", "\"tr_bdf2\""),
+            "does not handle free bodies",
+            "\"bdf2\"",
+        ],
+    );
+}
