@@ -1,5 +1,6 @@
 //! The step loop allocates nothing: a run with no sink makes the same number of heap
-//! allocations whether it takes 1 000 or 6 000 steps (all of them are set-up).
+//! allocations whether it takes 1 000 or 6 000 steps (all of them are set-up), under every
+//! integrator (TR-BDF2's rollback buffers are allocated once, at its first step).
 
 use gripsim::events::NullObserver;
 use gripsim::{Scenario, Simulation};
@@ -44,6 +45,18 @@ fn the_step_loop_does_not_allocate() {
         vec![],
         vec!["solve.stepping=\"proximity\""],
         vec!["solve.stepping=\"adaptive\"", "solve.time_of_impact=true"],
+        vec!["solve.integrator=\"bdf2\""],
+        vec![
+            "solve.stepping=\"adaptive\"",
+            "solve.time_of_impact=true",
+            "solve.integrator=\"bdf2\"",
+        ],
+        vec!["solve.integrator=\"tr_bdf2\""],
+        vec![
+            "solve.stepping=\"adaptive\"",
+            "solve.time_of_impact=true",
+            "solve.integrator=\"tr_bdf2\"",
+        ],
     ] {
         let (short, s1) = allocations_of_run("0.01", &extra);
         let (long, s2) = allocations_of_run("0.06", &extra);

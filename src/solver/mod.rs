@@ -225,6 +225,8 @@ pub struct Simulation {
     /// Step-end outputs of the contacts and bodies.
     contact_out: Vec<ContactView>,
     body_out: Vec<BodyOut>,
+    /// TR-BDF2: the state at the step's start, for a rejection after the first stage.
+    stage_start: trbdf2::StageStart,
 }
 
 /// Step-end outputs of one body.
@@ -306,6 +308,7 @@ impl Simulation {
             group_dirty: false,
             split_step: false,
             contact_out: Vec::new(),
+            stage_start: Default::default(),
         };
         sim.place_bodies(true);
         sim.start_balance();
