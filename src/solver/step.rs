@@ -82,6 +82,17 @@ impl Simulation {
                 step_tol: solve.step_tol,
                 max_iterations: solve.max_newton_iterations,
                 chord: dynamic && solve.integrator != Integrator::BackwardEuler,
+                error_tol: if dynamic
+                    && solve.integrator == Integrator::TrBdf2
+                    && solve.stepping == Stepping::Adaptive
+                {
+                    [
+                        newton::NEWTON_ERROR_FRACTION * solve.atol,
+                        newton::NEWTON_ERROR_FRACTION * solve.rtol,
+                    ]
+                } else {
+                    [0.0; 2]
+                },
             },
             max_passes: solve
                 .max_contact_passes
