@@ -238,6 +238,45 @@ pub fn time_run_cpu(
     Ok((times[times.len() / 2], cpu[cpu.len() / 2], steps, iters))
 }
 
+/// [`time_run_cpu`] for several runs of one scene at once, timed round-robin: the k-th timed
+/// run of every set before the (k + 1)-th of any, so that a slow stretch of a shared machine
+/// (another process on the cores for a second) falls on all of them alike instead of on
+/// whichever rung was being timed, and the ratios between rungs keep their meaning. Returns
+/// per set the median wall and thread CPU time (s), the steps and the Newton iterations.
+pub fn time_runs_interleaved(
+    text: &str,
+    sets: &[Vec<String>],
+    repeats: usize,
+) -> Result<Vec<(f64, f64, u64, u64)>, String> {
+    let scenes = sets
+        .iter()
+        .map(|s| load(text, s))
+        .collect::<Result<Vec<_>, _>>()?;
+    let n = scenes.len();
+    let (mut walls, mut cpus) = (vec![Vec::new(); n], vec![Vec::new(); n]);
+    let mut counts = vec![(0, 0); n];
+    for _ in 0..repeats.max(1) {
+        for (i, sc) in scenes.iter().enumerate() {
+            let mut sim = Simulation::new(sc);
+            let (t0, c0) = (Instant::now(), thread_cpu_s());
+            let stats = sim.run(&mut NullObserver).map_err(|e| e.to_string())?;
+            walls[i].push(t0.elapsed().as_secs_f64());
+            cpus[i].push(thread_cpu_s() - c0);
+            counts[i] = (stats.steps, stats.newton_iterations);
+        }
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    Ok(walls
+        .into_iter()
+        .zip(cpus)
+        .zip(counts)
+        .map(|((w, c), (s, it))| (median(w), median(c), s, it))
+        .collect())
+}
+
 /// Errors of a run against a reference.
 #[derive(Debug, Clone, Default)]
 pub struct Errors {
@@ -602,6 +641,7 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             }
             None => drop_reference(samples, 1e-3),
         };
+        let mut rungs = Vec::new();
         for strategy in STRATEGIES {
             let ladder = match strategy {
                 Strategy::Fixed | Strategy::Proximity | Strategy::Bdf2Fixed => &case.dts,
@@ -610,33 +650,37 @@ pub fn work_precision(opt_: &BenchOptions, log: &mut dyn FnMut(&str)) -> Result<
             for &p in ladder {
                 let mut sets = case.sets.clone();
                 sets.extend(strategy.sets(p));
-                let m = measure(case.text, &sets, samples)?;
-                let (wall, cpu, steps, iters) = time_run_cpu(case.text, &sets, opt_.repeats)?;
-                let err = errors(&m, &reference);
-                log(&format!(
-                    "{:<20} {:<13} {}={p:<8e} steps {:>8} wall {:>9.3} ms  pos rms {:.2e} m  impulse {}",
-                    case.name,
-                    strategy.name(),
-                    strategy.param_name(),
-                    steps,
-                    wall * 1e3,
-                    err.pos_rms_m,
-                    err.impulse_rel.map(|x| format!("{:.2e}", x)).unwrap_or_else(|| "-".into())
-                ));
-                rows.push(Row {
-                    case: case.name.into(),
-                    strategy: strategy.name().into(),
-                    param_name: strategy.param_name().into(),
-                    param: p,
-                    steps,
-                    newton_iterations: iters,
-                    wall_s: wall,
-                    cpu_s: cpu,
-                    peak_eq2_n: m.summary.peak_reaction_force_n,
-                    peak_ic_n: m.summary.peak_impulse_consistent_force_n,
-                    err,
-                });
+                rungs.push((strategy, p, sets));
             }
+        }
+        let all_sets: Vec<Vec<String>> = rungs.iter().map(|r| r.2.clone()).collect();
+        let timed = time_runs_interleaved(case.text, &all_sets, opt_.repeats)?;
+        for ((strategy, p, sets), (wall, cpu, steps, iters)) in rungs.into_iter().zip(timed) {
+            let m = measure(case.text, &sets, samples)?;
+            let err = errors(&m, &reference);
+            log(&format!(
+                "{:<20} {:<13} {}={p:<8e} steps {:>8} wall {:>9.3} ms  pos rms {:.2e} m  impulse {}",
+                case.name,
+                strategy.name(),
+                strategy.param_name(),
+                steps,
+                wall * 1e3,
+                err.pos_rms_m,
+                err.impulse_rel.map(|x| format!("{:.2e}", x)).unwrap_or_else(|| "-".into())
+            ));
+            rows.push(Row {
+                case: case.name.into(),
+                strategy: strategy.name().into(),
+                param_name: strategy.param_name().into(),
+                param: p,
+                steps,
+                newton_iterations: iters,
+                wall_s: wall,
+                cpu_s: cpu,
+                peak_eq2_n: m.summary.peak_reaction_force_n,
+                peak_ic_n: m.summary.peak_impulse_consistent_force_n,
+                err,
+            });
         }
     }
     std::fs::create_dir_all(&opt_.out).map_err(|e| format!("{}: {e}", opt_.out.display()))?;
