@@ -238,11 +238,18 @@ pub fn time_run_cpu(
     Ok((times[times.len() / 2], cpu[cpu.len() / 2], steps, iters))
 }
 
+/// A timed sample of a short run is this many seconds of back-to-back runs at least (their
+/// mean): a 1 ms run timed alone is at the mercy of one scheduler tick or one cache-cold
+/// moment, and the work-precision verdict divides by the shortest runs.
+pub const MIN_SAMPLE_S: f64 = 0.02;
+
 /// [`time_run_cpu`] for several runs of one scene at once, timed round-robin: the k-th timed
-/// run of every set before the (k + 1)-th of any, so that a slow stretch of a shared machine
-/// (another process on the cores for a second) falls on all of them alike instead of on
-/// whichever rung was being timed, and the ratios between rungs keep their meaning. Returns
-/// per set the median wall and thread CPU time (s), the steps and the Newton iterations.
+/// sample of every set before the (k + 1)-th of any, so that a slow stretch of a shared
+/// machine (another process on the cores for a second) falls on all of them alike instead of
+/// on whichever rung was being timed, and the ratios between rungs keep their meaning. The
+/// first sample is one run; after it a set whose run is shorter than [`MIN_SAMPLE_S`] times
+/// as many back-to-back runs as make that (a sample is their mean). Returns per set the median
+/// wall and thread CPU time (s) of one run, the steps and the Newton iterations.
 pub fn time_runs_interleaved(
     text: &str,
     sets: &[Vec<String>],
@@ -255,14 +262,22 @@ pub fn time_runs_interleaved(
     let n = scenes.len();
     let (mut walls, mut cpus) = (vec![Vec::new(); n], vec![Vec::new(); n]);
     let mut counts = vec![(0, 0); n];
-    for _ in 0..repeats.max(1) {
+    let mut batch = vec![1usize; n];
+    for round in 0..repeats.max(1) {
         for (i, sc) in scenes.iter().enumerate() {
-            let mut sim = Simulation::new(sc);
             let (t0, c0) = (Instant::now(), thread_cpu_s());
-            let stats = sim.run(&mut NullObserver).map_err(|e| e.to_string())?;
-            walls[i].push(t0.elapsed().as_secs_f64());
-            cpus[i].push(thread_cpu_s() - c0);
-            counts[i] = (stats.steps, stats.newton_iterations);
+            for _ in 0..batch[i] {
+                let stats = Simulation::new(sc)
+                    .run(&mut NullObserver)
+                    .map_err(|e| e.to_string())?;
+                counts[i] = (stats.steps, stats.newton_iterations);
+            }
+            let k = batch[i] as f64;
+            walls[i].push(t0.elapsed().as_secs_f64() / k);
+            cpus[i].push((thread_cpu_s() - c0) / k);
+            if round == 0 {
+                batch[i] = runs_per_sample(walls[i][0]);
+            }
         }
     }
     let median = |mut v: Vec<f64>| {
@@ -275,6 +290,15 @@ pub fn time_runs_interleaved(
         .zip(counts)
         .map(|((w, c), (s, it))| (median(w), median(c), s, it))
         .collect())
+}
+
+/// Back-to-back runs in one timed sample of a run that took `wall` seconds: enough to last
+/// [`MIN_SAMPLE_S`], at most 100.
+pub fn runs_per_sample(wall: f64) -> usize {
+    if wall >= MIN_SAMPLE_S || !wall.is_finite() {
+        return 1;
+    }
+    ((MIN_SAMPLE_S / wall.max(1e-6)).ceil() as usize).clamp(1, 100)
 }
 
 /// Errors of a run against a reference.

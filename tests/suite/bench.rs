@@ -126,3 +126,22 @@ fn steps_at_the_limit_are_interpolated_log_log_between_the_bracketing_rungs() {
     assert_eq!(steps_at_limit(&[(100, 0.05), (200, 0.02)], 0.01), None);
     assert_eq!(steps_at_limit(&[(100, 0.05)], 0.01), None);
 }
+
+#[test]
+fn a_short_run_is_timed_in_back_to_back_batches_of_at_least_the_minimum_sample() {
+    use gripsim::bench::{runs_per_sample, MIN_SAMPLE_S};
+    // A run as long as the minimum, or longer, is timed alone.
+    assert_eq!(runs_per_sample(MIN_SAMPLE_S), 1);
+    assert_eq!(runs_per_sample(0.5), 1);
+    // A 1 ms run: 20 runs make a 20 ms sample; a 3 ms run: 7 (21 ms).
+    assert_eq!(runs_per_sample(0.001), 20);
+    assert_eq!(runs_per_sample(0.003), 7);
+    for wall in [3e-4, 7e-4, 2.9e-3, 0.011, 0.019] {
+        let k = runs_per_sample(wall);
+        assert!(k as f64 * wall >= MIN_SAMPLE_S, "{wall}: {k}");
+        assert!((k - 1) as f64 * wall < MIN_SAMPLE_S, "{wall}: {k}");
+    }
+    // A run too short to measure is capped, not repeated without end.
+    assert_eq!(runs_per_sample(0.0), 100);
+    assert_eq!(runs_per_sample(f64::NAN), 1);
+}
