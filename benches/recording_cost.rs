@@ -136,7 +136,10 @@ fn main() {
     {
         sc.flush_every = n;
     }
-    let dir = std::env::temp_dir().join(format!("gripsim-bench-{}", std::process::id()));
+    let dir = match std::env::var_os("RECORDING_COST_KEEP") {
+        Some(keep) => PathBuf::from(keep),
+        None => std::env::temp_dir().join(format!("gripsim-bench-{}", std::process::id())),
+    };
     std::fs::create_dir_all(&dir).unwrap();
     let step = Detail::Step;
     let cases = [
@@ -250,5 +253,12 @@ fn main() {
             }
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
+    // `RECORDING_COST_KEEP=DIR`: keep the last run's files of each row there (to look at
+    // their bytes).
+    match std::env::var_os("RECORDING_COST_KEEP") {
+        Some(keep) => println!("\nfiles of the last row kept in {}", keep.to_string_lossy()),
+        None => {
+            std::fs::remove_dir_all(&dir).ok();
+        }
+    }
 }

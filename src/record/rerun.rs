@@ -389,13 +389,15 @@ impl SceneColumns {
                 Points2D::descriptor_positions(),
                 std::iter::repeat_n(n, rows),
             )?;
-            rec.send_columns(e.nodes.clone(), self.times.columns(), [nodes])?;
+            // The centre line on the nodes' entity: one chunk holds both columns, so LZ4
+            // finds the line's points as a copy of the positions (within its 64 KiB window:
+            // [`RRD_LINE_WINDOW`]) instead of storing them twice.
             let line = arrow_column(
                 strips_array(points, std::iter::repeat_n(n, rows)),
                 LineStrips2D::descriptor_strips(),
                 std::iter::repeat_n(1, rows),
             )?;
-            rec.send_columns(e.centerline.clone(), self.times.columns(), [line])?;
+            rec.send_columns(e.nodes.clone(), self.times.columns(), [nodes, line])?;
             self.times.clear();
         }
         if !self.color_times.is_empty() {
@@ -905,16 +907,57 @@ impl RerunSink {
         self.style = Some(style);
         // Every RRD_FLUSH_POINTS-th flush point, or an earlier one once the buffered columns
         // hold RRD_CHUNK_BYTES, sends them and flushes the stream: one chunk per entity and
-        // send, and a chunk carries its schema and per-row time columns.
+        // send, and a chunk carries its schema and per-row time columns. A rod whose
+        // positions fit RRD_LINE_WINDOW sends its scene columns on its own schedule instead.
         if step.is_multiple_of(self.opts.flush_every) {
             self.flush_points += 1;
-            if self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES {
+            let all =
+                self.flush_points >= RRD_FLUSH_POINTS || self.pending_bytes() >= RRD_CHUNK_BYTES;
+            if all {
                 self.flush_points = 0;
-                self.flush(&rec);
-            } else if self.rows.get() {
+            }
+            if self.send_due(&rec, all) || self.rows.get() {
                 self.flush_stream(&rec);
             }
         }
+    }
+
+    /// Whether rod `r`'s scene columns go out on their own schedule: a flush interval of its
+    /// positions fits [`RRD_LINE_WINDOW`].
+    fn windowed(&self, r: usize) -> bool {
+        let c = &self.scene[r];
+        8 * c.nodes * self.opts.flush_every as usize <= RRD_LINE_WINDOW
+    }
+
+    /// At a flush point: send the series and the scene columns of the rods that are not
+    /// [`Self::windowed`] when `all`, and the scene columns of each windowed rod whose
+    /// positions would pass [`RRD_LINE_WINDOW`] within the next flush interval. Returns
+    /// whether anything was sent.
+    fn send_due(&mut self, rec: &RecordingStream, all: bool) -> bool {
+        let every = self.opts.flush_every as usize;
+        let mut sent = false;
+        let mut r = Ok(());
+        if all {
+            r = self.per_step.send(rec);
+            for s in &mut self.per_iteration {
+                r = r.and_then(|_| s.send(rec));
+            }
+            sent = true;
+        }
+        for k in 0..self.scene.len() {
+            let c = &self.scene[k];
+            let due = if self.windowed(k) {
+                !c.times.is_empty() && 4 * c.points.len() + 8 * c.nodes * every > RRD_LINE_WINDOW
+            } else {
+                all
+            };
+            if due {
+                r = r.and_then(|_| self.scene[k].send(rec, &self.rods[k]));
+                sent = true;
+            }
+        }
+        self.check(r);
+        sent
     }
 
     /// Bytes of column data buffered since the last send (values and time columns).
@@ -1310,6 +1353,16 @@ pub const RRD_FLUSH_POINTS: u32 = 10;
 /// A run killed by SIGKILL loses the `.rrd`'s last send interval; a stop by a signal, an
 /// error or the run's end sends everything.
 pub const RRD_CHUNK_BYTES: usize = 1 << 20;
+
+/// ... or at an earlier flush point once one more flush interval would take a rod's buffered
+/// node positions (f32 x, y: 8 bytes per node and step) past this many bytes. A rod's chunk
+/// holds its positions and its centre line (the same points again) one after the other, and
+/// the `.rrd`'s LZ4 (one block per chunk) finds the second copy only within 64 KiB of the
+/// first: the budget leaves room for the columns' offsets. The two-prong grasp (10 nodes per
+/// rod) sends every 700 steps; a rod of more than ~76 nodes at `flush_every` 100 gets no
+/// copy found (its line costs its bytes again, as before). Such a rod's scene columns go out
+/// with the series; a rod within the budget sends its own on its own schedule.
+pub const RRD_LINE_WINDOW: usize = 60 * 1024;
 
 /// How long the sink waits for the SDK's writer thread to flush or close the file.
 const WRITER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
@@ -1737,8 +1790,10 @@ impl RodEntities {
                 .with_radii([rs.node_radius as f32])
                 .with_draw_order(DRAW_NODES),
         )?;
+        // The centre line is drawn from the same entity (its strips go out with the
+        // positions).
         rec.log_static(
-            self.centerline.clone(),
+            self.nodes.clone(),
             &LineStrips2D::update_fields()
                 .with_colors([rgb(ROD_COLOR)])
                 .with_radii([Radius::new_ui_points(1.5)])
