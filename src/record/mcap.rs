@@ -146,14 +146,8 @@ pub struct McapSink {
     /// Free bodies: drawn at their pose every step, not with the fixed obstacles.
     bodies: Vec<BodySpec>,
     view: ViewOptions,
-    style: Option<SceneStyle>,
-    /// Per free body (by obstacle index): its outline in its own frame, made at its first
-    /// step.
-    body_points: BTreeMap<usize, Vec<super::foxglove::Vector3>>,
-    /// The `/scene` message, its buffers reused from step to step.
-    scene: super::foxglove::SceneUpdate,
-    /// The `/scene/nodes` message, likewise.
-    nodes: super::foxglove::PointCloud,
+    /// Whether the scene's style is fixed (at the first step; the writer thread has it).
+    styled: bool,
     /// Simulated time of the current step's start: the log time of its Newton iterations and
     /// contact changes.
     step_start: f64,
@@ -218,7 +212,8 @@ impl McapSink {
                 .map_err(err)?;
         }
         let failed: std::sync::Arc<std::sync::atomic::AtomicBool> = Default::default();
-        let pipe = Pipe::start(w, failed.clone()).map_err(|e| {
+        let steps = StepWriter::new(channels, mcap.precision);
+        let pipe = Pipe::start(w, steps, failed.clone()).map_err(|e| {
             RecordError::write(out.writing(), format!("cannot start a thread: {e}"))
         })?;
         Ok(Self {
@@ -238,10 +233,7 @@ impl McapSink {
             obstacles: Vec::new(),
             bodies: Vec::new(),
             view: ViewOptions::default(),
-            style: None,
-            body_points: BTreeMap::new(),
-            scene: Default::default(),
-            nodes: Default::default(),
+            styled: false,
             step_start: 0.0,
             completed: false,
             end: BTreeMap::new(),
@@ -366,7 +358,7 @@ impl McapSink {
     }
 
     fn step_end(&mut self, ev: StepEnd<'_, '_>) {
-        if self.style.is_none() {
+        if !self.styled {
             let style = SceneStyle::new(
                 &self.rods,
                 ev.rods,
@@ -382,70 +374,33 @@ impl McapSink {
                 deletions: Vec::new(),
                 entities: static_entities(&self.obstacles, &self.bodies, &style, time),
             };
-            self.style = Some(style);
+            self.styled = true;
             self.buf.clear();
             prost::Message::encode(&msg, &mut self.buf).expect("a Vec grows as needed");
             self.write_buf(SCENE_STATIC, time);
-        }
-        let time = self.time(ev.step, ev.t);
-        let fields = super::proto::StepFields {
-            step: ev.step,
-            t: ev.t,
-            dt: ev.dt,
-            newton_iterations: ev.newton_iterations,
-            passes: ev.passes,
-            rods: ev.rods,
-            bodies: ev.bodies,
-            contacts: ev.contacts,
-        };
-        self.step_encoder.encode(&fields, &mut self.buf);
-        self.write_buf(STEP, time);
-        self.scene(time, ev.rods, ev.bodies);
-        if ev.step.is_multiple_of(self.opts.flush_every) {
             if let Some(w) = self.writer.as_mut() {
-                if let Err(e) = w.flush() {
-                    self.fail(e);
-                }
+                w.setup(Scene::new(
+                    self.rods.clone(),
+                    self.obstacles.clone(),
+                    self.bodies.clone(),
+                    style,
+                ));
             }
         }
-    }
-
-    /// The `/scene` message: one entity per rod and per free body (the obstacles are on
-    /// `/scene/static`), and the `/scene/nodes` point cloud. Both messages keep their buffers
-    /// from step to step.
-    fn scene(&mut self, time: u64, rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) {
-        let Some(style) = self.style.as_ref() else {
+        let time = self.time(ev.step, ev.t);
+        let Some(w) = self.writer.as_mut() else {
             return;
         };
-        let msg = &mut self.scene;
-        msg.entities
-            .resize_with(rods.len() + bodies.len(), Default::default);
-        let (rod_entities, body_entities) = msg.entities.split_at_mut(rods.len());
-        for (r, (e, v)) in rod_entities.iter_mut().zip(rods).enumerate() {
-            rod_entity(e, &self.rods[r], style, r, v, time);
+        // `/sim/step`, `/scene` and `/scene/nodes` are encoded on the writer thread, from a
+        // copy of the step.
+        if let Err(e) = w.step(&ev, time) {
+            return self.fail(e);
         }
-        for (e, b) in body_entities.iter_mut().zip(bodies) {
-            // The outline in the body's frame is the same every step (made once); the line's
-            // pose places it.
-            let points = self.body_points.entry(b.obstacle).or_insert_with(|| {
-                body_points(&self.obstacles[b.obstacle], &self.bodies, b, style)
-            });
-            reset_entity(e, time, |id| {
-                let _ = write!(id, "body/{}", b.name);
-            });
-            e.lines.resize_with(1, Default::default);
-            let line = &mut e.lines[0];
-            line_style(line, 2.0, rgb(BODY_COLOR));
-            line.pose = Some(pose(b.position[0], b.position[1], b.angle));
-            line.points.clone_from(points);
+        if ev.step.is_multiple_of(self.opts.flush_every) {
+            if let Err(e) = w.flush() {
+                self.fail(e);
+            }
         }
-        node_cloud(&mut self.nodes, &self.rods, style, rods, time);
-        self.buf.clear();
-        prost::Message::encode(&self.scene, &mut self.buf).expect("a Vec grows as needed");
-        self.write_buf(SCENE, time);
-        self.buf.clear();
-        prost::Message::encode(&self.nodes, &mut self.buf).expect("a Vec grows as needed");
-        self.write_buf(NODES, time);
     }
 
     fn contact(&mut self, c: &ContactChange, released: Option<ReleaseReason>) {
@@ -661,6 +616,10 @@ struct Pipe {
 struct Batch {
     data: Vec<u8>,
     items: Vec<Item>,
+    /// Copies of steps, the first `steps_used` of them this batch's (the others are slots
+    /// kept for reuse).
+    steps: Vec<StepCopy>,
+    steps_used: usize,
     /// Whether the batch ended with a flush (kept when the writer empties it).
     flushed: bool,
 }
@@ -672,23 +631,30 @@ enum Item {
     Metadata(::mcap::records::Metadata),
     /// End the current chunk and hand the bytes to the operating system.
     Flush,
+    /// The scene's fixed parts, for the steps that follow.
+    Setup(Box<Scene>),
+    /// A step (this slot of the batch's copies): `/sim/step`, `/scene` and `/scene/nodes`.
+    Step(usize),
 }
 
 /// A batch is sent when it holds this many bytes (or at a flush).
 const BATCH_BYTES: usize = 1 << 18;
+/// ... or this many steps.
+const BATCH_STEPS: usize = 64;
 /// Batches queued for the writer thread at most (then the simulation waits for it).
 const BATCHES_QUEUED: usize = 4;
 
 impl Pipe {
     fn start(
         w: Writer,
+        steps: StepWriter,
         failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
     ) -> std::io::Result<Self> {
         let (to_writer, batches) = std::sync::mpsc::sync_channel(BATCHES_QUEUED);
         let (back, spent) = std::sync::mpsc::channel();
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
-            .spawn(move || write_batches(w, batches, back, failed))?;
+            .spawn(move || write_batches(w, steps, batches, back, failed))?;
         Ok(Self {
             batch: Batch::default(),
             to_writer,
@@ -718,6 +684,26 @@ impl Pipe {
 
     fn metadata(&mut self, record: ::mcap::records::Metadata) {
         self.batch.items.push(Item::Metadata(record));
+    }
+
+    fn setup(&mut self, scene: Scene) {
+        self.batch.items.push(Item::Setup(Box::new(scene)));
+    }
+
+    /// Copy a step (logged at `time`) for the writer thread to encode.
+    fn step(&mut self, ev: &StepEnd<'_, '_>, time: u64) -> Result<(), String> {
+        let b = &mut self.batch;
+        if b.steps_used == b.steps.len() {
+            b.steps.push(StepCopy::default());
+        }
+        b.steps[b.steps_used].set(ev, time);
+        b.items.push(Item::Step(b.steps_used));
+        b.steps_used += 1;
+        if b.steps_used >= BATCH_STEPS {
+            self.send()
+        } else {
+            Ok(())
+        }
     }
 
     /// Send a flush, and wait until the writer has done the one before.
@@ -776,6 +762,7 @@ impl Pipe {
 /// nothing more is written (the batches are still taken, so the sink never waits).
 fn write_batches(
     w: Writer,
+    mut steps: StepWriter,
     batches: std::sync::mpsc::Receiver<Batch>,
     back: std::sync::mpsc::Sender<Batch>,
     failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
@@ -784,7 +771,7 @@ fn write_batches(
     let mut error = None;
     for mut b in batches {
         if let Some(writer) = w.as_mut() {
-            if let Err(e) = write_batch(writer, &b) {
+            if let Err(e) = write_batch(writer, &mut steps, &mut b) {
                 error = Some(error_chain(&e));
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
                 // Dropping the writer writes what it can of the summary.
@@ -793,6 +780,7 @@ fn write_batches(
         }
         b.data.clear();
         b.items.clear();
+        b.steps_used = 0;
         let _ = back.send(b);
     }
     match (w, error) {
@@ -810,19 +798,295 @@ fn write_batches(
     }
 }
 
-fn write_batch(w: &mut Writer, b: &Batch) -> Result<(), ::mcap::McapError> {
+fn write_batch(
+    w: &mut Writer,
+    steps: &mut StepWriter,
+    b: &mut Batch,
+) -> Result<(), ::mcap::McapError> {
     let mut start = 0;
-    for item in &b.items {
+    for item in b.items.drain(..) {
         match item {
             Item::Message(header, end) => {
-                w.write_to_known_channel(header, &b.data[start..*end])?;
-                start = *end;
+                w.write_to_known_channel(&header, &b.data[start..end])?;
+                start = end;
             }
-            Item::Metadata(record) => w.write_metadata(record)?,
+            Item::Metadata(record) => w.write_metadata(&record)?,
             Item::Flush => w.flush()?,
+            Item::Setup(scene) => steps.scene = Some(*scene),
+            Item::Step(k) => steps.write(w, &b.steps[k])?,
         }
     }
     Ok(())
+}
+
+/// The writer thread's encoder of the per-step messages: `/sim/step`, and once the scene is
+/// set up, `/scene` and `/scene/nodes` (each message's buffers reused from step to step).
+struct StepWriter {
+    channels: [u16; 8],
+    /// The next sequence number of `/sim/step`, `/scene`, `/scene/nodes`.
+    sequence: [u32; 3],
+    encoder: super::proto::StepEncoder,
+    buf: Vec<u8>,
+    scene: Option<Scene>,
+}
+
+impl StepWriter {
+    fn new(channels: [u16; 8], precision: super::proto::Precision) -> Self {
+        Self {
+            channels,
+            sequence: [0; 3],
+            encoder: super::proto::StepEncoder::new(precision),
+            buf: Vec::with_capacity(1 << 14),
+            scene: None,
+        }
+    }
+
+    fn message(&mut self, w: &mut Writer, k: usize, time: u64) -> Result<(), ::mcap::McapError> {
+        let slot = match k {
+            STEP => 0,
+            SCENE => 1,
+            _ => 2,
+        };
+        let header = ::mcap::records::MessageHeader {
+            channel_id: self.channels[k],
+            sequence: self.sequence[slot],
+            log_time: time,
+            publish_time: time,
+        };
+        self.sequence[slot] = self.sequence[slot].wrapping_add(1);
+        w.write_to_known_channel(&header, &self.buf)
+    }
+
+    fn write(&mut self, w: &mut Writer, s: &StepCopy) -> Result<(), ::mcap::McapError> {
+        let rods: Vec<RodStepView<'_>> = s.rods.iter().map(RodCopy::view).collect();
+        let bodies: Vec<BodyView<'_>> = s.bodies.iter().map(BodyCopy::view).collect();
+        let fields = super::proto::StepFields {
+            step: s.step,
+            t: s.t,
+            dt: s.dt,
+            newton_iterations: s.newton_iterations,
+            passes: s.passes,
+            rods: &rods,
+            bodies: &bodies,
+            contacts: &s.contacts,
+        };
+        self.encoder.encode(&fields, &mut self.buf);
+        self.message(w, STEP, s.time)?;
+        let Some(mut scene) = self.scene.take() else {
+            return Ok(());
+        };
+        scene.update(s.time, &rods, &bodies);
+        self.buf.clear();
+        prost::Message::encode(&scene.scene, &mut self.buf).expect("a Vec grows as needed");
+        let sent = self.message(w, SCENE, s.time);
+        self.buf.clear();
+        prost::Message::encode(&scene.nodes, &mut self.buf).expect("a Vec grows as needed");
+        self.scene = Some(scene);
+        sent.and_then(|_| self.message(w, NODES, s.time))
+    }
+}
+
+/// What `/scene` and `/scene/nodes` are drawn from (fixed at the first step), and the two
+/// messages, refilled in place every step.
+struct Scene {
+    rods: Vec<RodInfo>,
+    obstacles: Vec<Obstacle>,
+    /// Free bodies: drawn at their pose every step, not with the fixed obstacles.
+    bodies: Vec<BodySpec>,
+    style: SceneStyle,
+    /// Per free body (by obstacle index): its outline in its own frame, made at its first
+    /// step.
+    body_points: BTreeMap<usize, Vec<super::foxglove::Vector3>>,
+    scene: super::foxglove::SceneUpdate,
+    nodes: super::foxglove::PointCloud,
+}
+
+impl Scene {
+    fn new(
+        rods: Vec<RodInfo>,
+        obstacles: Vec<Obstacle>,
+        bodies: Vec<BodySpec>,
+        style: SceneStyle,
+    ) -> Self {
+        Self {
+            rods,
+            obstacles,
+            bodies,
+            style,
+            body_points: BTreeMap::new(),
+            scene: Default::default(),
+            nodes: Default::default(),
+        }
+    }
+
+    /// The `/scene` message: one entity per rod and per free body (the obstacles are on
+    /// `/scene/static`), and the `/scene/nodes` point cloud.
+    fn update(&mut self, time: u64, rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) {
+        let style = &self.style;
+        let msg = &mut self.scene;
+        msg.entities
+            .resize_with(rods.len() + bodies.len(), Default::default);
+        let (rod_entities, body_entities) = msg.entities.split_at_mut(rods.len());
+        for (r, (e, v)) in rod_entities.iter_mut().zip(rods).enumerate() {
+            rod_entity(e, &self.rods[r], style, r, v, time);
+        }
+        for (e, b) in body_entities.iter_mut().zip(bodies) {
+            // The outline in the body's frame is the same every step (made once); the line's
+            // pose places it.
+            let points = self.body_points.entry(b.obstacle).or_insert_with(|| {
+                body_points(&self.obstacles[b.obstacle], &self.bodies, b, style)
+            });
+            reset_entity(e, time, |id| {
+                let _ = write!(id, "body/{}", b.name);
+            });
+            e.lines.resize_with(1, Default::default);
+            let line = &mut e.lines[0];
+            line_style(line, 2.0, rgb(BODY_COLOR));
+            line.pose = Some(pose(b.position[0], b.position[1], b.angle));
+            line.points.clone_from(points);
+        }
+        node_cloud(&mut self.nodes, &self.rods, style, rods, time);
+    }
+}
+
+/// An owned copy of a step's event, for the writer thread; its vectors are reused.
+#[derive(Default)]
+struct StepCopy {
+    step: u64,
+    t: f64,
+    dt: f64,
+    newton_iterations: u32,
+    passes: u32,
+    /// The log time.
+    time: u64,
+    rods: Vec<RodCopy>,
+    bodies: Vec<BodyCopy>,
+    contacts: Vec<ContactView>,
+}
+
+impl StepCopy {
+    fn set(&mut self, ev: &StepEnd<'_, '_>, time: u64) {
+        self.step = ev.step;
+        self.t = ev.t;
+        self.dt = ev.dt;
+        self.newton_iterations = ev.newton_iterations;
+        self.passes = ev.passes;
+        self.time = time;
+        self.rods.resize_with(ev.rods.len(), Default::default);
+        for (c, v) in self.rods.iter_mut().zip(ev.rods) {
+            c.set(v);
+        }
+        self.bodies.resize_with(ev.bodies.len(), Default::default);
+        for (c, b) in self.bodies.iter_mut().zip(ev.bodies) {
+            c.set(b);
+        }
+        self.contacts.clear();
+        self.contacts.extend_from_slice(ev.contacts);
+    }
+}
+
+/// An owned [`RodStepView`].
+#[derive(Default)]
+struct RodCopy {
+    q: Vec<f64>,
+    u: Vec<f64>,
+    reaction: Vec<f64>,
+    impulse: Vec<f64>,
+    drive_force: Vec<f64>,
+    normal: Vec<f64>,
+    contact_obstacle: Vec<usize>,
+    normal2: Vec<f64>,
+    contact_obstacle2: Vec<usize>,
+    in_contact: Vec<bool>,
+    bending_stress: Vec<f64>,
+    gap: Vec<f64>,
+    q_predictor: Vec<f64>,
+}
+
+fn copy_into<T: Copy>(to: &mut Vec<T>, from: &[T]) {
+    to.clear();
+    to.extend_from_slice(from);
+}
+
+impl RodCopy {
+    fn set(&mut self, v: &RodStepView<'_>) {
+        copy_into(&mut self.q, v.q);
+        copy_into(&mut self.u, v.u);
+        copy_into(&mut self.reaction, v.reaction);
+        copy_into(&mut self.impulse, v.impulse);
+        copy_into(&mut self.drive_force, v.drive_force);
+        copy_into(&mut self.normal, v.normal);
+        copy_into(&mut self.contact_obstacle, v.contact_obstacle);
+        copy_into(&mut self.normal2, v.normal2);
+        copy_into(&mut self.contact_obstacle2, v.contact_obstacle2);
+        copy_into(&mut self.in_contact, v.in_contact);
+        copy_into(&mut self.bending_stress, v.bending_stress);
+        copy_into(&mut self.gap, v.gap);
+        copy_into(&mut self.q_predictor, v.q_predictor);
+    }
+
+    fn view(&self) -> RodStepView<'_> {
+        RodStepView {
+            q: &self.q,
+            u: &self.u,
+            reaction: &self.reaction,
+            impulse: &self.impulse,
+            drive_force: &self.drive_force,
+            normal: &self.normal,
+            contact_obstacle: &self.contact_obstacle,
+            normal2: &self.normal2,
+            contact_obstacle2: &self.contact_obstacle2,
+            in_contact: &self.in_contact,
+            bending_stress: &self.bending_stress,
+            gap: &self.gap,
+            q_predictor: &self.q_predictor,
+        }
+    }
+}
+
+/// An owned [`BodyView`].
+#[derive(Default)]
+struct BodyCopy {
+    name: String,
+    obstacle: usize,
+    position: [f64; 2],
+    angle: f64,
+    velocity: [f64; 2],
+    angular_velocity: f64,
+    contact_force: [f64; 2],
+    contact_torque: f64,
+    mass: f64,
+}
+
+impl BodyCopy {
+    fn set(&mut self, b: &BodyView<'_>) {
+        if self.name != b.name {
+            self.name.clear();
+            self.name.push_str(b.name);
+        }
+        self.obstacle = b.obstacle;
+        self.position = b.position;
+        self.angle = b.angle;
+        self.velocity = b.velocity;
+        self.angular_velocity = b.angular_velocity;
+        self.contact_force = b.contact_force;
+        self.contact_torque = b.contact_torque;
+        self.mass = b.mass;
+    }
+
+    fn view(&self) -> BodyView<'_> {
+        BodyView {
+            name: &self.name,
+            obstacle: self.obstacle,
+            position: self.position,
+            angle: self.angle,
+            velocity: self.velocity,
+            angular_velocity: self.angular_velocity,
+            contact_force: self.contact_force,
+            contact_torque: self.contact_torque,
+            mass: self.mass,
+        }
+    }
 }
 
 impl Recording for McapSink {
