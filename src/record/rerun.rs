@@ -109,6 +109,8 @@ pub struct RerunSink {
     flush_points: u32,
     /// Rows were logged one by one (or the stream was lent out) since the stream's last flush.
     rows: std::cell::Cell<bool>,
+    /// `step`, `sim_time`, `iteration`.
+    timelines: [::rerun::TimelineName; 3],
 }
 
 /// Time points worth a bookmark, found while the run is logged and written at its end.
@@ -627,6 +629,7 @@ impl RerunSink {
             pressure_shown: false,
             flush_points: 0,
             rows: std::cell::Cell::new(true),
+            timelines: ["step", "sim_time", "iteration"].map(::rerun::TimelineName::from),
         })
     }
 
@@ -664,9 +667,11 @@ impl RerunSink {
     }
 
     fn set_time(&self, rec: &RecordingStream, step: u64, t: f64, iteration: i64) {
-        rec.set_time_sequence("step", step as i64);
-        rec.set_duration_secs("sim_time", t.max(0.0));
-        rec.set_time_sequence("iteration", iteration);
+        // The names interned once (a string is interned at every call).
+        let [s, time, it] = self.timelines;
+        rec.set_time_sequence(s, step as i64);
+        rec.set_duration_secs(time, t.max(0.0));
+        rec.set_time_sequence(it, iteration);
     }
 
     fn text(&mut self, step: u64, t: f64, level: &str, text: String) {
@@ -1784,21 +1789,16 @@ impl RodEntities {
         rec: &RecordingStream,
         rs: &RodStyle,
     ) -> ::rerun::RecordingStreamResult<()> {
-        rec.log_static(
-            self.nodes.clone(),
-            &Points2D::update_fields()
-                .with_radii([rs.node_radius as f32])
-                .with_draw_order(DRAW_NODES),
-        )?;
         // The centre line is drawn from the same entity (its strips go out with the
-        // positions).
-        rec.log_static(
-            self.nodes.clone(),
-            &LineStrips2D::update_fields()
-                .with_colors([rgb(ROD_COLOR)])
-                .with_radii([Radius::new_ui_points(1.5)])
-                .with_draw_order(DRAW_ROD),
-        )?;
+        // positions): one row holds both styles.
+        let points = Points2D::update_fields()
+            .with_radii([rs.node_radius as f32])
+            .with_draw_order(DRAW_NODES);
+        let line = LineStrips2D::update_fields()
+            .with_colors([rgb(ROD_COLOR)])
+            .with_radii([Radius::new_ui_points(1.5)])
+            .with_draw_order(DRAW_ROD);
+        rec.log_static(self.nodes.clone(), &[&points as &dyn AsComponents, &line])?;
         let rad = rs.node_radius;
         rec.log_static(
             self.normals.clone(),
