@@ -132,8 +132,11 @@ type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
 /// Writes an MCAP file.
 pub struct McapSink {
     out: OutputFile,
-    /// The writer thread (compression and writing happen there); None after an error.
+    /// The writer thread (compression and writing happen there); None after an error or the
+    /// run's end.
     writer: Option<Pipe>,
+    /// The writer thread ending the file, from the run's end on.
+    closing: Option<Closing>,
     opts: RecordOptions,
     channels: [u16; 8],
     sequence: [u32; 8],
@@ -219,6 +222,7 @@ impl McapSink {
         Ok(Self {
             out,
             writer: Some(pipe),
+            closing: None,
             opts: RecordOptions {
                 flush_every: opts.flush_every.max(1),
                 ..opts
@@ -284,6 +288,14 @@ impl McapSink {
         self.sequence[k] = self.sequence[k].wrapping_add(1);
         if let Err(e) = w.message(header, &self.buf) {
             self.fail(e);
+        }
+    }
+
+    /// The `gripsim.run_end` metadata record (empty before the run's end).
+    fn run_end_record(&mut self) -> ::mcap::records::Metadata {
+        ::mcap::records::Metadata {
+            name: "gripsim.run_end".into(),
+            metadata: std::mem::take(&mut self.end),
         }
     }
 
@@ -588,6 +600,12 @@ impl Observer for McapSink {
                     error: Some(error),
                     ..EventMsg::default()
                 });
+                // Nothing follows the run's end: the writer thread ends the file now, while
+                // the other sinks end theirs.
+                if let Some(mut w) = self.writer.take() {
+                    w.metadata(self.run_end_record());
+                    self.closing = Some(w.close());
+                }
             }
         }
     }
@@ -745,16 +763,35 @@ impl Pipe {
 
     /// Send what is left and wait for the thread to end the file (summary, footer) and close
     /// it.
-    fn finish(mut self) -> Result<(), String> {
+    fn finish(self) -> Result<(), String> {
+        self.close().wait()
+    }
+
+    /// Send what is left and let the thread end the file (summary, footer, `fsync`) while the
+    /// caller goes on; [`Closing::wait`] waits for it.
+    fn close(mut self) -> Closing {
         let sent = self.send();
         let Pipe {
             to_writer, thread, ..
         } = self;
         drop(to_writer);
-        let written = thread
+        Closing { sent, thread }
+    }
+}
+
+/// A writer thread ending the file.
+struct Closing {
+    sent: Result<(), String>,
+    thread: std::thread::JoinHandle<Result<(), String>>,
+}
+
+impl Closing {
+    fn wait(self) -> Result<(), String> {
+        let written = self
+            .thread
             .join()
             .unwrap_or_else(|_| Err("the .mcap writer thread panicked".to_string()));
-        written.and(sent)
+        written.and(self.sent)
     }
 }
 
@@ -786,6 +823,8 @@ fn write_batches(
     match (w, error) {
         (_, Some(e)) => Err(e),
         (None, None) => Ok(()),
+        // The data reach the disk here, beside whatever the caller does meanwhile (the
+        // sink's own `fsync` at the end then finds nothing left to write).
         (Some(mut w), None) => w
             .finish()
             .map_err(|e| error_chain(&e))
@@ -794,7 +833,7 @@ fn write_batches(
                     .into_inner()
                     .map_err(|e| error_chain(e.error()))
             })
-            .map(drop),
+            .and_then(|f| f.sync_all().map_err(|e| error_chain(&e))),
     }
 }
 
@@ -1096,11 +1135,11 @@ impl Recording for McapSink {
 
     fn finish(&mut self) -> Result<Finished, RecordError> {
         if let Some(mut w) = self.writer.take() {
-            w.metadata(::mcap::records::Metadata {
-                name: "gripsim.run_end".into(),
-                metadata: std::mem::take(&mut self.end),
-            });
-            if let Err(e) = w.finish() {
+            w.metadata(self.run_end_record());
+            self.closing = Some(w.close());
+        }
+        if let Some(c) = self.closing.take() {
+            if let Err(e) = c.wait() {
                 self.fail(e);
             }
         }
