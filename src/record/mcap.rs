@@ -21,10 +21,12 @@
 //! clamped so they never decrease. Nothing depends on the wall clock or the machine (single
 //! threaded compression, fixed header strings), so one scenario gives the same bytes every run.
 //!
-//! The sink encodes each message on the simulation's thread (a copy of what the event lends
-//! it) and hands batches of them to one writer thread that compresses and writes them in order
-//! ([`Pipe`]): the bytes are those of writing inline, and the run waits for the writer only
-//! when it is [`BATCHES_QUEUED`] batches behind.
+//! The sink hands batches to one writer thread that encodes, compresses and writes them in
+//! order ([`Pipe`]): a copy of each step (the high-rate `/sim/step`, `/scene` and
+//! `/scene/nodes` are encoded there, [`StepWriter`]) and the rare messages already encoded
+//! (JSON, iterations). The bytes are those of writing inline, and the run waits for the
+//! writer only when it is [`BATCHES_QUEUED`] batches or a flush behind. From the run's end the
+//! thread ends the file (summary, footer, `fsync`) while the other sinks end theirs.
 
 use super::{
     error_chain, node_norm, obstacle_outline, Finished, OutputFile, RecordError, RecordOptions,

@@ -13,8 +13,7 @@
 //! | `scene` | Transform3D (static) | flips y so the scene is drawn y-up |
 //! | `scene/obstacles` | LineStrips2D (static) | obstacle outlines, planes and sines clipped to the region the run visits |
 //! | `scene/legend/scale`, `…/colors` | Arrows2D, Points2D (static) | the force scale bar and colour bar, labelled |
-//! | `scene/<rod>/nodes` | Points2D | nodes coloured by \|R\| (viridis over the run's range); grey = driven |
-//! | `scene/<rod>/centerline` | LineStrips2D | the rod |
+//! | `scene/<rod>/nodes` | Points2D + LineStrips2D | nodes coloured by \|R\| (viridis over the run's range); grey = driven; and the rod's centre line (in one chunk with the positions: LZ4 finds it as their copy) |
 //! | `scene/<rod>/reactions` | Arrows2D | eq. 2 reactions, length ∝ \|R\| (one scale per recording), labels in N |
 //! | `scene/<rod>/normals` | Arrows2D | outward obstacle normals at constrained nodes, beside the reaction |
 //! | `scene/<rod>/predictor` | Points2D | predictor positions (orange rings), on steps with corrector passes |
