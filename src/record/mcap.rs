@@ -825,8 +825,9 @@ fn write_batches(
     match (w, error) {
         (_, Some(e)) => Err(e),
         (None, None) => Ok(()),
-        // The data reach the disk here, beside whatever the caller does meanwhile (the
-        // sink's own `fsync` at the end then finds nothing left to write).
+        // A regular file's data reach the disk here, beside whatever the caller does
+        // meanwhile (the sink's own `fsync` at the end then finds nothing left to write); a
+        // device written through (`/dev/null`) is not synced, as in `OutputFile::settle`.
         (Some(mut w), None) => w
             .finish()
             .map_err(|e| error_chain(&e))
@@ -835,7 +836,10 @@ fn write_batches(
                     .into_inner()
                     .map_err(|e| error_chain(e.error()))
             })
-            .and_then(|f| f.sync_all().map_err(|e| error_chain(&e))),
+            .and_then(|f| match f.metadata() {
+                Ok(m) if m.is_file() => f.sync_all().map_err(|e| error_chain(&e)),
+                _ => Ok(()),
+            }),
     }
 }
 
