@@ -13,7 +13,9 @@
 //! per `.rrd` chunk and MCAP chunk). `RECORDING_COST_ZSTD=N` sets the MCAP's zstd level and
 //! `RECORDING_COST_PRECISION=f64` its /sim/step precision (defaults: the sink's, 1 and f32).
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
-//! (default 7), the mean CPU time of the process per run (all threads, from /proc/self/stat;
+//! (default 7; the rows are run round-robin, the k-th run of every row before the (k+1)-th of
+//! any, so a slow stretch of the machine falls on all rows alike), the mean CPU time of the
+//! process per run (all threads, from /proc/self/stat, summed over the row's runs;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
 //! file sizes and the bytes on disk per node-step (all files of the row together, over
 //! (steps + 1) × nodes: every recorded step holds the initial state too).
@@ -207,21 +209,32 @@ fn main() {
     let mut base = None;
     let mut cpu_base = None;
     let only = std::env::var("RECORDING_COST_ROWS").ok();
-    for case in cases {
-        if let Some(o) = &only {
-            if !case.name.contains(o.as_str()) && case.name != "no sink" {
-                continue;
-            }
+    let cases: Vec<Case> = cases
+        .into_iter()
+        .filter(|case| match &only {
+            Some(o) => case.name.contains(o.as_str()) || case.name == "no sink",
+            None => true,
+        })
+        .collect();
+    // Round-robin: the k-th run of every row before the (k+1)-th of any, so that a slow or
+    // fast stretch of a shared machine (whose speed changes from minute to minute) falls on
+    // all rows alike and the ratios to the no-sink row keep their meaning.
+    let mut times = vec![Vec::new(); cases.len()];
+    let mut cpus = vec![Some(0.0); cases.len()];
+    let mut sizes = vec![Vec::new(); cases.len()];
+    for _ in 0..repeats {
+        for (k, case) in cases.iter().enumerate() {
+            let cpu0 = cpu_time();
+            let (t, s) = run(&sc, *case, &dir);
+            let used = cpu_time().zip(cpu0).map(|(b, a)| b - a);
+            cpus[k] = cpus[k].zip(used).map(|(c, u)| c + u);
+            times[k].push(t);
+            sizes[k] = s;
         }
-        let mut times = Vec::new();
-        let mut sizes = Vec::new();
-        let cpu0 = cpu_time();
-        for _ in 0..repeats {
-            let (t, s) = run(&sc, case, &dir);
-            times.push(t);
-            sizes = s;
-        }
-        let cpu = cpu_time().zip(cpu0).map(|(b, a)| (b - a) / repeats as f64);
+    }
+    for (k, case) in cases.iter().enumerate() {
+        let cpu = cpus[k].map(|c| c / repeats as f64);
+        let times = &mut times[k];
         times.sort_by(f64::total_cmp);
         let median = times[times.len() / 2];
         let base = *base.get_or_insert(median);
@@ -232,11 +245,11 @@ fn main() {
             }
             None => "n/a | n/a".to_string(),
         };
-        let files: Vec<String> = sizes
+        let files: Vec<String> = sizes[k]
             .iter()
             .map(|(f, n)| format!("{f} {:.1} MB", *n as f64 / 1e6))
             .collect();
-        let bytes: u64 = sizes.iter().map(|(_, n)| n).sum();
+        let bytes: u64 = sizes[k].iter().map(|(_, n)| n).sum();
         println!(
             "| {} | {median:.4} | {:.1} | {cpu_text} | {} | {} |",
             case.name,
