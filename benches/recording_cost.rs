@@ -17,6 +17,8 @@
 //! any, so a slow stretch of the machine falls on all rows alike), the mean CPU time of the
 //! process per run (all threads, from /proc/self/stat, summed over the row's runs;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
+//! median CPU time of the thread that runs the simulation and the sinks' own parts (the
+//! rest is the sinks' writer threads: the wall time cannot drop below it), the
 //! file sizes and the bytes on disk per node-step (all files of the row together, over
 //! (steps + 1) × nodes: every recorded step holds the initial state too).
 
@@ -203,9 +205,9 @@ fn main() {
         sc.name, sc.flush_every
     );
     println!(
-        "| sinks | wall time (s) | × no sink | CPU time (s) | × no sink | files | bytes per node-step |"
+        "| sinks | wall time (s) | × no sink | CPU time (s) | × no sink | run's thread CPU (s) | files | bytes per node-step |"
     );
-    println!("|---|---:|---:|---:|---:|---|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---|---:|");
     let mut base = None;
     let mut cpu_base = None;
     let only = std::env::var("RECORDING_COST_ROWS").ok();
@@ -222,10 +224,13 @@ fn main() {
     let mut times = vec![Vec::new(); cases.len()];
     let mut cpus = vec![Some(0.0); cases.len()];
     let mut sizes = vec![Vec::new(); cases.len()];
+    let mut own = vec![Vec::new(); cases.len()];
     for _ in 0..repeats {
         for (k, case) in cases.iter().enumerate() {
             let cpu0 = cpu_time();
+            let own0 = gripsim::bench::thread_cpu_s();
             let (t, s) = run(&sc, *case, &dir);
+            own[k].push(gripsim::bench::thread_cpu_s() - own0);
             let used = cpu_time().zip(cpu0).map(|(b, a)| b - a);
             cpus[k] = cpus[k].zip(used).map(|(c, u)| c + u);
             times[k].push(t);
@@ -238,6 +243,8 @@ fn main() {
         times.sort_by(f64::total_cmp);
         let median = times[times.len() / 2];
         let base = *base.get_or_insert(median);
+        own[k].sort_by(f64::total_cmp);
+        let own = own[k][own[k].len() / 2];
         let cpu_text = match cpu {
             Some(c) => {
                 let b = *cpu_base.get_or_insert(c.max(0.001));
@@ -251,7 +258,7 @@ fn main() {
             .collect();
         let bytes: u64 = sizes[k].iter().map(|(_, n)| n).sum();
         println!(
-            "| {} | {median:.4} | {:.1} | {cpu_text} | {} | {} |",
+            "| {} | {median:.4} | {:.1} | {cpu_text} | {own:.3} | {} | {} |",
             case.name,
             median / base,
             if files.is_empty() {

@@ -921,7 +921,7 @@ impl RerunSink {
                 self.flush_points = 0;
             }
             if self.send_due(&rec, all) || self.rows.get() {
-                self.flush_stream(&rec);
+                self.flush_stream_async(&rec);
             }
         }
     }
@@ -1327,6 +1327,23 @@ impl RerunSink {
         self.flush_stream(rec);
     }
 
+    /// Close the chunks of what the stream holds here (the SDK's batcher does that before this
+    /// returns, so the chunking is the same in every run) and let its threads encode and write
+    /// them while the run goes on: the wait of [`Self::flush_stream`] at every flush point made
+    /// the simulation thread idle while the SDK encoded (the two-prong grasp's `.rrd` at step
+    /// detail took its CPU time as wall time). A failure of the writer seen by now (a full
+    /// disk) fails the recording here; a later one at the next flush point or the end, which
+    /// waits.
+    fn flush_stream_async(&mut self, rec: &RecordingStream) {
+        self.rows.set(false);
+        if let Err(e) = rec.flush_async() {
+            return self.fail(e.to_string());
+        }
+        if let Some(e) = self.file.error() {
+            self.fail(e);
+        }
+    }
+
     /// Make the file readable up to here (what the stream holds is written).
     fn flush_stream(&mut self, rec: &RecordingStream) {
         self.rows.set(false);
@@ -1454,6 +1471,11 @@ impl RrdFile {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, RrdState> {
         self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The writer's failure so far, if any (the stream's threads write while the run goes on).
+    fn error(&self) -> Option<String> {
+        self.lock().error.clone()
     }
 
     /// Write the end of the stream (and the footer, when it was kept) and close the file.
