@@ -451,3 +451,161 @@ impl Event<'_> {
         }
     }
 }
+
+/// An [`Event::StepEnd`]'s state, owned, for an observer that sends a step on later or from
+/// another thread (the `--detail auto` layer holds steps back until it knows whether a window
+/// opens; the MCAP sink hands steps to its writer thread). [`Self::set`] reuses the buffers.
+#[derive(Debug, Clone, Default)]
+pub struct OwnedStepEnd {
+    pub step: u64,
+    pub t: f64,
+    pub dt: f64,
+    pub newton_iterations: u32,
+    pub passes: u32,
+    pub rods: Vec<OwnedRodStep>,
+    pub bodies: Vec<OwnedBody>,
+    pub contacts: Vec<ContactView>,
+}
+
+impl OwnedStepEnd {
+    /// Copy a [`Event::StepEnd`]; any other event leaves `self` as it was and gives false.
+    pub fn set(&mut self, ev: &Event<'_>) -> bool {
+        let Event::StepEnd {
+            step,
+            t,
+            dt,
+            newton_iterations,
+            passes,
+            rods,
+            bodies,
+            contacts,
+        } = *ev
+        else {
+            return false;
+        };
+        (self.step, self.t, self.dt) = (step, t, dt);
+        (self.newton_iterations, self.passes) = (newton_iterations, passes);
+        self.rods.resize_with(rods.len(), Default::default);
+        for (d, v) in self.rods.iter_mut().zip(rods) {
+            d.set(v);
+        }
+        self.bodies.resize_with(bodies.len(), Default::default);
+        for (d, b) in self.bodies.iter_mut().zip(bodies) {
+            d.set(b);
+        }
+        copy_into(&mut self.contacts, contacts);
+        true
+    }
+
+    /// The views of its rods and bodies, for an [`Event::StepEnd`] or an encoder.
+    pub fn views(&self) -> (Vec<RodStepView<'_>>, Vec<BodyView<'_>>) {
+        (
+            self.rods.iter().map(OwnedRodStep::view).collect(),
+            self.bodies.iter().map(OwnedBody::view).collect(),
+        )
+    }
+}
+
+/// An owned [`RodStepView`].
+#[derive(Debug, Clone, Default)]
+pub struct OwnedRodStep {
+    q: Vec<f64>,
+    u: Vec<f64>,
+    reaction: Vec<f64>,
+    impulse: Vec<f64>,
+    drive_force: Vec<f64>,
+    normal: Vec<f64>,
+    contact_obstacle: Vec<usize>,
+    normal2: Vec<f64>,
+    contact_obstacle2: Vec<usize>,
+    in_contact: Vec<bool>,
+    bending_stress: Vec<f64>,
+    gap: Vec<f64>,
+    q_predictor: Vec<f64>,
+}
+
+fn copy_into<T: Copy>(to: &mut Vec<T>, from: &[T]) {
+    to.clear();
+    to.extend_from_slice(from);
+}
+
+impl OwnedRodStep {
+    pub fn set(&mut self, v: &RodStepView<'_>) {
+        copy_into(&mut self.q, v.q);
+        copy_into(&mut self.u, v.u);
+        copy_into(&mut self.reaction, v.reaction);
+        copy_into(&mut self.impulse, v.impulse);
+        copy_into(&mut self.drive_force, v.drive_force);
+        copy_into(&mut self.normal, v.normal);
+        copy_into(&mut self.contact_obstacle, v.contact_obstacle);
+        copy_into(&mut self.normal2, v.normal2);
+        copy_into(&mut self.contact_obstacle2, v.contact_obstacle2);
+        copy_into(&mut self.in_contact, v.in_contact);
+        copy_into(&mut self.bending_stress, v.bending_stress);
+        copy_into(&mut self.gap, v.gap);
+        copy_into(&mut self.q_predictor, v.q_predictor);
+    }
+
+    pub fn view(&self) -> RodStepView<'_> {
+        RodStepView {
+            q: &self.q,
+            u: &self.u,
+            reaction: &self.reaction,
+            impulse: &self.impulse,
+            drive_force: &self.drive_force,
+            normal: &self.normal,
+            contact_obstacle: &self.contact_obstacle,
+            normal2: &self.normal2,
+            contact_obstacle2: &self.contact_obstacle2,
+            in_contact: &self.in_contact,
+            bending_stress: &self.bending_stress,
+            gap: &self.gap,
+            q_predictor: &self.q_predictor,
+        }
+    }
+}
+
+/// An owned [`BodyView`].
+#[derive(Debug, Clone, Default)]
+pub struct OwnedBody {
+    name: String,
+    obstacle: usize,
+    position: [f64; 2],
+    angle: f64,
+    velocity: [f64; 2],
+    angular_velocity: f64,
+    contact_force: [f64; 2],
+    contact_torque: f64,
+    mass: f64,
+}
+
+impl OwnedBody {
+    pub fn set(&mut self, b: &BodyView<'_>) {
+        if self.name != b.name {
+            self.name.clear();
+            self.name.push_str(b.name);
+        }
+        self.obstacle = b.obstacle;
+        self.position = b.position;
+        self.angle = b.angle;
+        self.velocity = b.velocity;
+        self.angular_velocity = b.angular_velocity;
+        self.contact_force = b.contact_force;
+        self.contact_torque = b.contact_torque;
+        self.mass = b.mass;
+    }
+
+    pub fn view(&self) -> BodyView<'_> {
+        BodyView {
+            name: &self.name,
+            obstacle: self.obstacle,
+            position: self.position,
+            angle: self.angle,
+            velocity: self.velocity,
+            angular_velocity: self.angular_velocity,
+            contact_force: self.contact_force,
+            contact_torque: self.contact_torque,
+            mass: self.mass,
+        }
+    }
+}

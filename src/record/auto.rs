@@ -22,7 +22,7 @@
 //! docs/recording-format.md.
 
 use super::AutoRule;
-use crate::events::{BodyView, ContactView, Event, Observer, Phase, RodStepView};
+use crate::events::{Event, Observer, OwnedStepEnd, Phase};
 use crate::replay::detect::{ContactSample, Detector, RodSample};
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -127,89 +127,6 @@ enum Held {
     End,
 }
 
-/// One rod's step-end state, owned.
-#[derive(Debug, Clone, Default)]
-struct OwnedRod {
-    f: [Vec<f64>; 10],
-    contact_obstacle: Vec<usize>,
-    contact_obstacle2: Vec<usize>,
-    in_contact: Vec<bool>,
-}
-
-impl OwnedRod {
-    fn copy(&mut self, v: &RodStepView<'_>) {
-        let src = [
-            v.q,
-            v.u,
-            v.reaction,
-            v.impulse,
-            v.drive_force,
-            v.normal,
-            v.normal2,
-            v.bending_stress,
-            v.gap,
-            v.q_predictor,
-        ];
-        for (d, s) in self.f.iter_mut().zip(src) {
-            d.clear();
-            d.extend_from_slice(s);
-        }
-        self.contact_obstacle.clear();
-        self.contact_obstacle.extend_from_slice(v.contact_obstacle);
-        self.contact_obstacle2.clear();
-        self.contact_obstacle2
-            .extend_from_slice(v.contact_obstacle2);
-        self.in_contact.clear();
-        self.in_contact.extend_from_slice(v.in_contact);
-    }
-
-    fn view(&self) -> RodStepView<'_> {
-        let f = &self.f;
-        RodStepView {
-            q: &f[0],
-            u: &f[1],
-            reaction: &f[2],
-            impulse: &f[3],
-            drive_force: &f[4],
-            normal: &f[5],
-            normal2: &f[6],
-            bending_stress: &f[7],
-            gap: &f[8],
-            q_predictor: &f[9],
-            contact_obstacle: &self.contact_obstacle,
-            contact_obstacle2: &self.contact_obstacle2,
-            in_contact: &self.in_contact,
-        }
-    }
-}
-
-/// A free body's step-end state, owned.
-#[derive(Debug, Clone, Default)]
-struct OwnedBody {
-    name: String,
-    obstacle: usize,
-    position: [f64; 2],
-    angle: f64,
-    velocity: [f64; 2],
-    angular_velocity: f64,
-    contact_force: [f64; 2],
-    contact_torque: f64,
-    mass: f64,
-}
-
-/// The step-end state of a held step.
-#[derive(Debug, Clone, Default)]
-struct StepState {
-    step: u64,
-    t: f64,
-    dt: f64,
-    newton_iterations: u32,
-    passes: u32,
-    rods: Vec<OwnedRod>,
-    bodies: Vec<OwnedBody>,
-    contacts: Vec<ContactView>,
-}
-
 /// One step with everything the run said about it, owned (its buffers are reused).
 #[derive(Debug, Clone)]
 struct HeldStep {
@@ -218,7 +135,7 @@ struct HeldStep {
     floats: Vec<f64>,
     /// Texts of its events.
     text: String,
-    end: StepState,
+    end: OwnedStepEnd,
     mark: Mark,
     /// The step had an event that opens a window.
     eventful: bool,
@@ -230,7 +147,7 @@ impl Default for HeldStep {
             events: Vec::new(),
             floats: Vec::new(),
             text: String::new(),
-            end: StepState::default(),
+            end: OwnedStepEnd::default(),
             mark: Mark::Drop,
             eventful: false,
         }
@@ -253,37 +170,9 @@ impl HeldStep {
     }
 
     fn end(&mut self, ev: &Event<'_>) {
-        let Event::StepEnd {
-            step,
-            t,
-            dt,
-            newton_iterations,
-            passes,
-            rods,
-            bodies,
-            contacts,
-        } = *ev
-        else {
+        if !self.end.set(ev) {
             return;
-        };
-        let e = &mut self.end;
-        (e.step, e.t, e.dt) = (step, t, dt);
-        (e.newton_iterations, e.passes) = (newton_iterations, passes);
-        e.rods.resize_with(rods.len(), OwnedRod::default);
-        for (d, v) in e.rods.iter_mut().zip(rods) {
-            d.copy(v);
         }
-        e.bodies.resize_with(bodies.len(), OwnedBody::default);
-        for (d, b) in e.bodies.iter_mut().zip(bodies) {
-            d.name.clear();
-            d.name.push_str(b.name);
-            (d.obstacle, d.position, d.angle) = (b.obstacle, b.position, b.angle);
-            (d.velocity, d.angular_velocity) = (b.velocity, b.angular_velocity);
-            (d.contact_force, d.contact_torque, d.mass) =
-                (b.contact_force, b.contact_torque, b.mass);
-        }
-        e.contacts.clear();
-        e.contacts.extend_from_slice(contacts);
         self.events.push(Held::End);
     }
 
@@ -481,22 +370,7 @@ impl HeldStep {
 
     fn send_end(&self, out: &mut dyn Observer) {
         let e = &self.end;
-        let rods: Vec<RodStepView<'_>> = e.rods.iter().map(OwnedRod::view).collect();
-        let bodies: Vec<BodyView<'_>> = e
-            .bodies
-            .iter()
-            .map(|b| BodyView {
-                name: &b.name,
-                obstacle: b.obstacle,
-                position: b.position,
-                angle: b.angle,
-                velocity: b.velocity,
-                angular_velocity: b.angular_velocity,
-                contact_force: b.contact_force,
-                contact_torque: b.contact_torque,
-                mass: b.mass,
-            })
-            .collect();
+        let (rods, bodies) = e.views();
         out.on_event(&Event::StepEnd {
             step: e.step,
             t: e.t,
@@ -732,7 +606,7 @@ impl<O: Observer> Observer for AutoDetail<O> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::events::{ContactChange, ReleaseReason};
+    use crate::events::{ContactChange, ReleaseReason, RodStepView};
 
     /// Records the step numbers it gets and how many iterations came with each.
     #[derive(Default)]

@@ -34,8 +34,8 @@ use super::{
     PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
-    BodyView, ContactChange, ContactView, Event, Observer, ReleaseReason, RodInfo, RodStepView,
-    RunInfo,
+    BodyView, ContactChange, ContactView, Event, Observer, OwnedStepEnd, ReleaseReason, RodInfo,
+    RodStepView, RunInfo,
 };
 use crate::obstacle::Obstacle;
 use crate::scenario::Mode;
@@ -902,9 +902,9 @@ impl StepWriter {
         w.write_to_known_channel(&header, &self.buf)
     }
 
-    fn write(&mut self, w: &mut Writer, s: &StepCopy) -> Result<(), ::mcap::McapError> {
-        let rods: Vec<RodStepView<'_>> = s.rods.iter().map(RodCopy::view).collect();
-        let bodies: Vec<BodyView<'_>> = s.bodies.iter().map(BodyCopy::view).collect();
+    fn write(&mut self, w: &mut Writer, c: &StepCopy) -> Result<(), ::mcap::McapError> {
+        let s = &c.end;
+        let (rods, bodies) = s.views();
         let fields = super::proto::StepFields {
             step: s.step,
             t: s.t,
@@ -916,18 +916,18 @@ impl StepWriter {
             contacts: &s.contacts,
         };
         self.encoder.encode(&fields, &mut self.buf);
-        self.message(w, STEP, s.time)?;
+        self.message(w, STEP, c.time)?;
         let Some(mut scene) = self.scene.take() else {
             return Ok(());
         };
-        scene.update(s.time, &rods, &bodies);
+        scene.update(c.time, &rods, &bodies);
         self.buf.clear();
         prost::Message::encode(&scene.scene, &mut self.buf).expect("a Vec grows as needed");
-        let sent = self.message(w, SCENE, s.time);
+        let sent = self.message(w, SCENE, c.time);
         self.buf.clear();
         prost::Message::encode(&scene.nodes, &mut self.buf).expect("a Vec grows as needed");
         self.scene = Some(scene);
-        sent.and_then(|_| self.message(w, NODES, s.time))
+        sent.and_then(|_| self.message(w, NODES, c.time))
     }
 }
 
@@ -997,140 +997,24 @@ impl Scene {
 /// An owned copy of a step's event, for the writer thread; its vectors are reused.
 #[derive(Default)]
 struct StepCopy {
-    step: u64,
-    t: f64,
-    dt: f64,
-    newton_iterations: u32,
-    passes: u32,
     /// The log time.
     time: u64,
-    rods: Vec<RodCopy>,
-    bodies: Vec<BodyCopy>,
-    contacts: Vec<ContactView>,
+    end: OwnedStepEnd,
 }
 
 impl StepCopy {
     fn set(&mut self, ev: &StepEnd<'_, '_>, time: u64) {
-        self.step = ev.step;
-        self.t = ev.t;
-        self.dt = ev.dt;
-        self.newton_iterations = ev.newton_iterations;
-        self.passes = ev.passes;
         self.time = time;
-        self.rods.resize_with(ev.rods.len(), Default::default);
-        for (c, v) in self.rods.iter_mut().zip(ev.rods) {
-            c.set(v);
-        }
-        self.bodies.resize_with(ev.bodies.len(), Default::default);
-        for (c, b) in self.bodies.iter_mut().zip(ev.bodies) {
-            c.set(b);
-        }
-        self.contacts.clear();
-        self.contacts.extend_from_slice(ev.contacts);
-    }
-}
-
-/// An owned [`RodStepView`].
-#[derive(Default)]
-struct RodCopy {
-    q: Vec<f64>,
-    u: Vec<f64>,
-    reaction: Vec<f64>,
-    impulse: Vec<f64>,
-    drive_force: Vec<f64>,
-    normal: Vec<f64>,
-    contact_obstacle: Vec<usize>,
-    normal2: Vec<f64>,
-    contact_obstacle2: Vec<usize>,
-    in_contact: Vec<bool>,
-    bending_stress: Vec<f64>,
-    gap: Vec<f64>,
-    q_predictor: Vec<f64>,
-}
-
-fn copy_into<T: Copy>(to: &mut Vec<T>, from: &[T]) {
-    to.clear();
-    to.extend_from_slice(from);
-}
-
-impl RodCopy {
-    fn set(&mut self, v: &RodStepView<'_>) {
-        copy_into(&mut self.q, v.q);
-        copy_into(&mut self.u, v.u);
-        copy_into(&mut self.reaction, v.reaction);
-        copy_into(&mut self.impulse, v.impulse);
-        copy_into(&mut self.drive_force, v.drive_force);
-        copy_into(&mut self.normal, v.normal);
-        copy_into(&mut self.contact_obstacle, v.contact_obstacle);
-        copy_into(&mut self.normal2, v.normal2);
-        copy_into(&mut self.contact_obstacle2, v.contact_obstacle2);
-        copy_into(&mut self.in_contact, v.in_contact);
-        copy_into(&mut self.bending_stress, v.bending_stress);
-        copy_into(&mut self.gap, v.gap);
-        copy_into(&mut self.q_predictor, v.q_predictor);
-    }
-
-    fn view(&self) -> RodStepView<'_> {
-        RodStepView {
-            q: &self.q,
-            u: &self.u,
-            reaction: &self.reaction,
-            impulse: &self.impulse,
-            drive_force: &self.drive_force,
-            normal: &self.normal,
-            contact_obstacle: &self.contact_obstacle,
-            normal2: &self.normal2,
-            contact_obstacle2: &self.contact_obstacle2,
-            in_contact: &self.in_contact,
-            bending_stress: &self.bending_stress,
-            gap: &self.gap,
-            q_predictor: &self.q_predictor,
-        }
-    }
-}
-
-/// An owned [`BodyView`].
-#[derive(Default)]
-struct BodyCopy {
-    name: String,
-    obstacle: usize,
-    position: [f64; 2],
-    angle: f64,
-    velocity: [f64; 2],
-    angular_velocity: f64,
-    contact_force: [f64; 2],
-    contact_torque: f64,
-    mass: f64,
-}
-
-impl BodyCopy {
-    fn set(&mut self, b: &BodyView<'_>) {
-        if self.name != b.name {
-            self.name.clear();
-            self.name.push_str(b.name);
-        }
-        self.obstacle = b.obstacle;
-        self.position = b.position;
-        self.angle = b.angle;
-        self.velocity = b.velocity;
-        self.angular_velocity = b.angular_velocity;
-        self.contact_force = b.contact_force;
-        self.contact_torque = b.contact_torque;
-        self.mass = b.mass;
-    }
-
-    fn view(&self) -> BodyView<'_> {
-        BodyView {
-            name: &self.name,
-            obstacle: self.obstacle,
-            position: self.position,
-            angle: self.angle,
-            velocity: self.velocity,
-            angular_velocity: self.angular_velocity,
-            contact_force: self.contact_force,
-            contact_torque: self.contact_torque,
-            mass: self.mass,
-        }
+        self.end.set(&Event::StepEnd {
+            step: ev.step,
+            t: ev.t,
+            dt: ev.dt,
+            newton_iterations: ev.newton_iterations,
+            passes: ev.passes,
+            rods: ev.rods,
+            bodies: ev.bodies,
+            contacts: ev.contacts,
+        });
     }
 }
 
