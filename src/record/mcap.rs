@@ -34,8 +34,8 @@ use super::{
     PREDICTOR_COLOR, REACTION_COLOR, ROD_COLOR,
 };
 use crate::events::{
-    BodyView, ContactChange, ContactView, Event, Observer, OwnedStepEnd, ReleaseReason, RodInfo,
-    RodStepView, RunInfo,
+    BodyView, ContactChange, Event, Observer, OwnedStepEnd, ReleaseReason, RodInfo, RodStepView,
+    RunInfo,
 };
 use crate::obstacle::Obstacle;
 use crate::scenario::Mode;
@@ -371,11 +371,12 @@ impl McapSink {
         self.send(META, 0, &meta);
     }
 
-    fn step_end(&mut self, ev: StepEnd<'_, '_>) {
+    /// A [`Event::StepEnd`] (`ev`, with its step, time and rods).
+    fn step_end(&mut self, ev: &Event<'_>, step: u64, t: f64, rods: &[RodStepView<'_>]) {
         if !self.styled {
             let style = SceneStyle::new(
                 &self.rods,
-                ev.rods,
+                rods,
                 &self.obstacles,
                 self.view.survey.as_ref(),
                 self.view.arrows,
@@ -383,7 +384,7 @@ impl McapSink {
             // The obstacles and the legend, once: Foxglove keeps an entity until it is
             // replaced, and after a seek it reads the last message of each topic, which for
             // this topic is this one.
-            let time = self.time(ev.step, ev.t);
+            let time = self.time(step, t);
             let msg = super::foxglove::SceneUpdate {
                 deletions: Vec::new(),
                 entities: static_entities(&self.obstacles, &self.bodies, &style, time),
@@ -401,16 +402,16 @@ impl McapSink {
                 ));
             }
         }
-        let time = self.time(ev.step, ev.t);
+        let time = self.time(step, t);
         let Some(w) = self.writer.as_mut() else {
             return;
         };
         // `/sim/step`, `/scene` and `/scene/nodes` are encoded on the writer thread, from a
         // copy of the step.
-        if let Err(e) = w.step(&ev, time) {
+        if let Err(e) = w.step(ev, time) {
             return self.fail(e);
         }
-        if ev.step.is_multiple_of(self.opts.flush_every) {
+        if step.is_multiple_of(self.opts.flush_every) {
             if let Err(e) = w.flush() {
                 self.fail(e);
             }
@@ -447,18 +448,6 @@ impl McapSink {
         let time = self.time(msg.step, msg.t);
         self.send(EVENT, time, &msg);
     }
-}
-
-/// The fields of [`Event::StepEnd`].
-struct StepEnd<'e, 'a> {
-    step: u64,
-    t: f64,
-    dt: f64,
-    newton_iterations: u32,
-    passes: u32,
-    rods: &'e [RodStepView<'a>],
-    bodies: &'e [BodyView<'a>],
-    contacts: &'e [ContactView],
 }
 
 impl Observer for McapSink {
@@ -562,25 +551,7 @@ impl Observer for McapSink {
                     })
                 }
             }
-            Event::StepEnd {
-                step,
-                t,
-                dt,
-                newton_iterations,
-                passes,
-                rods,
-                bodies,
-                contacts,
-            } => self.step_end(StepEnd {
-                step,
-                t,
-                dt,
-                newton_iterations,
-                passes,
-                rods,
-                bodies,
-                contacts,
-            }),
+            Event::StepEnd { step, t, rods, .. } => self.step_end(event, step, t, rods),
             Event::RunEnd { steps, t, error } => {
                 self.completed = error.is_none();
                 self.end = BTreeMap::from([
@@ -711,7 +682,7 @@ impl Pipe {
     }
 
     /// Copy a step (logged at `time`) for the writer thread to encode.
-    fn step(&mut self, ev: &StepEnd<'_, '_>, time: u64) -> Result<(), String> {
+    fn step(&mut self, ev: &Event<'_>, time: u64) -> Result<(), String> {
         let b = &mut self.batch;
         if b.steps_used == b.steps.len() {
             b.steps.push(StepCopy::default());
@@ -1003,18 +974,9 @@ struct StepCopy {
 }
 
 impl StepCopy {
-    fn set(&mut self, ev: &StepEnd<'_, '_>, time: u64) {
+    fn set(&mut self, ev: &Event<'_>, time: u64) {
         self.time = time;
-        self.end.set(&Event::StepEnd {
-            step: ev.step,
-            t: ev.t,
-            dt: ev.dt,
-            newton_iterations: ev.newton_iterations,
-            passes: ev.passes,
-            rods: ev.rods,
-            bodies: ev.bodies,
-            contacts: ev.contacts,
-        });
+        self.end.set(ev);
     }
 }
 
