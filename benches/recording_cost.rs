@@ -14,7 +14,8 @@
 //! `RECORDING_COST_PRECISION=f64` its /sim/step precision (defaults: the sink's, 1 and f32).
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
 //! (default 7; the rows are run round-robin, the k-th run of every row before the (k+1)-th of
-//! any, so a slow stretch of the machine falls on all rows alike), the mean CPU time of the
+//! any, so a slow stretch of the machine falls on all rows alike) and the median of its part
+//! after the last step (finishing the files: the writer threads' backlog, closing), the mean CPU time of the
 //! process per run (all threads, from /proc/self/stat, summed over the row's runs;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
 //! median CPU time of the thread that runs the simulation and the sinks' own parts (the
@@ -41,8 +42,10 @@ struct Case {
     detail: Detail,
 }
 
-/// One run; returns the wall time (s) and the sizes of the files written.
-fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>) {
+/// One run; returns the wall time (s), the part of it spent finishing the files (after the
+/// last step: the writer threads' backlog, closing, `fsync`) and the sizes of the files
+/// written.
+fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, f64, Vec<(&'static str, u64)>) {
     let detail = match case.detail {
         Detail::Auto(r) if r.every == 0 => Detail::Auto(AutoRule::for_scenario(sc)),
         d => d,
@@ -65,9 +68,11 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>)
         let mut mcap = gripsim::record::mcap::McapOptions::default();
         if let Some(l) = std::env::var("RECORDING_COST_ZSTD")
             .ok()
-            .and_then(|v| v.parse().ok())
+            .and_then(|v| v.parse::<i32>().ok())
         {
-            mcap.zstd_level = l;
+            // The mcap crate passes its u32 level on to zstd as an i32: the fast (negative)
+            // levels go through as their two's complement.
+            mcap.zstd_level = l as u32;
         }
         if std::env::var("RECORDING_COST_PRECISION").as_deref() == Ok("f64") {
             mcap.precision = gripsim::scenario::Precision::F64;
@@ -100,12 +105,17 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, Vec<(&'static str, u64)>)
             }
         }
     }
+    let finishing = Instant::now();
     let mut sizes = Vec::new();
     for s in sinks.iter_mut() {
         let f = s.finish().unwrap();
         sizes.push((s.format(), std::fs::metadata(&f.path).unwrap().len()));
     }
-    (start.elapsed().as_secs_f64(), sizes)
+    (
+        start.elapsed().as_secs_f64(),
+        finishing.elapsed().as_secs_f64(),
+        sizes,
+    )
 }
 
 /// CPU time of this process so far (user + system, all threads, s); Linux only.
@@ -205,9 +215,9 @@ fn main() {
         sc.name, sc.flush_every
     );
     println!(
-        "| sinks | wall time (s) | × no sink | CPU time (s) | × no sink | run's thread CPU (s) | files | bytes per node-step |"
+        "| sinks | wall time (s) | × no sink | of which finishing (s) | CPU time (s) | × no sink | run's thread CPU (s) | files | bytes per node-step |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---|---:|");
     let mut base = None;
     let mut cpu_base = None;
     let only = std::env::var("RECORDING_COST_ROWS").ok();
@@ -225,11 +235,13 @@ fn main() {
     let mut cpus = vec![Some(0.0); cases.len()];
     let mut sizes = vec![Vec::new(); cases.len()];
     let mut own = vec![Vec::new(); cases.len()];
+    let mut ends = vec![Vec::new(); cases.len()];
     for _ in 0..repeats {
         for (k, case) in cases.iter().enumerate() {
             let cpu0 = cpu_time();
             let own0 = gripsim::bench::thread_cpu_s();
-            let (t, s) = run(&sc, *case, &dir);
+            let (t, end, s) = run(&sc, *case, &dir);
+            ends[k].push(end);
             own[k].push(gripsim::bench::thread_cpu_s() - own0);
             let used = cpu_time().zip(cpu0).map(|(b, a)| b - a);
             cpus[k] = cpus[k].zip(used).map(|(c, u)| c + u);
@@ -245,6 +257,8 @@ fn main() {
         let base = *base.get_or_insert(median);
         own[k].sort_by(f64::total_cmp);
         let own = own[k][own[k].len() / 2];
+        ends[k].sort_by(f64::total_cmp);
+        let end = ends[k][ends[k].len() / 2];
         let cpu_text = match cpu {
             Some(c) => {
                 let b = *cpu_base.get_or_insert(c.max(0.001));
@@ -258,7 +272,7 @@ fn main() {
             .collect();
         let bytes: u64 = sizes[k].iter().map(|(_, n)| n).sum();
         println!(
-            "| {} | {median:.4} | {:.1} | {cpu_text} | {own:.3} | {} | {} |",
+            "| {} | {median:.4} | {:.1} | {end:.4} | {cpu_text} | {own:.3} | {} | {} |",
             case.name,
             median / base,
             if files.is_empty() {

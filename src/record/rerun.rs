@@ -35,7 +35,7 @@
 //! every step (the scalar series, node positions, centre lines, the magnified step) is buffered
 //! and sent as columns at every 10th flush or at 1 MiB ([`RRD_FLUSH_POINTS`], [`RRD_CHUNK_BYTES`]),
 //! built as Arrow arrays straight from the buffers (the rows logged one by one close their
-//! chunks at every flush point after which some were logged); a scalar series skips the
+//! chunks there too, where the stream is flushed); a scalar series skips the
 //! inside of runs of equal values (the per-node plots at f32's precision), node colours are sent only when they change, and what never
 //! changes (radii, line colours, draw orders) is static. The normals and reactions go out as
 //! columns too (a row per step in contact, and an empty one after); the sparse entities
@@ -106,8 +106,6 @@ pub struct RerunSink {
     pressure_shown: bool,
     /// Flush points since the columns were last sent.
     flush_points: u32,
-    /// Rows were logged one by one (or the stream was lent out) since the stream's last flush.
-    rows: std::cell::Cell<bool>,
     /// `step`, `sim_time`, `iteration`.
     timelines: [::rerun::TimelineName; 3],
 }
@@ -580,9 +578,13 @@ impl RerunSink {
         // the SDK opens the file.
         drop(out.create()?);
         let id = format!("{}-{:016x}", name, super::stable_hash(text.as_bytes()));
-        // Chunks close only when we flush (or at 2 MiB), never on a timer.
+        // Chunks of rows close only when we flush, never on a timer, nor at the batcher's
+        // byte threshold (its 2 MiB default is reached at a different row by `replay show`,
+        // which logs the same rows from a stored run: its chunks would differ from the live
+        // run's); [`RRD_BATCHER_BYTES`] bounds the memory a pathological flush interval holds.
         let batching = ChunkBatcherConfig {
             flush_tick: std::time::Duration::MAX,
+            flush_num_bytes: RRD_BATCHER_BYTES,
             ..ChunkBatcherConfig::DEFAULT
         };
         let file = RrdFile::create(out.writing())?;
@@ -627,7 +629,6 @@ impl RerunSink {
             file,
             pressure_shown: false,
             flush_points: 0,
-            rows: std::cell::Cell::new(true),
             timelines: ["step", "sim_time", "iteration"].map(::rerun::TimelineName::from),
         })
     }
@@ -646,8 +647,6 @@ impl RerunSink {
     /// The recording stream (None once finished), for replay overlays that log their own
     /// entities at the times the sink has set.
     pub fn stream(&self) -> Option<&RecordingStream> {
-        // Whoever borrows it may log rows.
-        self.rows.set(true);
         self.rec.as_ref()
     }
 
@@ -674,7 +673,6 @@ impl RerunSink {
     }
 
     fn text(&mut self, step: u64, t: f64, level: &str, text: String) {
-        self.rows.set(true);
         let Some(rec) = self.rec.clone() else {
             return;
         };
@@ -684,7 +682,6 @@ impl RerunSink {
     }
 
     fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
-        self.rows.set(true);
         self.obstacles = info.obstacles.to_vec();
         self.bodies = info.bodies.to_vec();
         for r in info.rods {
@@ -761,7 +758,6 @@ impl RerunSink {
     /// Static data once the first state is known: the y-up flip, the obstacle outlines and the
     /// legend (force scale bar, colour bar, magnification).
     fn first_step(&mut self, rods: &[RodStepView<'_>]) {
-        self.rows.set(true);
         let infos: Vec<RodInfo> = self.rods.iter().map(|r| r.info.clone()).collect();
         let style = SceneStyle::new(
             &infos,
@@ -834,11 +830,6 @@ impl RerunSink {
             // Nodes and centre line (every step) go out as columns at the next flush; the
             // normals and reactions as columns too; the predictor is logged as rows when shown.
             let e = &mut self.rods[r];
-            // The predictor and the magnified view log rows on corrected steps, after
-            // iterates, and once (clearing) after either.
-            if passes > 0 || e.had_predictor || e.had_iterate || e.had_mag_correction {
-                self.rows.set(true);
-            }
             self.scene[r].push(now, v.q, |colors| e.node_colors(&style, v, colors));
             if let Some(a) = e.force_arrows(&style, r, v, Look::Live) {
                 self.scene[r].push_forces(now, a);
@@ -920,7 +911,13 @@ impl RerunSink {
             if all {
                 self.flush_points = 0;
             }
-            if self.send_due(&rec, all) || self.rows.get() {
+            // The rows logged one by one close their chunks, and the file is flushed, only
+            // where the series go out: each flush is a round trip through the SDK's batcher
+            // thread that the run waits for (60 of them took the two-prong grasp 15–20 ms).
+            // A windowed rod's scene columns in between need none (a chunk passes the
+            // batcher straight to the writer thread).
+            self.send_due(&rec, all);
+            if all {
                 self.flush_stream_async(&rec);
             }
         }
@@ -935,18 +932,15 @@ impl RerunSink {
 
     /// At a flush point: send the series and the scene columns of the rods that are not
     /// [`Self::windowed`] when `all`, and the scene columns of each windowed rod whose
-    /// positions would pass [`RRD_LINE_WINDOW`] within the next flush interval. Returns
-    /// whether anything was sent.
-    fn send_due(&mut self, rec: &RecordingStream, all: bool) -> bool {
+    /// positions would pass [`RRD_LINE_WINDOW`] within the next flush interval.
+    fn send_due(&mut self, rec: &RecordingStream, all: bool) {
         let every = self.opts.flush_every as usize;
-        let mut sent = false;
         let mut r = Ok(());
         if all {
             r = self.per_step.send(rec);
             for s in &mut self.per_iteration {
                 r = r.and_then(|_| s.send(rec));
             }
-            sent = true;
         }
         for k in 0..self.scene.len() {
             let c = &self.scene[k];
@@ -957,11 +951,9 @@ impl RerunSink {
             };
             if due {
                 r = r.and_then(|_| self.scene[k].send(rec, &self.rods[k]));
-                sent = true;
             }
         }
         self.check(r);
-        sent
     }
 
     /// Bytes of column data buffered since the last send (values and time columns).
@@ -995,7 +987,6 @@ impl RerunSink {
     /// plots: each prong's grip force (Σ normal force on the body) and the safety margin
     /// μ_s Σ N / (m g).
     fn draw_bodies(&mut self, bodies: &[BodyView<'_>], contacts: &[ContactView]) {
-        self.rows.set(true);
         let (Some(rec), Some(style)) = (self.rec.clone(), self.style.as_ref()) else {
             return;
         };
@@ -1083,7 +1074,6 @@ impl RerunSink {
         };
         let Some(c) = pr::most_pressed(contacts).filter(|c| c.rod < rods.len()) else {
             if std::mem::take(&mut self.pressure_shown) {
-                self.rows.set(true);
                 let r = rec
                     .log("scene/pressure", &::rerun::Clear::flat())
                     .and_then(|_| rec.log("zoom/contact", &::rerun::Clear::recursive()));
@@ -1091,7 +1081,6 @@ impl RerunSink {
             }
             return;
         };
-        self.rows.set(true);
         if !self.pressure_shown {
             self.pressure_shown = true;
             let r = rec.log_static("zoom", &Transform3D::from_scale((1.0, -1.0, 1.0)));
@@ -1201,7 +1190,6 @@ impl RerunSink {
     }
 
     fn iteration(&mut self, ev: IterationEvent<'_>) {
-        self.rows.set(true);
         let Some(rec) = self.rec.clone() else {
             return;
         };
@@ -1252,7 +1240,6 @@ impl RerunSink {
 
     /// A line in `events/bookmarks` at (step, t, iteration).
     fn bookmark(&mut self, step: u64, t: f64, iteration: i64, text: String) {
-        self.rows.set(true);
         let Some(rec) = self.rec.clone() else {
             return;
         };
@@ -1308,13 +1295,12 @@ impl RerunSink {
     }
 
     /// Send the buffered columns and make the file readable up to here. The rows logged one by
-    /// one (events, iterates, the sparse entities) close their chunks here and at every other
-    /// flush point after which rows were logged ([`Self::flush_stream`]), so the chunking of
-    /// those is the same in every run of the same data (`replay show` and the live run agree
-    /// chunk for chunk); a flush point with nothing logged since the last flush skips the
-    /// round trip through the SDK's threads (a flush with nothing pending writes nothing). The
-    /// wait for the SDK's writer thread is bounded: a writer that died (disk full) or hangs
-    /// fails the recording instead of the run waiting forever.
+    /// one (events, iterates, the sparse entities) close their chunks here and where the
+    /// series are sent ([`Self::flush_stream_async`]; or at the batcher's 1 MiB per entity),
+    /// so the chunking of those is the same in every run of the same data (`replay show` and
+    /// the live run agree chunk for chunk). The wait for the SDK's writer thread is bounded: a
+    /// writer that died (disk full) or hangs fails the recording instead of the run waiting
+    /// forever.
     fn flush(&mut self, rec: &RecordingStream) {
         let mut r = self.per_step.send(rec);
         for s in &mut self.per_iteration {
@@ -1335,7 +1321,6 @@ impl RerunSink {
     /// disk) fails the recording here; a later one at the next flush point or the end, which
     /// waits.
     fn flush_stream_async(&mut self, rec: &RecordingStream) {
-        self.rows.set(false);
         if let Err(e) = rec.flush_async() {
             return self.fail(e.to_string());
         }
@@ -1346,7 +1331,6 @@ impl RerunSink {
 
     /// Make the file readable up to here (what the stream holds is written).
     fn flush_stream(&mut self, rec: &RecordingStream) {
-        self.rows.set(false);
         if let Err(e) = rec.flush_with_timeout(WRITER_TIMEOUT) {
             let e = match e {
                 ::rerun::sink::SinkFlushError::Timeout => format!(
@@ -1362,7 +1346,7 @@ impl RerunSink {
 
 /// The `.rrd` sink sends its buffered per-step columns at every this many-th flush point (a
 /// step that is a multiple of `flush_every`: every 1 000 steps by default; the rows logged
-/// one by one close their chunks at every flush point after which some were logged)...
+/// one by one close their chunks there too, and the file is flushed)...
 pub const RRD_FLUSH_POINTS: u32 = 10;
 
 /// ... or at an earlier flush point once they hold this many bytes of column data (values and
@@ -1384,6 +1368,11 @@ pub const RRD_CHUNK_BYTES: usize = 1 << 20;
 /// copy found (its line costs its bytes again, as before). Such a rod's scene columns go out
 /// with the series; a rod within the budget sends its own on its own schedule.
 pub const RRD_LINE_WINDOW: usize = 60 * 1024;
+
+/// An entity's rows logged one by one between two `.rrd` flushes close a chunk at this many
+/// bytes (the SDK's batcher's own threshold): far above what a flush interval holds (the
+/// rows' per-step size goes with the columns', which send at 1 MiB), a bound on memory only.
+const RRD_BATCHER_BYTES: u64 = 64 << 20;
 
 /// How long the sink waits for the SDK's writer thread to flush or close the file.
 const WRITER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(30);
