@@ -939,7 +939,13 @@ pub fn stable_hash(bytes: &[u8]) -> u64 {
 /// |(v[2i], v[2i+1])|, the magnitude of node i's vector in an interleaved array.
 #[inline]
 pub fn node_norm(v: &[f64], i: usize) -> f64 {
-    v[2 * i].hypot(v[2 * i + 1])
+    let (x, y) = (v[2 * i], v[2 * i + 1]);
+    // Most nodes carry no reaction: skip libm's `hypot` there (hypot(±0, ±0) = +0 too).
+    if x == 0.0 && y == 0.0 {
+        0.0
+    } else {
+        x.hypot(y)
+    }
 }
 
 /// How force arrows are scaled.

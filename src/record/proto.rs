@@ -262,6 +262,33 @@ macro_rules! step_messages {
                 self.fingerprint = fingerprint(s.rods, s.bodies);
             }
 
+            /// Append the message [`Self::fill`] and `encode` would give, written straight
+            /// from the views: the per-node arrays go from f64 to the wire in one pass, with
+            /// no copy in between (the bodies and contacts, few, still pass through their
+            /// messages, whose buffers `self` keeps).
+            pub fn encode_direct(&mut self, s: &StepFields<'_, '_>, buf: &mut Vec<u8>) {
+                use wire::*;
+                uint(buf, 1, s.step);
+                double(buf, 2, s.t);
+                double(buf, 3, s.dt);
+                uint(buf, 4, s.newton_iterations as u64);
+                uint(buf, 5, s.passes as u64);
+                for v in s.rods {
+                    rod::<$t>(buf, 6, v);
+                }
+                self.bodies.resize_with(s.bodies.len(), Body::default);
+                for (dst, b) in self.bodies.iter_mut().zip(s.bodies) {
+                    dst.fill(b);
+                    prost::encoding::message::encode(7, dst, buf);
+                }
+                self.contacts.resize_with(s.contacts.len(), $contact::default);
+                for (dst, c) in self.contacts.iter_mut().zip(s.contacts) {
+                    dst.fill(c);
+                    prost::encoding::message::encode(8, dst, buf);
+                }
+                fixed64(buf, 9, fingerprint(s.rods, s.bodies));
+            }
+
             /// The same message in the JSON form of format 1 (`null` for absent indices and
             /// gaps; each number the f64 value of the recorded one), for tools and tests that
             /// read both encodings alike.
@@ -635,6 +662,183 @@ pub fn file_descriptor_set() -> Vec<u8> {
     FileDescriptorSet { file: vec![file] }.encode_to_vec()
 }
 
+/// The protobuf wire format written by hand for `/sim/step`'s rods (the bytes prost writes
+/// for the same message: proto3 scalars at their default left out, repeated scalars packed,
+/// fields in number order), straight from the f64 views.
+mod wire {
+    use super::index;
+    use crate::events::RodStepView;
+
+    const VARINT: u64 = 0;
+    const I64: u64 = 1;
+    const LEN: u64 = 2;
+
+    /// A per-node number's wire form: protobuf `float` (f32) or `double` (f64).
+    pub trait Float: Copy {
+        const SIZE: usize;
+        fn put(dst: &mut [u8], x: f64);
+    }
+
+    impl Float for f32 {
+        const SIZE: usize = 4;
+        #[inline]
+        fn put(dst: &mut [u8], x: f64) {
+            dst.copy_from_slice(&(x as f32).to_le_bytes());
+        }
+    }
+
+    impl Float for f64 {
+        const SIZE: usize = 8;
+        #[inline]
+        fn put(dst: &mut [u8], x: f64) {
+            dst.copy_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    #[inline]
+    pub fn varint(buf: &mut Vec<u8>, mut v: u64) {
+        while v >= 0x80 {
+            buf.push(v as u8 | 0x80);
+            v >>= 7;
+        }
+        buf.push(v as u8);
+    }
+
+    #[inline]
+    fn varint_len(v: u64) -> usize {
+        (64 - (v | 1).leading_zeros() as usize).div_ceil(7)
+    }
+
+    #[inline]
+    fn key(buf: &mut Vec<u8>, tag: u32, wire_type: u64) {
+        varint(buf, (tag as u64) << 3 | wire_type);
+    }
+
+    /// A `uint64`/`uint32` scalar (left out at 0).
+    pub fn uint(buf: &mut Vec<u8>, tag: u32, v: u64) {
+        if v != 0 {
+            key(buf, tag, VARINT);
+            varint(buf, v);
+        }
+    }
+
+    /// A `double` scalar (left out at ±0).
+    pub fn double(buf: &mut Vec<u8>, tag: u32, x: f64) {
+        if x != 0.0 {
+            key(buf, tag, I64);
+            buf.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    /// A `fixed64` scalar (left out at 0).
+    pub fn fixed64(buf: &mut Vec<u8>, tag: u32, v: u64) {
+        if v != 0 {
+            key(buf, tag, I64);
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    /// The bytes of a packed field of `bytes` bytes of data (tag below 16: a one-byte key).
+    fn packed_len(bytes: usize) -> usize {
+        if bytes == 0 {
+            0
+        } else {
+            1 + varint_len(bytes as u64) + bytes
+        }
+    }
+
+    fn zigzag(k: usize) -> u64 {
+        let v = index(k);
+        ((v << 1) ^ (v >> 63)) as u64
+    }
+
+    fn indices_len(ks: &[usize]) -> usize {
+        ks.iter().map(|&k| varint_len(zigzag(k))).sum()
+    }
+
+    /// A packed repeated float of `n` values, the i-th `x(i)`.
+    #[inline]
+    fn floats_with<T: Float>(buf: &mut Vec<u8>, tag: u32, n: usize, x: impl Fn(usize) -> f64) {
+        if n == 0 {
+            return;
+        }
+        key(buf, tag, LEN);
+        varint(buf, (n * T::SIZE) as u64);
+        let at = buf.len();
+        buf.resize(at + n * T::SIZE, 0);
+        for (i, dst) in buf[at..].chunks_exact_mut(T::SIZE).enumerate() {
+            T::put(dst, x(i));
+        }
+    }
+
+    #[inline]
+    fn floats<T: Float>(buf: &mut Vec<u8>, tag: u32, xs: &[f64]) {
+        floats_with::<T>(buf, tag, xs.len(), |i| xs[i]);
+    }
+
+    /// A packed repeated `sint64` of indices (−1 for `usize::MAX`).
+    fn indices(buf: &mut Vec<u8>, tag: u32, ks: &[usize]) {
+        if ks.is_empty() {
+            return;
+        }
+        key(buf, tag, LEN);
+        varint(buf, indices_len(ks) as u64);
+        for &k in ks {
+            varint(buf, zigzag(k));
+        }
+    }
+
+    /// One `Rod` (`Rod64`) as the field `tag` of its step.
+    pub fn rod<T: Float>(buf: &mut Vec<u8>, tag: u32, v: &RodStepView<'_>) {
+        let nodes = v.reaction.len() / 2;
+        // Only on steps with a corrector pass: elsewhere it equals q (format 3).
+        let predictor = v.q_predictor != v.q;
+        let f = |n: usize| packed_len(n * T::SIZE);
+        let len = f(v.q.len())
+            + f(v.u.len())
+            + f(v.reaction.len())
+            + f(nodes)
+            + f(v.impulse.len())
+            + f(v.drive_force.len())
+            + f(v.normal.len())
+            + packed_len(v.in_contact.len())
+            + packed_len(indices_len(v.contact_obstacle))
+            + f(v.normal2.len())
+            + packed_len(indices_len(v.contact_obstacle2))
+            + f(v.bending_stress.len())
+            + f(v.gap.len())
+            + if predictor { f(v.q_predictor.len()) } else { 0 };
+        key(buf, tag, LEN);
+        varint(buf, len as u64);
+        let start = buf.len();
+        floats::<T>(buf, 1, v.q);
+        floats::<T>(buf, 2, v.u);
+        floats::<T>(buf, 3, v.reaction);
+        floats_with::<T>(buf, 4, nodes, |i| super::super::node_norm(v.reaction, i));
+        floats::<T>(buf, 5, v.impulse);
+        floats::<T>(buf, 6, v.drive_force);
+        floats::<T>(buf, 7, v.normal);
+        if !v.in_contact.is_empty() {
+            key(buf, 8, LEN);
+            varint(buf, v.in_contact.len() as u64);
+            buf.extend(v.in_contact.iter().map(|&b| b as u8));
+        }
+        indices(buf, 9, v.contact_obstacle);
+        floats::<T>(buf, 10, v.normal2);
+        indices(buf, 11, v.contact_obstacle2);
+        floats::<T>(buf, 12, v.bending_stress);
+        floats::<T>(buf, 13, v.gap);
+        if predictor {
+            floats::<T>(buf, 14, v.q_predictor);
+        }
+        debug_assert_eq!(
+            buf.len() - start,
+            len,
+            "Rod: the length and the bytes differ"
+        );
+    }
+}
+
 /// An index with `usize::MAX` for none as −1.
 fn index(k: usize) -> i64 {
     if k == usize::MAX {
@@ -711,16 +915,9 @@ impl StepEncoder {
     pub fn encode(&mut self, s: &StepFields<'_, '_>, buf: &mut Vec<u8>) {
         buf.clear();
         match self.precision {
-            Precision::F32 => {
-                self.step.fill(s);
-                self.step.encode(buf)
-            }
-            Precision::F64 => {
-                self.step64.fill(s);
-                self.step64.encode(buf)
-            }
+            Precision::F32 => self.step.encode_direct(s, buf),
+            Precision::F64 => self.step64.encode_direct(s, buf),
         }
-        .expect("a Vec grows as needed");
     }
 
     /// Encode an iteration (an [`crate::events::Event::Iteration`]) into `buf` (cleared first).
@@ -855,6 +1052,140 @@ pub(crate) mod tests {
             got, want,
             "{name}: the derive and the descriptor table differ"
         );
+    }
+
+    /// A step's views: two rods (one with a corrector pass, contacts, a corner, a far node
+    /// and 200 nodes so that the lengths take two-byte varints), a body and a contact.
+    fn direct_case(step: u64, t: f64, check: impl Fn(&StepFields<'_, '_>)) {
+        let n = 200;
+        let wave = |k: usize, s: f64| {
+            (0..2 * n)
+                .map(|i| s * ((i * k) as f64).sin())
+                .collect::<Vec<f64>>()
+        };
+        let (q, u, reaction) = (wave(1, 0.1), wave(2, -3.0), wave(3, 0.0));
+        let mut react = wave(3, 7.0);
+        for x in react.iter_mut().skip(8) {
+            *x = 0.0;
+        }
+        let pred = wave(5, 0.1);
+        let mut obst = vec![usize::MAX; n];
+        obst[1] = 0;
+        obst[2] = 70;
+        let mut obst2 = vec![usize::MAX; n];
+        obst2[2] = 1;
+        let inside: Vec<bool> = obst.iter().map(|&k| k != usize::MAX).collect();
+        let mut gap = wave(7, 0.01);
+        gap[3] = f64::INFINITY;
+        gap[4] = f64::NAN;
+        gap[5] = -0.0;
+        let views = [
+            RodStepView {
+                q: &q,
+                u: &u,
+                reaction: &react,
+                impulse: &react,
+                drive_force: &u,
+                normal: &react,
+                contact_obstacle: &obst,
+                normal2: &react,
+                contact_obstacle2: &obst2,
+                in_contact: &inside,
+                bending_stress: &q[..n],
+                gap: &gap,
+                q_predictor: &pred,
+            },
+            RodStepView {
+                q: &u,
+                u: &q,
+                reaction: &reaction,
+                impulse: &reaction,
+                drive_force: &reaction,
+                normal: &reaction,
+                contact_obstacle: &vec![usize::MAX; n],
+                normal2: &reaction,
+                contact_obstacle2: &vec![usize::MAX; n],
+                in_contact: &vec![false; n],
+                bending_stress: &u[..n],
+                gap: &gap,
+                q_predictor: &u,
+            },
+        ];
+        let bodies = [BodyView {
+            name: "apple",
+            obstacle: 2,
+            position: [0.1, -0.2],
+            angle: 0.3,
+            velocity: [0.0, -1.0],
+            angular_velocity: 0.0,
+            contact_force: [2.0, 9.8],
+            contact_torque: -0.01,
+            mass: 0.1,
+        }];
+        let contacts = [ContactView {
+            rod: usize::MAX,
+            node: 0,
+            obstacle: 1,
+            body: 0,
+            point: [0.1, 0.2],
+            normal: [0.0, 1.0],
+            normal_force: 1.5,
+            friction_force: -0.5,
+            slip_velocity: 0.0,
+            stuck: true,
+            utilisation: 0.3,
+            mu_s: 0.5,
+            indentation: 1e-4,
+            half_width: 2e-3,
+            peak_pressure: 1e5,
+            bruise_pressure: 2e5,
+            bruise_half_width: 0.0,
+            segment: usize::MAX,
+            weight: 0.0,
+        }];
+        check(&StepFields {
+            step,
+            t,
+            dt: 1e-5,
+            newton_iterations: 2,
+            passes: (step % 2) as u32,
+            rods: &views,
+            bodies: &bodies,
+            contacts: &contacts,
+        });
+        check(&StepFields {
+            step,
+            t,
+            dt: 0.0,
+            newton_iterations: 0,
+            passes: 0,
+            rods: &views[1..],
+            bodies: &[],
+            contacts: &[],
+        });
+    }
+
+    #[test]
+    fn the_direct_step_encoder_writes_the_bytes_prost_writes() {
+        for (step, t) in [(0, 0.0), (1, 1e-5), (300, -0.0), (1 << 40, 12.5)] {
+            direct_case(step, t, |s| {
+                let mut direct = Vec::new();
+                let mut prost32 = Step::default();
+                prost32.fill(s);
+                Step::default().encode_direct(s, &mut direct);
+                assert_eq!(direct, prost32.encode_to_vec(), "f32, step {step}");
+                let mut prost64 = Step64::default();
+                prost64.fill(s);
+                direct.clear();
+                Step64::default().encode_direct(s, &mut direct);
+                assert_eq!(direct, prost64.encode_to_vec(), "f64, step {step}");
+                // And through the reusable encoder, twice (its buffers reused).
+                let mut enc = StepEncoder::new(Precision::F32);
+                enc.encode(s, &mut direct);
+                enc.encode(s, &mut direct);
+                assert_eq!(direct, prost32.encode_to_vec());
+            });
+        }
     }
 
     #[test]
