@@ -403,39 +403,11 @@ impl McapSink {
             }
         }
         let time = self.time(step, t);
-        if self.writer.is_none() {
-            return;
-        }
-        // `/sim/step` is encoded here, from the step's own arrays (still in this thread's
-        // cache; its fingerprint reads their exact bits): only its bytes cross to the writer
-        // thread.
-        if let Event::StepEnd {
-            dt,
-            newton_iterations,
-            passes,
-            bodies,
-            contacts,
-            ..
-        } = *ev
-        {
-            let fields = super::proto::StepFields {
-                step,
-                t,
-                dt,
-                newton_iterations,
-                passes,
-                rods,
-                bodies,
-                contacts,
-            };
-            self.step_encoder.encode(&fields, &mut self.buf);
-            self.write_buf(STEP, time);
-        }
         let Some(w) = self.writer.as_mut() else {
             return;
         };
-        // `/scene` and `/scene/nodes` are drawn and encoded on the writer thread, from a copy
-        // of the step.
+        // `/sim/step`, `/scene` and `/scene/nodes` are encoded on the writer thread, from a
+        // copy of the step.
         if let Err(e) = w.step(ev, time) {
             return self.fail(e);
         }
@@ -904,6 +876,18 @@ impl StepWriter {
     fn write(&mut self, w: &mut Writer, c: &StepCopy) -> Result<(), ::mcap::McapError> {
         let s = &c.end;
         let (rods, bodies) = s.views();
+        let fields = super::proto::StepFields {
+            step: s.step,
+            t: s.t,
+            dt: s.dt,
+            newton_iterations: s.newton_iterations,
+            passes: s.passes,
+            rods: &rods,
+            bodies: &bodies,
+            contacts: &s.contacts,
+        };
+        self.encoder.encode(&fields, &mut self.buf);
+        self.message(w, STEP, c.time)?;
         let Some(mut scene) = self.scene.take() else {
             return Ok(());
         };
