@@ -18,13 +18,15 @@
 //! after the last step (finishing the files: the writer threads' backlog, closing), the mean CPU time of the
 //! process per run (all threads, from /proc/self/stat, summed over the row's runs;
 //! steadier than wall time on a busy machine), their ratios to the run without sinks, the
-//! median CPU time of the thread that runs the simulation and the sinks' own parts (the
-//! rest is the sinks' writer threads: the wall time cannot drop below it), the
+//! median CPU time of the thread that runs the simulation and the sinks' parts that run
+//! there (the `.rrd` sink runs on a thread of its own, as in `gripsim run`; the rest is the
+//! sinks' threads: the wall time cannot drop below it), the
 //! file sizes and the bytes on disk per node-step (all files of the row together, over
 //! (steps + 1) × nodes: every recorded step holds the initial state too).
 
 use gripsim::events::{Fanout, NullObserver, Observer};
 use gripsim::record::auto::AutoDetail;
+use gripsim::record::background::Background;
 use gripsim::record::csv::CsvSink;
 use gripsim::record::mcap::McapSink;
 use gripsim::record::rerun::RerunSink;
@@ -58,8 +60,11 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, f64, Vec<(&'static str, u
     let mut sim = Simulation::new(sc);
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
     if case.rrd {
+        // As `gripsim run` does: the `.rrd` sink on a thread of its own.
+        let path = dir.join("bench.rrd");
+        let rrd = RerunSink::create(&path, opts, sc).unwrap();
         sinks.push(Box::new(
-            RerunSink::create(&dir.join("bench.rrd"), opts, sc).unwrap(),
+            Background::start(Box::new(rrd), &path, "rrd-sink").unwrap(),
         ));
     }
     if case.mcap {

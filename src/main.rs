@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand, ValueEnum};
 use gripsim::events::{Fanout, Observer};
 use gripsim::record::auto::{AutoDetail, AutoStats};
+use gripsim::record::background::Background;
 use gripsim::record::csv::CsvSink;
 use gripsim::record::mcap::McapSink;
 use gripsim::record::rerun::RerunSink;
@@ -482,7 +483,9 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
     let created = (|| {
         if let Some(p) = &out.rrd {
-            sinks.push(Box::new(RerunSink::create(p, opts, &sc)?.with_view(view)));
+            // The `.rrd` sink runs on a thread of its own, beside the simulation.
+            let rrd = RerunSink::create(p, opts, &sc)?.with_view(view);
+            sinks.push(Box::new(Background::start(Box::new(rrd), p, "rrd-sink")?));
         }
         if let Some(p) = &out.mcap {
             let mcap = gripsim::record::mcap::McapOptions {

@@ -129,7 +129,7 @@ enum Held {
 
 /// One step with everything the run said about it, owned (its buffers are reused).
 #[derive(Debug, Clone)]
-struct HeldStep {
+pub(crate) struct HeldStep {
     events: Vec<Held>,
     /// Iterates of the step's Newton iterations, one after another.
     floats: Vec<f64>,
@@ -155,7 +155,12 @@ impl Default for HeldStep {
 }
 
 impl HeldStep {
-    fn clear(&mut self) {
+    /// No event kept yet.
+    pub(crate) fn is_empty(&self) -> bool {
+        self.events.is_empty()
+    }
+
+    pub(crate) fn clear(&mut self) {
         self.events.clear();
         self.floats.clear();
         self.text.clear();
@@ -177,7 +182,7 @@ impl HeldStep {
     }
 
     /// Keep an event of this step; true when it opens a window.
-    fn keep(&mut self, ev: &Event<'_>) -> bool {
+    pub(crate) fn keep(&mut self, ev: &Event<'_>) -> bool {
         let held = match *ev {
             Event::StepBegin { step, t, dt } => Held::Plain(Event::StepBegin { step, t, dt }),
             Event::Iteration {
@@ -280,7 +285,7 @@ impl HeldStep {
     }
 
     /// Send the kept events on (the iterations only when `full`).
-    fn send(&self, out: &mut dyn Observer, full: bool) {
+    pub(crate) fn send(&self, out: &mut dyn Observer, full: bool) {
         for h in &self.events {
             let tx = |r: &Range<usize>| &self.text[r.clone()];
             let ev = match h {

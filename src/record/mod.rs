@@ -11,6 +11,7 @@
 
 pub mod accepted;
 pub mod auto;
+pub mod background;
 pub mod csv;
 pub mod csv3;
 pub mod foxglove;

@@ -1,0 +1,336 @@
+//! A recording on a thread of its own.
+//!
+//! The simulation's thread only copies each step's events into their owned form (the one the
+//! `--detail auto` layer holds steps in, [`HeldStep`]) and hands them over in batches; the
+//! sink itself (for the `.rrd`: building the columns, the drawing, logging to the Rerun SDK)
+//! runs on its own thread beside the simulation and sees the same events in the same order,
+//! so it writes the same file. Emptied batches come back for reuse, and at most
+//! [`QUEUED`] batches wait for the thread: a sink slower than the simulation holds the run
+//! back instead of buffering without bound. The sink is finished on its thread too.
+
+use super::auto::HeldStep;
+use super::{Finished, RecordError, Recording};
+use crate::events::{Event, Observer, RodInfo, RunInfo};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, Sender, SyncSender};
+use std::sync::Arc;
+
+/// Steps per batch.
+const BATCH_STEPS: usize = 32;
+/// Batches waiting for the thread at most.
+const QUEUED: usize = 4;
+
+/// A [`RunInfo`] with its parts owned, to cross to the thread.
+struct OwnedRunInfo {
+    scenario_name: String,
+    scenario_text: String,
+    rods: Vec<RodInfo>,
+    obstacles: Vec<crate::obstacle::Obstacle>,
+    obstacle_names: Vec<String>,
+    bodies: Vec<crate::world::body::BodySpec>,
+    mode: crate::scenario::Mode,
+}
+
+impl OwnedRunInfo {
+    fn new(i: &RunInfo<'_>) -> Self {
+        Self {
+            scenario_name: i.scenario_name.to_string(),
+            scenario_text: i.scenario_text.to_string(),
+            rods: i.rods.to_vec(),
+            obstacles: i.obstacles.to_vec(),
+            obstacle_names: i.obstacle_names.to_vec(),
+            bodies: i.bodies.to_vec(),
+            mode: i.mode,
+        }
+    }
+
+    fn view(&self) -> RunInfo<'_> {
+        RunInfo {
+            scenario_name: &self.scenario_name,
+            scenario_text: &self.scenario_text,
+            rods: &self.rods,
+            obstacles: &self.obstacles,
+            obstacle_names: &self.obstacle_names,
+            bodies: &self.bodies,
+            mode: self.mode,
+        }
+    }
+}
+
+enum Msg {
+    Start(Box<OwnedRunInfo>),
+    /// The first `n` steps of the batch.
+    Steps(Vec<HeldStep>, usize),
+    End {
+        steps: u64,
+        t: f64,
+        error: Option<String>,
+    },
+    Finish,
+}
+
+type Sink = Box<dyn Recording + Send>;
+
+/// A [`Recording`] run on its own thread (see the module's text).
+pub struct Background {
+    format: &'static str,
+    /// The sink's file (for errors).
+    path: std::path::PathBuf,
+    iterations: bool,
+    /// The sink's failure flag; set here too when the thread stopped.
+    failure: Arc<AtomicBool>,
+    /// The batch being filled: `used` whole steps, then the step under way.
+    batch: Vec<HeldStep>,
+    used: usize,
+    free: Vec<Vec<HeldStep>>,
+    to: Option<SyncSender<Msg>>,
+    back: Receiver<Vec<HeldStep>>,
+    thread: Option<std::thread::JoinHandle<Option<Result<Finished, RecordError>>>>,
+    /// Why the thread could not be reached, once it could not.
+    lost: Option<String>,
+}
+
+impl Background {
+    /// Start `sink`, which writes `path`, on a thread named `name`.
+    pub fn start(sink: Sink, path: &Path, name: &str) -> Result<Self, RecordError> {
+        let format = sink.format();
+        let iterations = sink.wants_iterations();
+        let failure = sink.failure().unwrap_or_default();
+        let (to, rx) = std::sync::mpsc::sync_channel(QUEUED);
+        let (back_tx, back) = std::sync::mpsc::channel();
+        let thread = std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || serve(sink, rx, back_tx))
+            .map_err(|source| RecordError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok(Self {
+            format,
+            path: path.to_path_buf(),
+            iterations,
+            failure,
+            batch: Vec::new(),
+            used: 0,
+            free: Vec::new(),
+            to: Some(to),
+            back,
+            thread: Some(thread),
+            lost: None,
+        })
+    }
+
+    fn send(&mut self, msg: Msg) {
+        let Some(to) = self.to.as_ref() else {
+            return;
+        };
+        if to.send(msg).is_err() {
+            self.lost = Some(format!("the {} thread stopped", self.format));
+            self.failure.store(true, Ordering::Relaxed);
+            self.to = None;
+        }
+    }
+
+    /// Hand over the batch (its whole steps and the one under way when `partial`).
+    fn send_batch(&mut self, partial: bool) {
+        let under_way = self.batch.get(self.used).is_some_and(|s| !s.is_empty());
+        let n = self.used + usize::from(partial && under_way);
+        if n == 0 {
+            return;
+        }
+        while let Ok(b) = self.back.try_recv() {
+            self.free.push(b);
+        }
+        let next = self.free.pop().unwrap_or_default();
+        let full = std::mem::replace(&mut self.batch, next);
+        self.used = 0;
+        self.send(Msg::Steps(full, n));
+    }
+
+    /// The step under way (a cleared slot of the batch).
+    fn current(&mut self) -> &mut HeldStep {
+        if self.used == self.batch.len() {
+            self.batch.push(HeldStep::default());
+        }
+        &mut self.batch[self.used]
+    }
+}
+
+/// The thread: replay every event into the sink, in order; finish it when told.
+fn serve(
+    mut sink: Sink,
+    rx: Receiver<Msg>,
+    back: Sender<Vec<HeldStep>>,
+) -> Option<Result<Finished, RecordError>> {
+    for msg in rx {
+        match msg {
+            Msg::Start(info) => sink.on_event(&Event::RunStart(&info.view())),
+            Msg::Steps(mut steps, n) => {
+                for s in &mut steps[..n] {
+                    s.send(sink.as_mut(), true);
+                    s.clear();
+                }
+                let _ = back.send(steps);
+            }
+            Msg::End { steps, t, error } => sink.on_event(&Event::RunEnd {
+                steps,
+                t,
+                error: error.as_deref(),
+            }),
+            Msg::Finish => return Some(sink.finish()),
+        }
+    }
+    None
+}
+
+impl Observer for Background {
+    fn wants_iterations(&self) -> bool {
+        self.iterations
+    }
+
+    fn on_event(&mut self, event: &Event<'_>) {
+        match *event {
+            Event::RunStart(info) => {
+                self.send_batch(true);
+                self.send(Msg::Start(Box::new(OwnedRunInfo::new(info))));
+            }
+            Event::RunEnd { steps, t, error } => {
+                self.send_batch(true);
+                self.send(Msg::End {
+                    steps,
+                    t,
+                    error: error.map(str::to_string),
+                });
+            }
+            Event::Iteration { .. } if !self.iterations => {}
+            Event::StepEnd { .. } => {
+                self.current().keep(event);
+                self.used += 1;
+                if self.used >= BATCH_STEPS {
+                    self.send_batch(false);
+                }
+            }
+            _ => {
+                self.current().keep(event);
+            }
+        }
+    }
+}
+
+impl Recording for Background {
+    fn format(&self) -> &'static str {
+        self.format
+    }
+
+    fn finish(&mut self) -> Result<Finished, RecordError> {
+        self.send_batch(true);
+        self.send(Msg::Finish);
+        self.to = None;
+        let joined = self.thread.take().map(|t| t.join());
+        match joined {
+            Some(Ok(Some(result))) => result,
+            _ => Err(RecordError::write(
+                &self.path,
+                self.lost
+                    .clone()
+                    .unwrap_or_else(|| format!("the {} thread stopped", self.format)),
+            )),
+        }
+    }
+
+    fn failure(&self) -> Option<Arc<AtomicBool>> {
+        Some(self.failure.clone())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::events::Fanout;
+    use std::sync::Mutex;
+
+    /// Writes every event it sees, in its `Debug` form, to a shared log.
+    struct Log {
+        lines: Arc<Mutex<Vec<String>>>,
+        iterations: bool,
+        failure: Arc<AtomicBool>,
+    }
+
+    impl Observer for Log {
+        fn wants_iterations(&self) -> bool {
+            self.iterations
+        }
+        fn on_event(&mut self, event: &Event<'_>) {
+            let line = match event {
+                // The run's facts: the scenario's name and rods are enough to tell.
+                Event::RunStart(i) => format!("start {} {:?}", i.scenario_name, i.rods),
+                e => format!("{e:?}"),
+            };
+            self.lines.lock().unwrap().push(line);
+        }
+    }
+
+    impl Recording for Log {
+        fn format(&self) -> &'static str {
+            "log"
+        }
+        fn finish(&mut self) -> Result<Finished, RecordError> {
+            self.lines.lock().unwrap().push("finished".into());
+            Ok(Finished {
+                path: "log".into(),
+                complete: true,
+            })
+        }
+        fn failure(&self) -> Option<Arc<AtomicBool>> {
+            Some(self.failure.clone())
+        }
+    }
+
+    fn log(iterations: bool) -> (Log, Arc<Mutex<Vec<String>>>) {
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let sink = Log {
+            lines: lines.clone(),
+            iterations,
+            failure: Arc::default(),
+        };
+        (sink, lines)
+    }
+
+    /// A sink behind [`Background`] sees every event the run sends, in order, also the
+    /// Newton iterations, over many batches: the same lines as the same sink in the run's
+    /// thread; it is finished on its thread, and its failure flag is the wrapper's.
+    #[test]
+    fn the_sink_on_its_thread_sees_what_the_run_sends() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two-prong-grasp.toml");
+        for iterations in [false, true] {
+            // 300 steps: more than BATCH_STEPS x QUEUED.
+            let sc = crate::Scenario::load(&path, &["solve.t_end=0.003".into()]).unwrap();
+            let (mut direct, seen_here) = log(iterations);
+            let (behind, seen_there) = log(iterations);
+            let flag = behind.failure.clone();
+            let mut bg =
+                Background::start(Box::new(behind), Path::new("log"), "test-sink").unwrap();
+            assert_eq!(bg.wants_iterations(), iterations);
+            {
+                let mut fan = Fanout::new();
+                fan.push(&mut direct as &mut dyn Observer);
+                fan.push(&mut bg as &mut dyn Observer);
+                crate::Simulation::new(&sc).run(&mut fan).unwrap();
+            }
+            let done = bg.finish().unwrap();
+            assert!(done.complete);
+            let here = seen_here.lock().unwrap().clone();
+            let there = seen_there.lock().unwrap().clone();
+            assert_eq!(there.last().map(String::as_str), Some("finished"));
+            assert_eq!(here, there[..there.len() - 1], "iterations: {iterations}");
+            let steps = here.iter().filter(|l| l.starts_with("StepEnd")).count();
+            assert_eq!(steps, 301, "the initial state and 300 steps");
+            let its = here.iter().filter(|l| l.starts_with("Iteration")).count();
+            assert_eq!(its > 0, iterations);
+            flag.store(true, Ordering::Relaxed);
+            assert!(bg.failure().unwrap().load(Ordering::Relaxed));
+        }
+    }
+}
