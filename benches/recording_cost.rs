@@ -12,6 +12,8 @@
 //! `RECORDING_COST_FLUSH_EVERY=N` overrides the scenario's `[output] flush_every` (the steps
 //! per `.rrd` chunk and MCAP chunk). `RECORDING_COST_ZSTD=N` sets the MCAP's zstd level and
 //! `RECORDING_COST_PRECISION=f64` its /sim/step precision (defaults: the sink's, 1 and f32).
+//! `RECORDING_COST_RRD_THREAD=off` runs the `.rrd` sink in the run's thread instead of on a
+//! thread of its own (as `gripsim run` does), to compare the two.
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
 //! (default 7; the rows are run round-robin, the k-th run of every row before the (k+1)-th of
 //! any, so a slow stretch of the machine falls on all rows alike) and the median of its part
@@ -60,12 +62,17 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, f64, Vec<(&'static str, u
     let mut sim = Simulation::new(sc);
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
     if case.rrd {
-        // As `gripsim run` does: the `.rrd` sink on a thread of its own.
+        // As `gripsim run` does: the `.rrd` sink on a thread of its own
+        // (`RECORDING_COST_RRD_THREAD=off`: in the run's thread, to compare).
         let path = dir.join("bench.rrd");
         let rrd = RerunSink::create(&path, opts, sc).unwrap();
-        sinks.push(Box::new(
-            Background::start(Box::new(rrd), &path, "rrd-sink").unwrap(),
-        ));
+        if std::env::var("RECORDING_COST_RRD_THREAD").as_deref() != Ok("off") {
+            sinks.push(Box::new(
+                Background::start(Box::new(rrd), &path, "rrd-sink").unwrap(),
+            ));
+        } else {
+            sinks.push(Box::new(rrd));
+        }
     }
     if case.mcap {
         // `RECORDING_COST_ZSTD=N`: the MCAP's zstd level (default: the sink's, level 1);
