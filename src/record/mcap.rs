@@ -25,7 +25,7 @@
 //! order ([`Pipe`]): a copy of each step (the high-rate `/sim/step`, `/scene` and
 //! `/scene/nodes` are encoded there, [`StepWriter`]) and the rare messages already encoded
 //! (JSON, iterations). The bytes are those of writing inline, and the run waits for the
-//! writer only when it is [`BATCHES_QUEUED`] batches or a flush behind. From the run's end the
+//! writer only when it is [`BATCHES_QUEUED`] batches or [`FLUSHES_AHEAD`] flushes behind. From the run's end the
 //! thread ends the file (summary, footer, `fsync`) while the other sinks end theirs.
 
 use super::{
@@ -588,9 +588,10 @@ impl Observer for McapSink {
 /// appends it to a batch; full batches (and every flush) go over a bounded channel to one
 /// thread that compresses and writes them in order with the `mcap` writer, so the file holds
 /// the same bytes as when the sink wrote it itself. Emptied batches come back for reuse. A
-/// flush waits until the writer has done the flush before it, so the file on disk is never more
-/// than two flush intervals behind the run. The thread's first write error sets the sink's
-/// failure flag (which stops the run) and is returned by [`Pipe::finish`].
+/// flush waits until the writer has done all but the last [`FLUSHES_AHEAD`] flushes before
+/// it, so the file on disk is never more than that many flush intervals and one behind the
+/// run. The thread's first write error sets the sink's failure flag (which stops the run) and
+/// is returned by [`Pipe::finish`].
 struct Pipe {
     batch: Batch,
     to_writer: std::sync::mpsc::SyncSender<Batch>,
@@ -633,7 +634,14 @@ const BATCH_BYTES: usize = 1 << 18;
 /// ... or this many steps.
 const BATCH_STEPS: usize = 64;
 /// Batches queued for the writer thread at most (then the simulation waits for it).
-const BATCHES_QUEUED: usize = 4;
+const BATCHES_QUEUED: usize = 16;
+/// Flushes the run may be ahead of the writer thread (then it waits for it at a flush). Slack
+/// lets the writer thread and the others even out on two cores: with one flush ahead (and 4
+/// batches) the run waited at most flush points while a core stood idle (two-prong grasp,
+/// both files at step detail: wall time 7 % longer, the same CPU time; docs/performance.md).
+/// With `flush_every` 100 the `.mcap` on disk lags the run by at most ~900 steps, as the
+/// `.rrd`'s columns (sent every 700-1 000 steps) do.
+const FLUSHES_AHEAD: u64 = 8;
 
 impl Pipe {
     fn start(
@@ -697,13 +705,14 @@ impl Pipe {
         }
     }
 
-    /// Send a flush, and wait until the writer has done the one before.
+    /// Send a flush, and wait until the writer has done all but [`FLUSHES_AHEAD`] of those
+    /// before.
     fn flush(&mut self) -> Result<(), String> {
         self.batch.items.push(Item::Flush);
         self.batch.flushed = true;
         self.flushes_sent += 1;
         self.send()?;
-        while self.flushes_done + 1 < self.flushes_sent {
+        while self.flushes_done + FLUSHES_AHEAD < self.flushes_sent {
             let b = self
                 .spent
                 .recv()
