@@ -28,6 +28,7 @@
 //! writer only when it is [`BATCHES_QUEUED`] batches or [`FLUSHES_AHEAD`] flushes behind. From the run's end the
 //! thread ends the file (summary, footer, `fsync`) while the other sinks end theirs.
 
+use super::foxglove::Wire as _;
 use super::{
     error_chain, node_norm, obstacle_outline, Finished, OutputFile, RecordError, RecordOptions,
     Recording, SceneStyle, ViewOptions, BODY_COLOR, DRIVEN_COLOR, NORMAL_COLOR, OBSTACLE_COLOR,
@@ -902,10 +903,10 @@ impl StepWriter {
         };
         scene.update(c.time, &rods, &bodies);
         self.buf.clear();
-        prost::Message::encode(&scene.scene, &mut self.buf).expect("a Vec grows as needed");
+        scene.scene.wire(&mut self.buf);
         let sent = self.message(w, SCENE, c.time);
         self.buf.clear();
-        prost::Message::encode(&scene.nodes, &mut self.buf).expect("a Vec grows as needed");
+        scene.nodes.wire(&mut self.buf);
         self.scene = Some(scene);
         sent.and_then(|_| self.message(w, NODES, c.time))
     }

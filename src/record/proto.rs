@@ -664,14 +664,16 @@ pub fn file_descriptor_set() -> Vec<u8> {
 
 /// The protobuf wire format written by hand for `/sim/step`'s rods (the bytes prost writes
 /// for the same message: proto3 scalars at their default left out, repeated scalars packed,
-/// fields in number order), straight from the f64 views.
-mod wire {
+/// fields in number order), straight from the f64 views; its scalar writers serve the
+/// Foxglove scene's encoder too (`super::foxglove`).
+pub(crate) mod wire {
     use super::index;
     use crate::events::RodStepView;
 
     const VARINT: u64 = 0;
     const I64: u64 = 1;
     const LEN: u64 = 2;
+    const I32: u64 = 5;
 
     /// A per-node number's wire form: protobuf `float` (f32) or `double` (f64).
     pub trait Float: Copy {
@@ -714,6 +716,82 @@ mod wire {
         varint(buf, (tag as u64) << 3 | wire_type);
     }
 
+    /// A nested message as the field `tag`, written by `body` (present even when empty, as
+    /// prost writes an optional message that is set). Its length is known only once it is
+    /// written: one byte is kept for it and the body moved on when the length needs more
+    /// (the varint is the shortest, as prost's).
+    #[inline]
+    pub fn message(buf: &mut Vec<u8>, tag: u32, body: impl FnOnce(&mut Vec<u8>)) {
+        key(buf, tag, LEN);
+        let at = buf.len();
+        buf.push(0);
+        body(buf);
+        let len = buf.len() - at - 1;
+        if len < 0x80 {
+            buf[at] = len as u8;
+            return;
+        }
+        let n = varint_len(len as u64);
+        let end = buf.len();
+        buf.resize(end + n - 1, 0);
+        buf.copy_within(at + 1..end, at + n);
+        let mut v = len as u64;
+        for b in &mut buf[at..at + n] {
+            *b = v as u8 | 0x80;
+            v >>= 7;
+        }
+        buf[at + n - 1] &= 0x7f;
+    }
+
+    /// A `bool` scalar (left out when false).
+    #[inline]
+    pub fn boolean(buf: &mut Vec<u8>, tag: u32, v: bool) {
+        if v {
+            key(buf, tag, VARINT);
+            buf.push(1);
+        }
+    }
+
+    /// An `int32`/`int64` scalar (left out at 0; negative ones take ten bytes, as the
+    /// protobuf encoding sign-extends them).
+    #[inline]
+    pub fn int(buf: &mut Vec<u8>, tag: u32, v: i64) {
+        if v != 0 {
+            key(buf, tag, VARINT);
+            varint(buf, v as u64);
+        }
+    }
+
+    /// A `fixed32` scalar (left out at 0).
+    #[inline]
+    pub fn fixed32(buf: &mut Vec<u8>, tag: u32, v: u32) {
+        if v != 0 {
+            key(buf, tag, I32);
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    /// A `string` or `bytes` field (left out when empty).
+    #[inline]
+    pub fn bytes(buf: &mut Vec<u8>, tag: u32, v: &[u8]) {
+        if !v.is_empty() {
+            key(buf, tag, LEN);
+            varint(buf, v.len() as u64);
+            buf.extend_from_slice(v);
+        }
+    }
+
+    /// A packed repeated `fixed32` (left out when empty).
+    pub fn packed_fixed32(buf: &mut Vec<u8>, tag: u32, vs: &[u32]) {
+        if !vs.is_empty() {
+            key(buf, tag, LEN);
+            varint(buf, 4 * vs.len() as u64);
+            for v in vs {
+                buf.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+
     /// A `uint64`/`uint32` scalar (left out at 0).
     pub fn uint(buf: &mut Vec<u8>, tag: u32, v: u64) {
         if v != 0 {
@@ -723,6 +801,7 @@ mod wire {
     }
 
     /// A `double` scalar (left out at ±0).
+    #[inline]
     pub fn double(buf: &mut Vec<u8>, tag: u32, x: f64) {
         if x != 0.0 {
             key(buf, tag, I64);
