@@ -28,7 +28,7 @@
 
 use gripsim::events::{Fanout, NullObserver, Observer};
 use gripsim::record::auto::AutoDetail;
-use gripsim::record::background::Background;
+use gripsim::record::background::{Background, MakeSink};
 use gripsim::record::csv::CsvSink;
 use gripsim::record::mcap::McapSink;
 use gripsim::record::rerun::RerunSink;
@@ -65,13 +65,16 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, f64, Vec<(&'static str, u
         // As `gripsim run` does: the `.rrd` sink on a thread of its own
         // (`RECORDING_COST_RRD_THREAD=off`: in the run's thread, to compare).
         let path = dir.join("bench.rrd");
-        let rrd = RerunSink::create(&path, opts, sc).unwrap();
         if std::env::var("RECORDING_COST_RRD_THREAD").as_deref() != Ok("off") {
+            // Made on its thread, beside the run (as `gripsim run` makes it beside the
+            // survey).
+            let (p, sc) = (path.clone(), sc.clone());
+            let make: MakeSink = Box::new(move || Ok(Box::new(RerunSink::create(&p, opts, &sc)?)));
             sinks.push(Box::new(
-                Background::start(Box::new(rrd), &path, "rrd-sink").unwrap(),
+                Background::spawn("rerun", detail.iterations(), &path, "rrd-sink", make).unwrap(),
             ));
         } else {
-            sinks.push(Box::new(rrd));
+            sinks.push(Box::new(RerunSink::create(&path, opts, sc).unwrap()));
         }
     }
     if case.mcap {

@@ -469,22 +469,32 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     let start = std::time::Instant::now();
     // The drawing sinks draw every frame with one force scale and one box, chosen from the
     // whole run: an unrecorded first run of the physics (deterministic) surveys it.
-    let view = if out.rrd.is_some() || out.mcap.is_some() {
-        gripsim::record::ViewOptions {
-            survey: Some(gripsim::record::Survey::of(
-                &sc,
-                Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0)),
-            )),
-            arrows: out.arrows,
-        }
-    } else {
-        gripsim::record::ViewOptions::default()
-    };
+    // The `.rrd` sink (the Rerun SDK's stream and the blueprint: milliseconds) is made beside
+    // the survey, which it does not need until the run starts.
+    let (view, rrd) = std::thread::scope(|s| {
+        let rrd = out
+            .rrd
+            .as_deref()
+            .map(|p| s.spawn(|| RerunSink::create(p, opts, &sc)));
+        let view = if out.rrd.is_some() || out.mcap.is_some() {
+            gripsim::record::ViewOptions {
+                survey: Some(gripsim::record::Survey::of(
+                    &sc,
+                    Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0)),
+                )),
+                arrows: out.arrows,
+            }
+        } else {
+            gripsim::record::ViewOptions::default()
+        };
+        let rrd = rrd.map(|h| h.join().expect("the .rrd setup does not panic"));
+        (view, rrd)
+    });
     let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
     let created = (|| {
-        if let Some(p) = &out.rrd {
+        if let (Some(p), Some(rrd)) = (&out.rrd, rrd) {
             // The `.rrd` sink runs on a thread of its own, beside the simulation.
-            let rrd = RerunSink::create(p, opts, &sc)?.with_view(view);
+            let rrd = rrd?.with_view(view);
             sinks.push(Box::new(Background::start(Box::new(rrd), p, "rrd-sink")?));
         }
         if let Some(p) = &out.mcap {

@@ -18,8 +18,10 @@ use std::sync::Arc;
 
 /// Steps per batch.
 const BATCH_STEPS: usize = 32;
-/// Batches waiting for the thread at most.
-const QUEUED: usize = 4;
+/// Batches waiting for the thread at most (512 steps): enough for the run to go on while a
+/// sink made on its thread sets up ([`Background::spawn`]; the `.rrd`'s setup takes as long
+/// as a few hundred steps of the two-prong grasp).
+const QUEUED: usize = 16;
 
 /// A [`RunInfo`] with its parts owned, to cross to the thread.
 struct OwnedRunInfo {
@@ -72,6 +74,9 @@ enum Msg {
 
 type Sink = Box<dyn Recording + Send>;
 
+/// Makes a sink on its thread ([`Background::spawn`]).
+pub type MakeSink = Box<dyn FnOnce() -> Result<Sink, RecordError> + Send>;
+
 /// A [`Recording`] run on its own thread (see the module's text).
 pub struct Background {
     format: &'static str,
@@ -97,11 +102,45 @@ impl Background {
         let format = sink.format();
         let iterations = sink.wants_iterations();
         let failure = sink.failure().unwrap_or_default();
+        Self::launch(
+            format,
+            iterations,
+            failure,
+            path,
+            name,
+            Box::new(move || Ok(sink)),
+        )
+    }
+
+    /// Start a sink that `make` makes on the thread itself, so that its setup runs beside the
+    /// run instead of before it (the `.rrd`'s: the Rerun SDK's stream and the blueprint, some
+    /// milliseconds). `format` and `iterations` are what the sink will say it is and wants. A
+    /// sink that cannot be made fails the recording: the run stops at its next step, the
+    /// batches are taken and dropped, and [`Recording::finish`] returns the error.
+    pub fn spawn(
+        format: &'static str,
+        iterations: bool,
+        path: &Path,
+        name: &str,
+        make: MakeSink,
+    ) -> Result<Self, RecordError> {
+        Self::launch(format, iterations, Arc::default(), path, name, make)
+    }
+
+    fn launch(
+        format: &'static str,
+        iterations: bool,
+        failure: Arc<AtomicBool>,
+        path: &Path,
+        name: &str,
+        make: MakeSink,
+    ) -> Result<Self, RecordError> {
         let (to, rx) = std::sync::mpsc::sync_channel(QUEUED);
         let (back_tx, back) = std::sync::mpsc::channel();
+        let flag = failure.clone();
         let thread = std::thread::Builder::new()
             .name(name.into())
-            .spawn(move || serve(sink, rx, back_tx))
+            .spawn(move || serve(make, flag, rx, back_tx))
             .map_err(|source| RecordError::Io {
                 path: path.to_path_buf(),
                 source,
@@ -157,12 +196,32 @@ impl Background {
     }
 }
 
-/// The thread: replay every event into the sink, in order; finish it when told.
+/// The thread: make the sink, replay every event into it, in order (the sink's failure flag
+/// passed on to the run's after each message), and finish it when told.
 fn serve(
-    mut sink: Sink,
+    make: MakeSink,
+    failure: Arc<AtomicBool>,
     rx: Receiver<Msg>,
     back: Sender<Vec<HeldStep>>,
 ) -> Option<Result<Finished, RecordError>> {
+    let mut sink = match make() {
+        Ok(sink) => sink,
+        Err(e) => {
+            failure.store(true, Ordering::Relaxed);
+            for msg in rx {
+                match msg {
+                    Msg::Steps(mut steps, _) => {
+                        steps.iter_mut().for_each(HeldStep::clear);
+                        let _ = back.send(steps);
+                    }
+                    Msg::Finish => return Some(Err(e)),
+                    _ => {}
+                }
+            }
+            return None;
+        }
+    };
+    let own = sink.failure();
     for msg in rx {
         match msg {
             Msg::Start(info) => sink.on_event(&Event::RunStart(&info.view())),
@@ -179,6 +238,9 @@ fn serve(
                 error: error.as_deref(),
             }),
             Msg::Finish => return Some(sink.finish()),
+        }
+        if own.as_ref().is_some_and(|f| f.load(Ordering::Relaxed)) {
+            failure.store(true, Ordering::Relaxed);
         }
     }
     None
@@ -305,8 +367,8 @@ mod tests {
         let path =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two-prong-grasp.toml");
         for iterations in [false, true] {
-            // 300 steps: more than BATCH_STEPS x QUEUED.
-            let sc = crate::Scenario::load(&path, &["solve.t_end=0.003".into()]).unwrap();
+            // 600 steps: more than BATCH_STEPS x QUEUED.
+            let sc = crate::Scenario::load(&path, &["solve.t_end=0.006".into()]).unwrap();
             let (mut direct, seen_here) = log(iterations);
             let (behind, seen_there) = log(iterations);
             let flag = behind.failure.clone();
@@ -326,11 +388,50 @@ mod tests {
             assert_eq!(there.last().map(String::as_str), Some("finished"));
             assert_eq!(here, there[..there.len() - 1], "iterations: {iterations}");
             let steps = here.iter().filter(|l| l.starts_with("StepEnd")).count();
-            assert_eq!(steps, 301, "the initial state and 300 steps");
+            assert_eq!(steps, 601, "the initial state and 600 steps");
             let its = here.iter().filter(|l| l.starts_with("Iteration")).count();
             assert_eq!(its > 0, iterations);
             flag.store(true, Ordering::Relaxed);
             assert!(bg.failure().unwrap().load(Ordering::Relaxed));
         }
+    }
+
+    /// A sink made on its thread ([`Background::spawn`]) sees what the run sends, and its
+    /// failure flag reaches the run's; one that cannot be made fails the recording without
+    /// holding the run back, and `finish` says why.
+    #[test]
+    fn a_sink_made_on_its_thread_sees_the_run_or_fails_it() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/two-prong-grasp.toml");
+        let sc = crate::Scenario::load(&path, &["solve.t_end=0.006".into()]).unwrap();
+        let (mut direct, seen_here) = log(false);
+        let (behind, seen_there) = log(false);
+        // The sink fails (its own flag) once made: the wrapper's flag follows.
+        behind.failure.store(true, Ordering::Relaxed);
+        let make: MakeSink = Box::new(move || Ok(Box::new(behind)));
+        let mut bg = Background::spawn("log", false, Path::new("log"), "test-sink", make).unwrap();
+        assert!(!bg.failure().unwrap().load(Ordering::Relaxed));
+        {
+            let mut fan = Fanout::new();
+            fan.push(&mut direct as &mut dyn Observer);
+            fan.push(&mut bg as &mut dyn Observer);
+            crate::Simulation::new(&sc).run(&mut fan).unwrap();
+        }
+        assert!(bg.finish().unwrap().complete);
+        assert!(bg.failure().unwrap().load(Ordering::Relaxed));
+        let here = seen_here.lock().unwrap().clone();
+        let there = seen_there.lock().unwrap().clone();
+        assert_eq!(here, there[..there.len() - 1]);
+        assert_eq!(
+            here.iter().filter(|l| l.starts_with("StepEnd")).count(),
+            601
+        );
+
+        let make: MakeSink = Box::new(|| Err(RecordError::write(Path::new("x.rrd"), "no way")));
+        let mut bg = Background::spawn("log", true, Path::new("x.rrd"), "test-sink", make).unwrap();
+        crate::Simulation::new(&sc).run(&mut bg).unwrap();
+        assert!(bg.failure().unwrap().load(Ordering::Relaxed));
+        let e = bg.finish().unwrap_err().to_string();
+        assert!(e.contains("x.rrd") && e.contains("no way"), "{e}");
     }
 }
