@@ -639,10 +639,12 @@ const BATCHES_QUEUED: usize = 16;
 /// Flushes the run may be ahead of the writer thread (then it waits for it at a flush). Slack
 /// lets the writer thread and the others even out on two cores: with one flush ahead (and 4
 /// batches) the run waited at most flush points while a core stood idle (two-prong grasp,
-/// both files at step detail: wall time 7 % longer, the same CPU time; docs/performance.md).
-/// With `flush_every` 100 the `.mcap` on disk lags the run by at most ~900 steps, as the
-/// `.rrd`'s columns (sent every 700-1 000 steps) do.
-const FLUSHES_AHEAD: u64 = 8;
+/// both files at step detail: wall time 7 % longer, the same CPU time; docs/performance.md);
+/// with eight, the writer's backlog at the run's end (which it works off alone) grew to
+/// ~18 ms, two and four did as well as eight in the middle. With `flush_every` 100 the
+/// `.mcap` on disk lags the run by at most ~500 steps (the `.rrd`'s columns, sent every
+/// 700-1 000 steps, more).
+const FLUSHES_AHEAD: u64 = 4;
 
 impl Pipe {
     fn start(
