@@ -831,6 +831,7 @@ fn write_batch(
     steps: &mut StepWriter,
     b: &mut Batch,
 ) -> Result<(), ::mcap::McapError> {
+    fingerprint_steps(&mut b.steps[..b.steps_used]);
     let mut start = 0;
     for item in b.items.drain(..) {
         match item {
@@ -845,6 +846,23 @@ fn write_batch(
         }
     }
     Ok(())
+}
+
+/// Work out the steps' fingerprints [`proto::LANES`](super::proto::LANES) at a time (the
+/// same values, side by side: [`super::proto::fingerprints`]); the rest, or steps of
+/// differing shapes, are left to the encoder.
+fn fingerprint_steps(copies: &mut [StepCopy]) {
+    use super::proto::LANES;
+    for group in copies.chunks_exact_mut(LANES) {
+        let views: [_; LANES] = std::array::from_fn(|k| group[k].end.views());
+        let prints = super::proto::fingerprints(views.each_ref().map(|(r, b)| (&r[..], &b[..])));
+        for (c, p) in group
+            .iter_mut()
+            .zip(prints.map(|p| p.map(Some)).unwrap_or_default())
+        {
+            c.fingerprint = p;
+        }
+    }
 }
 
 /// The writer thread's encoder of the per-step messages: `/sim/step`, and once the scene is
@@ -897,6 +915,7 @@ impl StepWriter {
             rods: &rods,
             bodies: &bodies,
             contacts: &s.contacts,
+            fingerprint: c.fingerprint,
         };
         self.encoder.encode(&fields, &mut self.buf);
         self.message(w, STEP, c.time)?;
@@ -983,12 +1002,15 @@ struct StepCopy {
     /// The log time.
     time: u64,
     end: OwnedStepEnd,
+    /// Its fingerprint, once worked out on the writer thread ([`fingerprint_steps`]).
+    fingerprint: Option<u64>,
 }
 
 impl StepCopy {
     fn set(&mut self, ev: &Event<'_>, time: u64) {
         self.time = time;
         self.end.set(ev);
+        self.fingerprint = None;
     }
 }
 

@@ -259,7 +259,7 @@ macro_rules! step_messages {
                 for (dst, c) in self.contacts.iter_mut().zip(s.contacts) {
                     dst.fill(c);
                 }
-                self.fingerprint = fingerprint(s.rods, s.bodies);
+                self.fingerprint = s.fingerprint.unwrap_or_else(|| fingerprint(s.rods, s.bodies));
             }
 
             /// Append the message [`Self::fill`] and `encode` would give, written straight
@@ -286,7 +286,8 @@ macro_rules! step_messages {
                     dst.fill(c);
                     prost::encoding::message::encode(8, dst, buf);
                 }
-                fixed64(buf, 9, fingerprint(s.rods, s.bodies));
+                let print = s.fingerprint.unwrap_or_else(|| fingerprint(s.rods, s.bodies));
+                fixed64(buf, 9, print);
             }
 
             /// The same message in the JSON form of format 1 (`null` for absent indices and
@@ -436,16 +437,60 @@ pub fn fingerprint(rods: &[RodStepView<'_>], bodies: &[BodyView<'_>]) -> u64 {
         h.add_all(r.u);
     }
     for b in bodies {
-        h.add_all(&[
-            b.position[0],
-            b.position[1],
-            b.angle,
-            b.velocity[0],
-            b.velocity[1],
-            b.angular_velocity,
-        ]);
+        h.add_all(&body_numbers(b));
     }
     h.0
+}
+
+/// A free body's numbers in a fingerprint, in order.
+fn body_numbers(b: &BodyView<'_>) -> [f64; 6] {
+    [
+        b.position[0],
+        b.position[1],
+        b.angle,
+        b.velocity[0],
+        b.velocity[1],
+        b.angular_velocity,
+    ]
+}
+
+/// Steps fingerprinted side by side by [`fingerprints`].
+pub const LANES: usize = 4;
+
+/// The fingerprints of [`LANES`] steps of the same shape (rods of the same node counts, as
+/// many bodies): the values [`fingerprint`] gives each, with the steps' multiply chains
+/// interleaved. One step's chain is serial (eight dependent multiplies per number, most of
+/// its time in the MCAP writer) and the core runs independent chains side by side. None
+/// when the shapes differ.
+pub fn fingerprints(steps: [(&[RodStepView<'_>], &[BodyView<'_>]); LANES]) -> Option<[u64; LANES]> {
+    let (rods, bodies) = steps[0];
+    let same = steps.iter().all(|(r, b)| {
+        r.len() == rods.len()
+            && b.len() == bodies.len()
+            && r.iter()
+                .zip(rods)
+                .all(|(x, y)| x.q.len() == y.q.len() && x.u.len() == y.u.len())
+    });
+    if !same {
+        return None;
+    }
+    let mut h = [Fingerprint::default(); LANES];
+    let mut side_by_side = |xs: [&[f64]; LANES]| {
+        for i in 0..xs[0].len() {
+            for (h, x) in h.iter_mut().zip(&xs) {
+                h.add(x[i]);
+            }
+        }
+    };
+    for k in 0..rods.len() {
+        side_by_side(steps.map(|(r, _)| r[k].q));
+        side_by_side(steps.map(|(r, _)| r[k].u));
+    }
+    for k in 0..bodies.len() {
+        let numbers = steps.map(|(_, b)| body_numbers(&b[k]));
+        side_by_side(numbers.each_ref().map(|n| n.as_slice()));
+    }
+    Some(h.map(|h| h.0))
 }
 
 /// How `/sim/step` and `/sim/iteration` store their per-node arrays (`[output] precision`,
@@ -972,6 +1017,9 @@ pub struct StepFields<'e, 'a> {
     pub rods: &'e [RodStepView<'a>],
     pub bodies: &'e [BodyView<'a>],
     pub contacts: &'e [ContactView],
+    /// The step's [`fingerprint`] when already worked out ([`fingerprints`]); else it is
+    /// here.
+    pub fingerprint: Option<u64>,
 }
 
 impl StepEncoder {
@@ -1133,6 +1181,54 @@ pub(crate) mod tests {
         );
     }
 
+    /// Steps fingerprinted side by side get the fingerprint each gets alone (real runs: two
+    /// rods; a rod and a free body), and steps of different shapes are refused.
+    #[test]
+    fn fingerprints_side_by_side_are_each_steps_own() {
+        struct Keep(Vec<crate::events::OwnedStepEnd>);
+        impl crate::events::Observer for Keep {
+            fn on_event(&mut self, ev: &crate::events::Event<'_>) {
+                let mut s = crate::events::OwnedStepEnd::default();
+                if s.set(ev) {
+                    self.0.push(s);
+                }
+            }
+        }
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        let mut runs = Vec::new();
+        for (name, t_end) in [("two-prong-grasp", "0.0004"), ("pick-and-place", "0.002")] {
+            let sc = crate::Scenario::load(
+                &root.join(format!("{name}.toml")),
+                &[format!("solve.t_end={t_end}")],
+            )
+            .unwrap();
+            let mut keep = Keep(Vec::new());
+            crate::Simulation::new(&sc).run(&mut keep).unwrap();
+            assert!(keep.0.len() >= 2 * LANES, "{name}: {} steps", keep.0.len());
+            runs.push(keep.0);
+        }
+        assert!(runs[1].iter().any(|s| !s.bodies.is_empty()));
+        for steps in &runs {
+            for group in steps.chunks_exact(LANES) {
+                let views: [_; LANES] = std::array::from_fn(|k| group[k].views());
+                let alone = views.each_ref().map(|(r, b)| fingerprint(r, b));
+                let side = fingerprints(views.each_ref().map(|(r, b)| (&r[..], &b[..])));
+                assert_eq!(side, Some(alone));
+            }
+        }
+        let mixed: [_; LANES] = std::array::from_fn(|k| {
+            if k == 2 {
+                runs[1][0].views()
+            } else {
+                runs[0][k].views()
+            }
+        });
+        assert_eq!(
+            fingerprints(mixed.each_ref().map(|(r, b)| (&r[..], &b[..]))),
+            None
+        );
+    }
+
     /// A step's views: two rods (one with a corrector pass, contacts, a corner, a far node
     /// and 200 nodes so that the lengths take two-byte varints), a body and a contact.
     fn direct_case(step: u64, t: f64, check: impl Fn(&StepFields<'_, '_>)) {
@@ -1231,6 +1327,7 @@ pub(crate) mod tests {
             rods: &views,
             bodies: &bodies,
             contacts: &contacts,
+            fingerprint: None,
         });
         check(&StepFields {
             step,
@@ -1241,6 +1338,7 @@ pub(crate) mod tests {
             rods: &views[1..],
             bodies: &[],
             contacts: &[],
+            fingerprint: None,
         });
     }
 
