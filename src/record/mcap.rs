@@ -25,8 +25,9 @@
 //! order ([`Pipe`]): a copy of each step (the high-rate `/sim/step`, `/scene` and
 //! `/scene/nodes` are encoded there, [`StepWriter`]) and the rare messages already encoded
 //! (JSON, iterations). The bytes are those of writing inline, and the run waits for the
-//! writer only when it is [`BATCHES_QUEUED`] batches or [`FLUSHES_AHEAD`] flushes behind. From the run's end the
-//! thread ends the file (summary, footer, `fsync`) while the other sinks end theirs.
+//! writer only when it is [`BATCHES_QUEUED`] batches or [`FLUSHES_AHEAD`] flushes behind.
+//! From the run's end the thread ends the file (summary, footer, `fsync`) while the other
+//! sinks end theirs.
 
 use super::foxglove::Wire as _;
 use super::{
@@ -638,7 +639,7 @@ const BATCH_STEPS: usize = 64;
 const BATCHES_QUEUED: usize = 16;
 /// Flushes the run may be ahead of the writer thread (then it waits for it at a flush). Slack
 /// lets the writer thread and the others even out on two cores: with one flush ahead (and 4
-/// batches) the run waited at most flush points while a core stood idle (two-prong grasp,
+/// batches) the run waited at most of the flush points while a core stood idle (two-prong grasp,
 /// both files at step detail: wall time 7 % longer, the same CPU time; docs/performance.md);
 /// with eight, the writer's backlog at the run's end (which it works off alone) grew to
 /// ~18 ms, two and four did as well as eight in the middle. With `flush_every` 100 the
