@@ -24,7 +24,9 @@
 //! there (the `.rrd` sink runs on a thread of its own, as in `gripsim run`; the rest is the
 //! sinks' threads: the wall time cannot drop below it), the
 //! file sizes and the bytes on disk per node-step (all files of the row together, over
-//! (steps + 1) × nodes: every recorded step holds the initial state too).
+//! (steps + 1) × nodes: every recorded step holds the initial state too). Below the table:
+//! the no-sink runs by the core they ran on, and their medians (cores of a shared VM can
+//! differ in speed, and the reference runs on one of them).
 
 use gripsim::events::{Fanout, NullObserver, Observer};
 use gripsim::record::auto::AutoDetail;
@@ -131,6 +133,13 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, f64, Vec<(&'static str, u
         finishing.elapsed().as_secs_f64(),
         sizes,
     )
+}
+
+/// The core this thread runs on now (Linux; None elsewhere or on error).
+fn current_cpu() -> Option<usize> {
+    // SAFETY: no arguments, no memory touched.
+    let c = unsafe { libc::sched_getcpu() };
+    usize::try_from(c).ok()
 }
 
 /// CPU time of this process so far (user + system, all threads, s); Linux only.
@@ -251,11 +260,18 @@ fn main() {
     let mut sizes = vec![Vec::new(); cases.len()];
     let mut own = vec![Vec::new(); cases.len()];
     let mut ends = vec![Vec::new(); cases.len()];
+    let mut reference_cpus = std::collections::BTreeMap::new();
     for _ in 0..repeats {
         for (k, case) in cases.iter().enumerate() {
             let cpu0 = cpu_time();
             let own0 = gripsim::bench::thread_cpu_s();
+            let on = current_cpu();
             let (t, end, s) = run(&sc, *case, &dir);
+            if k == 0 {
+                // The reference's core: the same at its start and end, or it moved.
+                let cpu = on.filter(|&c| Some(c) == current_cpu());
+                reference_cpus.entry(cpu).or_insert_with(Vec::new).push(t);
+            }
             ends[k].push(end);
             own[k].push(gripsim::bench::thread_cpu_s() - own0);
             let used = cpu_time().zip(cpu0).map(|(b, a)| b - a);
@@ -302,6 +318,21 @@ fn main() {
             }
         );
     }
+    // The no-sink reference runs on one core, the recorded rows on all: on a machine whose
+    // cores differ in speed (a shared VM's vCPUs), the ratios depend on which core the
+    // reference got (docs/performance.md, tenth pass).
+    let by_cpu: Vec<String> = reference_cpus
+        .iter_mut()
+        .map(|(cpu, ts)| {
+            ts.sort_by(f64::total_cmp);
+            let at = cpu.map_or("moved".to_string(), |c| format!("cpu {c}"));
+            format!("{at}: {} runs, median {:.4} s", ts.len(), ts[ts.len() / 2])
+        })
+        .collect();
+    println!(
+        "\nno-sink runs by core (the same at start and end): {}",
+        by_cpu.join("; ")
+    );
     // `RECORDING_COST_KEEP=DIR`: keep the last run's files of each row there (to look at
     // their bytes).
     match std::env::var_os("RECORDING_COST_KEEP") {
