@@ -686,21 +686,19 @@ impl Wire for SceneEntity {
     }
 }
 
-impl Wire for CubePrimitive {
-    fn wire(&self, buf: &mut Vec<u8>) {
-        opt(buf, 1, &self.pose);
-        opt(buf, 2, &self.size);
-        opt(buf, 3, &self.color);
-    }
+/// Cubes and spheres: the same fields (pose, size, colour).
+macro_rules! pose_size_color {
+    ($($t:ty),*) => {$(
+        impl Wire for $t {
+            fn wire(&self, buf: &mut Vec<u8>) {
+                opt(buf, 1, &self.pose);
+                opt(buf, 2, &self.size);
+                opt(buf, 3, &self.color);
+            }
+        }
+    )*};
 }
-
-impl Wire for SpherePrimitive {
-    fn wire(&self, buf: &mut Vec<u8>) {
-        opt(buf, 1, &self.pose);
-        opt(buf, 2, &self.size);
-        opt(buf, 3, &self.color);
-    }
-}
+pose_size_color!(CubePrimitive, SpherePrimitive);
 
 impl Wire for TriangleListPrimitive {
     fn wire(&self, buf: &mut Vec<u8>) {
@@ -766,19 +764,18 @@ impl Wire for PackedElementField {
     }
 }
 
-impl Wire for Timestamp {
-    fn wire(&self, buf: &mut Vec<u8>) {
-        w::int(buf, 1, self.seconds);
-        w::int(buf, 2, self.nanos as i64);
-    }
+/// `google.protobuf.Timestamp` and `Duration`: the same fields (seconds, nanos).
+macro_rules! seconds_nanos {
+    ($($t:ty),*) => {$(
+        impl Wire for $t {
+            fn wire(&self, buf: &mut Vec<u8>) {
+                w::int(buf, 1, self.seconds);
+                w::int(buf, 2, self.nanos as i64);
+            }
+        }
+    )*};
 }
-
-impl Wire for Duration {
-    fn wire(&self, buf: &mut Vec<u8>) {
-        w::int(buf, 1, self.seconds);
-        w::int(buf, 2, self.nanos as i64);
-    }
-}
+seconds_nanos!(Timestamp, Duration);
 
 impl Wire for Pose {
     fn wire(&self, buf: &mut Vec<u8>) {
