@@ -472,10 +472,14 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     // The `.rrd` sink (the Rerun SDK's stream and the blueprint: milliseconds) is made beside
     // the survey, which it does not need until the run starts.
     let (view, rrd) = std::thread::scope(|s| {
-        let rrd = out
-            .rrd
-            .as_deref()
-            .map(|p| s.spawn(|| RerunSink::create(p, opts, &sc)));
+        let rrd = out.rrd.as_deref().map(|p| {
+            s.spawn(|| {
+                // The SDK's threads, started here, run as writers (as the sink's own
+                // thread will).
+                gripsim::record::background::as_writer_thread();
+                RerunSink::create(p, opts, &sc)
+            })
+        });
         let view = if out.rrd.is_some() || out.mcap.is_some() {
             gripsim::record::ViewOptions {
                 survey: Some(gripsim::record::Survey::of(

@@ -790,6 +790,7 @@ fn write_batches(
     back: std::sync::mpsc::Sender<Batch>,
     failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
 ) -> Result<(), String> {
+    super::background::as_writer_thread();
     let mut w = Some(w);
     let mut error = None;
     for mut b in batches {
