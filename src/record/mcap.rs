@@ -180,6 +180,7 @@ impl McapSink {
     ) -> Result<Self, RecordError> {
         let out = OutputFile::new(path);
         let file = out.create()?;
+        let writeback = super::Writeback::of(&file);
         let err = |e: ::mcap::McapError| RecordError::write(out.writing(), error_chain(&e));
         let mut w = ::mcap::WriteOptions::new()
             .profile("")
@@ -220,7 +221,7 @@ impl McapSink {
         }
         let failed: std::sync::Arc<std::sync::atomic::AtomicBool> = Default::default();
         let steps = StepWriter::new(channels, mcap.precision);
-        let pipe = Pipe::start(w, steps, failed.clone()).map_err(|e| {
+        let pipe = Pipe::start(w, writeback, steps, failed.clone()).map_err(|e| {
             RecordError::write(out.writing(), format!("cannot start a thread: {e}"))
         })?;
         Ok(Self {
@@ -650,6 +651,7 @@ const FLUSHES_AHEAD: u64 = 4;
 impl Pipe {
     fn start(
         w: Writer,
+        writeback: super::Writeback,
         steps: StepWriter,
         failed: std::sync::Arc<std::sync::atomic::AtomicBool>,
     ) -> std::io::Result<Self> {
@@ -657,7 +659,7 @@ impl Pipe {
         let (back, spent) = std::sync::mpsc::channel();
         let thread = std::thread::Builder::new()
             .name("mcap-writer".into())
-            .spawn(move || write_batches(w, steps, batches, back, failed))?;
+            .spawn(move || write_batches(w, writeback, steps, batches, back, failed))?;
         Ok(Self {
             batch: Batch::default(),
             to_writer,
@@ -785,6 +787,7 @@ impl Closing {
 /// nothing more is written (the batches are still taken, so the sink never waits).
 fn write_batches(
     w: Writer,
+    writeback: super::Writeback,
     mut steps: StepWriter,
     batches: std::sync::mpsc::Receiver<Batch>,
     back: std::sync::mpsc::Sender<Batch>,
@@ -795,7 +798,7 @@ fn write_batches(
     let mut error = None;
     for mut b in batches {
         if let Some(writer) = w.as_mut() {
-            if let Err(e) = write_batch(writer, &mut steps, &mut b) {
+            if let Err(e) = write_batch(writer, writeback, &mut steps, &mut b) {
                 error = Some(error_chain(&e));
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
                 // Dropping the writer writes what it can of the summary.
@@ -830,6 +833,7 @@ fn write_batches(
 
 fn write_batch(
     w: &mut Writer,
+    writeback: super::Writeback,
     steps: &mut StepWriter,
     b: &mut Batch,
 ) -> Result<(), ::mcap::McapError> {
@@ -842,7 +846,11 @@ fn write_batch(
                 start = end;
             }
             Item::Metadata(record) => w.write_metadata(&record)?,
-            Item::Flush => w.flush()?,
+            Item::Flush => {
+                // The chunk is ended and in the file: its pages start for the disk now.
+                w.flush()?;
+                writeback.start();
+            }
             Item::Setup(scene) => steps.scene = Some(*scene),
             Item::Step(k) => steps.write(w, &b.steps[k])?,
         }

@@ -1422,6 +1422,8 @@ struct RrdFile {
 
 struct RrdState {
     encoder: Option<Encoder<std::io::BufWriter<std::fs::File>>>,
+    /// The file's disk writes, started at each flush.
+    writeback: super::Writeback,
     chunks: u64,
     footer: bool,
     error: Option<String>,
@@ -1442,6 +1444,7 @@ impl RrdFile {
                 path: path.to_path_buf(),
                 source,
             })?;
+        let writeback = super::Writeback::of(&file);
         let encoder = Encoder::new_eager(
             CrateVersion::LOCAL,
             EncodingOptions::PROTOBUF_COMPRESSED,
@@ -1451,6 +1454,7 @@ impl RrdFile {
         Ok(Self {
             state: std::sync::Arc::new(std::sync::Mutex::new(RrdState {
                 encoder: Some(encoder),
+                writeback,
                 chunks: 0,
                 footer: true,
                 error: None,
@@ -1522,8 +1526,10 @@ impl ::rerun::sink::LogSink for RrdFile {
     ) -> Result<(), ::rerun::sink::SinkFlushError> {
         let mut s = self.lock();
         if let Some(enc) = s.encoder.as_mut() {
-            if let Err(e) = enc.flush_blocking() {
-                s.fail(super::error_chain(&e));
+            match enc.flush_blocking() {
+                // In the file: its pages start for the disk now.
+                Ok(()) => s.writeback.start(),
+                Err(e) => s.fail(super::error_chain(&e)),
             }
         }
         match &s.error {
