@@ -131,7 +131,7 @@ impl Default for McapOptions {
     }
 }
 
-type Writer = ::mcap::Writer<BufWriter<std::fs::File>>;
+type Writer = super::mcap_file::McapFile<BufWriter<std::fs::File>>;
 
 /// Writes an MCAP file.
 pub struct McapSink {
@@ -181,15 +181,15 @@ impl McapSink {
         let out = OutputFile::new(path);
         let file = out.create()?;
         let writeback = super::Writeback::of(&file);
-        let err = |e: ::mcap::McapError| RecordError::write(out.writing(), error_chain(&e));
-        let mut w = ::mcap::WriteOptions::new()
-            .profile("")
-            .library(LIBRARY)
-            // One thread: zstd's output then depends on nothing but the input.
-            .compression_threads(0)
-            .compression_level(mcap.zstd_level)
-            .create(BufWriter::with_capacity(1 << 16, file))
-            .map_err(err)?;
+        // The `mcap` crate's records and options, each chunk compressed whole (one thread:
+        // zstd's output then depends on nothing but the input).
+        let mut w = Writer::new(
+            BufWriter::with_capacity(1 << 16, file),
+            "",
+            LIBRARY,
+            Some(mcap.zstd_level),
+        )
+        .map_err(|e| RecordError::write(out.writing(), error_chain(&e)))?;
         let mut channels = [0u16; 8];
         let step_encoder = super::proto::StepEncoder::new(mcap.precision);
         let (step_schema, iteration_schema) = step_encoder.schemas();
@@ -207,17 +207,13 @@ impl McapSink {
                 } else {
                     &descriptors
                 };
-                let sid = w.add_schema(schema, "protobuf", set).map_err(err)?;
+                let sid = w.add_schema(schema, "protobuf", set);
                 (sid, "protobuf")
             } else {
-                let sid = w
-                    .add_schema(schema, "jsonschema", text.as_bytes())
-                    .map_err(err)?;
+                let sid = w.add_schema(schema, "jsonschema", text.as_bytes());
                 (sid, "json")
             };
-            channels[k] = w
-                .add_channel(sid, topic, encoding, &BTreeMap::new())
-                .map_err(err)?;
+            channels[k] = w.add_channel(sid, topic, encoding, &BTreeMap::new());
         }
         let failed: std::sync::Arc<std::sync::atomic::AtomicBool> = Default::default();
         let steps = StepWriter::new(channels, mcap.precision);
@@ -801,7 +797,7 @@ fn write_batches(
             if let Err(e) = write_batch(writer, writeback, &mut steps, &mut b) {
                 error = Some(error_chain(&e));
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
-                // Dropping the writer writes what it can of the summary.
+                // Nothing more is written; the error is the run's.
                 w = None;
             }
         }
@@ -910,7 +906,7 @@ impl StepWriter {
             publish_time: time,
         };
         self.sequence[slot] = self.sequence[slot].wrapping_add(1);
-        w.write_to_known_channel(&header, &self.buf)
+        Ok(w.write_to_known_channel(&header, &self.buf)?)
     }
 
     fn write(&mut self, w: &mut Writer, c: &StepCopy) -> Result<(), ::mcap::McapError> {

@@ -18,6 +18,7 @@ pub mod foxglove;
 pub mod grasp;
 pub mod mcap;
 pub mod mcap3;
+mod mcap_file;
 pub mod pressure;
 pub mod proto;
 pub mod rerun;
