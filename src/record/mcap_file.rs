@@ -82,6 +82,9 @@ impl Put for Vec<u8> {
     }
 }
 
+/// A channel: id, schema id, topic, message encoding, metadata.
+type ChannelRecord = (u16, u16, String, String, BTreeMap<String, String>);
+
 /// A chunk's entry in the summary.
 struct ChunkIndex {
     start_time: u64,
@@ -137,7 +140,7 @@ pub(crate) struct McapFile<W: Write> {
     spare: Vec<u8>,
     compressed: Vec<u8>,
     schemas: Vec<(u16, String, String, Vec<u8>)>,
-    channels: Vec<(u16, u16, String, String, BTreeMap<String, String>)>,
+    channels: Vec<ChannelRecord>,
     chunk_indexes: Vec<ChunkIndex>,
     /// (offset, length, name) of each metadata record.
     metadata_indexes: Vec<(u64, u64, String)>,
@@ -206,10 +209,7 @@ impl<W: Write> McapFile<W> {
         buf.record(op::SCHEMA, &body);
     }
 
-    fn channel_record(
-        buf: &mut Vec<u8>,
-        (id, schema, topic, encoding, meta): &(u16, u16, String, String, BTreeMap<String, String>),
-    ) {
+    fn channel_record(buf: &mut Vec<u8>, (id, schema, topic, encoding, meta): &ChannelRecord) {
         let mut body = Vec::new();
         body.u16(*id);
         body.u16(*schema);
