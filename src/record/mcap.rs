@@ -1449,7 +1449,8 @@ fn rod_entity(
             let t = &mut e.texts[texts];
             t.pose = Some(pose(ox + len * dir[0], oy + len * dir[1], 0.0));
             t.text.clear();
-            let _ = write!(t.text, "{} N", super::fmt_force(f));
+            super::push_g(&mut t.text, f);
+            t.text.push_str(" N");
             texts += 1;
         }
     }

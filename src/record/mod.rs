@@ -1189,15 +1189,28 @@ pub fn fmt_force(f: f64) -> String {
 }
 
 fn fmt_g(v: f64) -> String {
+    let mut s = String::new();
+    push_g(&mut s, v);
+    s
+}
+
+/// Append `v` with four significant digits, trailing zeros dropped (`3.451`, `120`, `0`), to
+/// `out`: the force labels of every step, written in place (no string of their own).
+pub fn push_g(out: &mut String, v: f64) {
+    use std::fmt::Write as _;
     if v == 0.0 {
-        return "0".into();
+        out.push('0');
+        return;
     }
     let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
-    let s = format!("{v:.digits$}");
-    if s.contains('.') {
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        s
+    let start = out.len();
+    let _ = write!(out, "{v:.digits$}");
+    if out[start..].contains('.') {
+        let kept = out[start..]
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .len();
+        out.truncate(start + kept);
     }
 }
 
@@ -1480,6 +1493,26 @@ mod tests {
             let wb = Writeback::of(&f);
             assert!(wb.fd.is_none());
             wb.start();
+        }
+    }
+
+    /// Labels are written in place after what the string holds: four significant digits,
+    /// trailing zeros dropped, as `fmt_force` gives them.
+    #[test]
+    fn push_g_appends_four_significant_digits() {
+        for (v, text) in [
+            (3.4512, "3.451"),
+            (120.0, "120"),
+            (0.0, "0"),
+            (1e-5, "0.00001"),
+            (-2.5, "-2.5"),
+            (194.4471, "194.4"),
+            (12345.6, "12346"),
+        ] {
+            let mut s = String::from("B ");
+            push_g(&mut s, v);
+            assert_eq!(s, format!("B {text}"));
+            assert_eq!(fmt_force(v), text);
         }
     }
 }

@@ -1988,10 +1988,13 @@ impl RodEntities {
             a.r_orig
                 .push(f32x2([p[0] + rad * dir[0], p[1] + rad * dir[1]]));
             a.r_vec.push(f32x2([len * dir[0], len * dir[1]]));
-            a.labels.push(match look {
-                Look::Live => format!("{} N", super::fmt_force(f)),
-                Look::Other => format!("B {} N", super::fmt_force(f)),
-            });
+            let mut label = String::with_capacity(16);
+            if let Look::Other = look {
+                label.push_str("B ");
+            }
+            super::push_g(&mut label, f);
+            label.push_str(" N");
+            a.labels.push(label);
         }
         Some(a)
     }
