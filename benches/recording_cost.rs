@@ -10,8 +10,9 @@
 //! `RECORDING_COST_ROWS=mcap` runs only the rows whose name contains `mcap` (and the row
 //! without sinks, the reference of the ratios), e.g. to profile one sink under `perf`.
 //! `RECORDING_COST_FLUSH_EVERY=N` overrides the scenario's `[output] flush_every` (the steps
-//! per `.rrd` chunk and MCAP chunk). `RECORDING_COST_ZSTD=N` sets the MCAP's zstd level and
-//! `RECORDING_COST_PRECISION=f64` its /sim/step precision (defaults: the sink's, 1 and f32).
+//! per `.rrd` chunk and MCAP chunk). `RECORDING_COST_ZSTD=N` sets the MCAP's zstd level (its
+//! min match and hash log stay the sink's) and `RECORDING_COST_PRECISION=f64` its /sim/step
+//! precision (defaults: the sink's, -1 and f32).
 //! `RECORDING_COST_RRD_THREAD=off` runs the `.rrd` sink in the run's thread instead of on a
 //! thread of its own (as `gripsim run` does), to compare the two.
 //! Prints a Markdown table for docs/performance.md: the median wall time of REPEATS runs
@@ -80,16 +81,15 @@ fn run(sc: &Scenario, case: Case, dir: &Path) -> (f64, f64, Vec<(&'static str, u
         }
     }
     if case.mcap {
-        // `RECORDING_COST_ZSTD=N`: the MCAP's zstd level (default: the sink's, level 1);
+        // `RECORDING_COST_ZSTD=N`: the MCAP's zstd level (default: the sink's, -1; its min
+        // match and hash log stay);
         // `RECORDING_COST_PRECISION=f64`: exact doubles in /sim/step.
         let mut mcap = gripsim::record::mcap::McapOptions::default();
         if let Some(l) = std::env::var("RECORDING_COST_ZSTD")
             .ok()
             .and_then(|v| v.parse::<i32>().ok())
         {
-            // The mcap crate passes its u32 level on to zstd as an i32: the fast (negative)
-            // levels go through as their two's complement.
-            mcap.zstd_level = l as u32;
+            mcap.zstd_level = l;
         }
         if std::env::var("RECORDING_COST_PRECISION").as_deref() == Ok("f64") {
             mcap.precision = gripsim::scenario::Precision::F64;

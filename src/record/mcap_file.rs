@@ -82,6 +82,30 @@ impl Put for Vec<u8> {
     }
 }
 
+/// How the chunks are compressed: zstd's level, and the parameters set over the level's.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Zstd {
+    pub level: i32,
+    pub min_match: Option<u32>,
+    pub hash_log: Option<u32>,
+}
+
+impl Zstd {
+    /// One compression context, reused from chunk to chunk, on the calling thread (zstd's
+    /// output then depends on nothing but the input).
+    fn compressor(self) -> io::Result<zstd::bulk::Compressor<'static>> {
+        use zstd::zstd_safe::CParameter;
+        let mut z = zstd::bulk::Compressor::new(self.level)?;
+        if let Some(m) = self.min_match {
+            z.set_parameter(CParameter::MinMatch(m))?;
+        }
+        if let Some(h) = self.hash_log {
+            z.set_parameter(CParameter::HashLog(h))?;
+        }
+        Ok(z)
+    }
+}
+
 /// A channel: id, schema id, topic, message encoding, metadata.
 type ChannelRecord = (u16, u16, String, String, BTreeMap<String, String>);
 
@@ -153,17 +177,10 @@ fn widen(b: Option<(u64, u64)>, t: u64) -> Option<(u64, u64)> {
 }
 
 impl<W: Write> McapFile<W> {
-    /// Start the file (magic, header) in `w`; chunks compressed with zstd at `zstd_level`
-    /// (the crate's `u32`, negative levels as their two's complement), or not at all.
-    pub(crate) fn new(
-        w: W,
-        profile: &str,
-        library: &str,
-        zstd_level: Option<u32>,
-    ) -> io::Result<Self> {
-        let zstd = zstd_level
-            .map(|l| zstd::bulk::Compressor::new(l as i32))
-            .transpose()?;
+    /// Start the file (magic, header) in `w`; chunks compressed with zstd at `zstd.level`, or
+    /// not at all.
+    pub(crate) fn new(w: W, profile: &str, library: &str, zstd: Option<Zstd>) -> io::Result<Self> {
+        let zstd = zstd.map(Zstd::compressor).transpose()?;
         let mut f = Self {
             out: Out {
                 w,
@@ -561,6 +578,11 @@ mod tests {
     }
 
     fn ours(zstd: Option<u32>) -> Vec<u8> {
+        let zstd = zstd.map(|level| Zstd {
+            level: level as i32,
+            min_match: None,
+            hash_log: None,
+        });
         let mut w = McapFile::new(Vec::new(), "", "gripsim test", zstd).unwrap();
         let (mut schemas, mut channels) = (Vec::new(), Vec::new());
         for call in calls() {
