@@ -577,6 +577,87 @@ mod tests {
         }
     }
 
+    /// The calls a test makes, on either writer.
+    trait Calls {
+        fn schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> u16;
+        fn channel(
+            &mut self,
+            schema: u16,
+            topic: &str,
+            encoding: &str,
+            meta: &[(&str, &str)],
+        ) -> u16;
+        fn message(&mut self, header: &MessageHeader, data: &[u8]);
+        fn metadata(&mut self, m: &Metadata);
+        fn flush(&mut self);
+    }
+
+    impl Calls for McapFile<Vec<u8>> {
+        fn schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> u16 {
+            self.add_schema(name, encoding, data)
+        }
+        fn channel(
+            &mut self,
+            schema: u16,
+            topic: &str,
+            encoding: &str,
+            meta: &[(&str, &str)],
+        ) -> u16 {
+            self.add_channel(schema, topic, encoding, &map(meta))
+        }
+        fn message(&mut self, header: &MessageHeader, data: &[u8]) {
+            self.write_to_known_channel(header, data).unwrap();
+        }
+        fn metadata(&mut self, m: &Metadata) {
+            self.write_metadata(m).unwrap();
+        }
+        fn flush(&mut self) {
+            McapFile::flush(self).unwrap();
+        }
+    }
+
+    impl Calls for ::mcap::Writer<std::io::Cursor<Vec<u8>>> {
+        fn schema(&mut self, name: &str, encoding: &str, data: &[u8]) -> u16 {
+            self.add_schema(name, encoding, data).unwrap()
+        }
+        fn channel(
+            &mut self,
+            schema: u16,
+            topic: &str,
+            encoding: &str,
+            meta: &[(&str, &str)],
+        ) -> u16 {
+            self.add_channel(schema, topic, encoding, &map(meta))
+                .unwrap()
+        }
+        fn message(&mut self, header: &MessageHeader, data: &[u8]) {
+            self.write_to_known_channel(header, data).unwrap();
+        }
+        fn metadata(&mut self, m: &Metadata) {
+            self.write_metadata(m).unwrap();
+        }
+        fn flush(&mut self) {
+            ::mcap::Writer::flush(self).unwrap();
+        }
+    }
+
+    /// Make every call of [`calls`] on `w`.
+    fn drive(w: &mut impl Calls) {
+        let (mut schemas, mut channels) = (Vec::new(), Vec::new());
+        for call in calls() {
+            match call {
+                Call::Schema(n, e, d) => schemas.push(w.schema(n, e, &d)),
+                Call::Channel(s, t, e, m) => channels.push(w.channel(schemas[s], t, e, &m)),
+                Call::Message(c, q, t, d) => w.message(&header(channels[c], q, t), &d),
+                Call::Metadata(n, m) => w.metadata(&Metadata {
+                    name: n.into(),
+                    metadata: map(&m),
+                }),
+                Call::Flush => w.flush(),
+            }
+        }
+    }
+
     fn ours(zstd: Option<u32>) -> Vec<u8> {
         let zstd = zstd.map(|level| Zstd {
             level: level as i32,
@@ -584,25 +665,7 @@ mod tests {
             hash_log: None,
         });
         let mut w = McapFile::new(Vec::new(), "", "gripsim test", zstd).unwrap();
-        let (mut schemas, mut channels) = (Vec::new(), Vec::new());
-        for call in calls() {
-            match call {
-                Call::Schema(n, e, d) => schemas.push(w.add_schema(n, e, &d)),
-                Call::Channel(s, t, e, m) => {
-                    channels.push(w.add_channel(schemas[s], t, e, &map(&m)))
-                }
-                Call::Message(c, q, t, d) => w
-                    .write_to_known_channel(&header(channels[c], q, t), &d)
-                    .unwrap(),
-                Call::Metadata(n, m) => w
-                    .write_metadata(&Metadata {
-                        name: n.into(),
-                        metadata: map(&m),
-                    })
-                    .unwrap(),
-                Call::Flush => w.flush().unwrap(),
-            }
-        }
+        drive(&mut w);
         w.finish().unwrap();
         w.into_inner()
     }
@@ -616,25 +679,7 @@ mod tests {
             .compression_level(zstd.unwrap_or(0))
             .create(std::io::Cursor::new(Vec::new()))
             .unwrap();
-        let (mut schemas, mut channels) = (Vec::new(), Vec::new());
-        for call in calls() {
-            match call {
-                Call::Schema(n, e, d) => schemas.push(w.add_schema(n, e, &d).unwrap()),
-                Call::Channel(s, t, e, m) => {
-                    channels.push(w.add_channel(schemas[s], t, e, &map(&m)).unwrap())
-                }
-                Call::Message(c, q, t, d) => w
-                    .write_to_known_channel(&header(channels[c], q, t), &d)
-                    .unwrap(),
-                Call::Metadata(n, m) => w
-                    .write_metadata(&Metadata {
-                        name: n.into(),
-                        metadata: map(&m),
-                    })
-                    .unwrap(),
-                Call::Flush => w.flush().unwrap(),
-            }
-        }
+        drive(&mut w);
         w.finish().unwrap();
         w.into_inner().into_inner()
     }
