@@ -13,13 +13,14 @@ pub fn deepest(s: &Surfaces, p: [f64; 2], below: f64) -> Option<(usize, Proximit
 }
 
 /// Signed distance to the nearest surface (∞ when there are none). Exact only where a lower
-/// bound says the node may be within `exact_within`; elsewhere the bound is returned.
+/// bound says the node may be within `exact_within`; elsewhere the bound is returned. A
+/// surface whose bound is its distance ([`Surfaces::bound_is_distance`]) is not asked twice.
 #[inline]
 pub fn gap(s: &Surfaces, p: [f64; 2], exact_within: f64) -> f64 {
     let mut g = f64::INFINITY;
     for k in 0..s.len() {
         let lb = s.lower_bound(k, p);
-        let d = if lb < exact_within {
+        let d = if lb < exact_within && !s.bound_is_distance(k) {
             s.query(k, p).distance
         } else {
             lb

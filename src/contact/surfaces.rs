@@ -76,6 +76,15 @@ impl<'a> Surfaces<'a> {
         grown(q, self.offset)
     }
 
+    /// Whether [`Self::lower_bound`] of obstacle `k` is the signed distance [`Self::query`]
+    /// gives, bit for bit (a fixed circle or plane: its bound is its query's distance).
+    #[inline]
+    pub fn bound_is_distance(&self, k: usize) -> bool {
+        self.compliant.get(k) != Some(&true)
+            && self.placed(k).is_none()
+            && self.obstacles[k].bound_is_distance()
+    }
+
     #[inline]
     pub fn lower_bound(&self, k: usize, p: [f64; 2]) -> f64 {
         if self.compliant.get(k) == Some(&true) {

@@ -61,6 +61,12 @@ impl Obstacle {
         }
     }
 
+    /// Whether [`Self::lower_bound`] is the signed distance itself (the same computation as
+    /// [`Self::query`]'s).
+    pub fn bound_is_distance(&self) -> bool {
+        matches!(self, Obstacle::Circle(_) | Obstacle::Plane(_))
+    }
+
     pub fn kind(&self) -> &'static str {
         match self {
             Obstacle::Circle(_) => "circle",
@@ -112,6 +118,14 @@ mod tests {
                 "{o:?} {p:?}: {q:?}"
             );
             assert!(o.lower_bound(p) <= q.distance + 1e-12, "{o:?} {p:?} bound");
+            if o.bound_is_distance() {
+                // `contact::gap` then takes the bound for the distance.
+                assert_eq!(
+                    o.lower_bound(p).to_bits(),
+                    q.distance.to_bits(),
+                    "{o:?} {p:?}"
+                );
+            }
             let h = 1e-7;
             let gx = (o.query([p[0] + h, p[1]]).distance - o.query([p[0] - h, p[1]]).distance)
                 / (2.0 * h);
