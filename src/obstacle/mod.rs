@@ -95,6 +95,50 @@ pub(crate) fn norm(v: [f64; 2]) -> f64 {
     (v[0] * v[0] + v[1] * v[1]).sqrt()
 }
 
+/// The weight s ∈ [0, 1] of the point of a segment deepest into a surface, for the segment
+/// contacts of both solvers: `at(s)` is the surface's answer at s and `distance` its signed
+/// distance. A golden-section search of at most `iters` steps (to a bracket of 1e-13), exact
+/// for a distance convex along the segment, a local minimum otherwise; then the two ends, which
+/// win ties (a face the segment lies flat on is the nodes' business).
+pub fn deepest_along<P>(
+    at: impl Fn(f64) -> P,
+    distance: impl Fn(&P) -> f64,
+    iters: usize,
+) -> (f64, P) {
+    const INV_PHI: f64 = 0.618_033_988_749_894_9;
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    let mut x1 = hi - INV_PHI * (hi - lo);
+    let mut x2 = lo + INV_PHI * (hi - lo);
+    let (mut f1, mut f2) = (distance(&at(x1)), distance(&at(x2)));
+    for _ in 0..iters {
+        if f1 <= f2 {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - INV_PHI * (hi - lo);
+            f1 = distance(&at(x1));
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + INV_PHI * (hi - lo);
+            f2 = distance(&at(x2));
+        }
+        if hi - lo < 1e-13 {
+            break;
+        }
+    }
+    let mid = 0.5 * (lo + hi);
+    let mut best = (mid, at(mid));
+    for s in [0.0, 1.0] {
+        let q = at(s);
+        if distance(&q) <= distance(&best.1) {
+            best = (s, q);
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -265,48 +309,4 @@ mod tests {
         // A straight angle (collinear neighbours going on) is fine.
         assert!(Polygon::new(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.0, 1.0]]).is_ok());
     }
-}
-
-/// The weight s ∈ [0, 1] of the point of a segment deepest into a surface, for the segment
-/// contacts of both solvers: `at(s)` is the surface's answer at s and `distance` its signed
-/// distance. A golden-section search of at most `iters` steps (to a bracket of 1e-13), exact
-/// for a distance convex along the segment, a local minimum otherwise; then the two ends, which
-/// win ties (a face the segment lies flat on is the nodes' business).
-pub fn deepest_along<P>(
-    at: impl Fn(f64) -> P,
-    distance: impl Fn(&P) -> f64,
-    iters: usize,
-) -> (f64, P) {
-    const INV_PHI: f64 = 0.618_033_988_749_894_9;
-    let (mut lo, mut hi) = (0.0f64, 1.0f64);
-    let mut x1 = hi - INV_PHI * (hi - lo);
-    let mut x2 = lo + INV_PHI * (hi - lo);
-    let (mut f1, mut f2) = (distance(&at(x1)), distance(&at(x2)));
-    for _ in 0..iters {
-        if f1 <= f2 {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - INV_PHI * (hi - lo);
-            f1 = distance(&at(x1));
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + INV_PHI * (hi - lo);
-            f2 = distance(&at(x2));
-        }
-        if hi - lo < 1e-13 {
-            break;
-        }
-    }
-    let mid = 0.5 * (lo + hi);
-    let mut best = (mid, at(mid));
-    for s in [0.0, 1.0] {
-        let q = at(s);
-        if distance(&q) <= distance(&best.1) {
-            best = (s, q);
-        }
-    }
-    best
 }

@@ -173,7 +173,7 @@ impl PointCloud {
             at("blue", UINT8)?,
             at("alpha", UINT8)?,
         ];
-        if stride == 0 || self.data.len() % stride != 0 {
+        if stride == 0 || !self.data.len().is_multiple_of(stride) {
             return None;
         }
         let mut out = Vec::with_capacity(self.data.len() / stride);
@@ -1072,8 +1072,12 @@ mod tests {
     fn the_direct_encoder_writes_the_bytes_prost_writes() {
         let v = |k: usize| Vector3 {
             x: 0.1 * k as f64 - 0.3,
-            y: if k % 3 == 0 { -0.0 } else { 1e-3 * k as f64 },
-            z: if k % 2 == 0 { 0.0 } else { f64::NAN },
+            y: if k.is_multiple_of(3) {
+                -0.0
+            } else {
+                1e-3 * k as f64
+            },
+            z: if k.is_multiple_of(2) { 0.0 } else { f64::NAN },
         };
         let c = |k: usize| Color {
             r: 0.5,

@@ -405,7 +405,7 @@ mod tests {
         b.node = 2;
         b.peak_pressure = 9e4;
         a.half_width = 0.0;
-        assert_eq!(most_pressed(&[a.clone(), b.clone()]).unwrap().node, 2);
+        assert_eq!(most_pressed(&[a, b]).unwrap().node, 2);
         a.half_width = 1e-3;
         a.peak_pressure = 9e4;
         assert_eq!(most_pressed(&[a, b]).unwrap().node, 1);

@@ -179,6 +179,9 @@ pub fn tip_node(clamped: &[bool]) -> usize {
     }
 }
 
+/// A rod's tip node, its first clamped node, and their initial positions.
+type Tip = (usize, Option<usize>, Option<([f64; 2], [f64; 2])>);
+
 /// Collects a [`Summary`] from step events.
 #[derive(Debug, Default)]
 pub struct SummaryCollector {
@@ -200,7 +203,7 @@ pub struct SummaryCollector {
     error: Option<String>,
     ended: bool,
     /// Per rod: (tip node, first clamped node) and their initial positions.
-    tips: Vec<(usize, Option<usize>, Option<([f64; 2], [f64; 2])>)>,
+    tips: Vec<Tip>,
     grasp: super::grasp::GraspTracker,
     pressure: Option<PressureSummary>,
 }

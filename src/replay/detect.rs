@@ -759,7 +759,7 @@ impl Detector {
         // TR-BDF2's first stage ends at t + γ dt of the step's start, the last step's end
         // (computed as the solver does, so it is the same number).
         let stage1 = (self.tr_bdf2 && step > 0 && self.last_step == Some(step - 1))
-            .then(|| self.t_end + crate::solver::TR_BDF2_GAMMA * dt);
+            .then_some(self.t_end + crate::solver::TR_BDF2_GAMMA * dt);
         for c in pending {
             let accepted_time = c.t == t || stage1 == Some(c.t);
             if c.step != step || (self.dynamic && !accepted_time) {

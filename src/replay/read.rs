@@ -954,7 +954,7 @@ impl Records {
         let meta = file
             .metadata()
             .map_err(|e| format!("cannot read the file: {e}"))?;
-        let size = meta.is_file().then(|| meta.len());
+        let size = meta.is_file().then_some(meta.len());
         let mut src = std::io::BufReader::with_capacity(1 << 16, file);
         let mut magic = Vec::with_capacity(8);
         (&mut src)

@@ -421,8 +421,7 @@ impl Detector3 {
                 }
             }
         }
-        self.sticking
-            .sort_by(|a, b| (a.step, a.rod, a.node).cmp(&(b.step, b.rod, b.node)));
+        self.sticking.sort_by_key(|a| (a.step, a.rod, a.node));
         let grasp = self.grasp.take().map(|g| g.finish()).unwrap_or_default();
         Check3Report {
             file: file.to_string(),

@@ -172,7 +172,9 @@ impl<const N: usize> Mul for Dual2<N> {
 
 impl<const N: usize> Div for Dual2<N> {
     type Output = Self;
+    /// a / b = a · (1/b), the reciprocal carrying its own second-order chain rule.
     #[inline]
+    #[allow(clippy::suspicious_arithmetic_impl)]
     fn div(self, o: Self) -> Self {
         self * o.recip()
     }

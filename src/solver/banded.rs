@@ -79,7 +79,7 @@ impl BandLu {
             if a <= c + self.kl && c <= a + self.ku {
                 self.set(a, c, x - nrm[0] * d);
             }
-            if a + 1 <= c + self.kl && c <= a + 1 + self.ku {
+            if a < c + self.kl && c <= a + 1 + self.ku {
                 self.set(a + 1, c, y - nrm[1] * d);
             }
         }
@@ -95,7 +95,7 @@ impl BandLu {
             if a <= c + self.kl && c <= a + self.ku {
                 self.set(a, c, l[0][0] * x + l[0][1] * y);
             }
-            if a + 1 <= c + self.kl && c <= a + 1 + self.ku {
+            if a < c + self.kl && c <= a + 1 + self.ku {
                 self.set(a + 1, c, l[1][0] * x + l[1][1] * y);
             }
         }
@@ -110,7 +110,7 @@ impl BandLu {
             if r <= a + self.kl && a <= r + self.ku {
                 self.set(r, a, x - nrm[0] * d);
             }
-            if r <= a + 1 + self.kl && a + 1 <= r + self.ku {
+            if r <= a + 1 + self.kl && a < r + self.ku {
                 self.set(r, a + 1, y - nrm[1] * d);
             }
         }

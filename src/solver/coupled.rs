@@ -32,6 +32,12 @@ pub struct RodCoupling {
     d: Vec<f64>,
 }
 
+/// Called with (rod, report) after every Newton update.
+type OnIteration<'a> = &'a mut dyn FnMut(usize, IterationReport<'_>);
+
+/// A KKT constraint row: (body, contact, 0 normal / 1 tangential, row a, force direction w).
+type KktRow = (usize, usize, usize, [f64; 3], [f64; 3]);
+
 /// Scratch of the body system.
 #[derive(Debug, Clone, Default)]
 pub struct BodyScratch {
@@ -42,8 +48,7 @@ pub struct BodyScratch {
     gz: Vec<f64>,
     kkt: Vec<f64>,
     rhs: Vec<f64>,
-    /// Per KKT constraint row: (body, contact, 0 normal / 1 tangential, row a, force direction w).
-    rows: Vec<(usize, usize, usize, [f64; 3], [f64; 3])>,
+    rows: Vec<KktRow>,
     dx: Vec<[f64; 3]>,
 }
 
@@ -74,7 +79,7 @@ impl Coupled<'_> {
     pub fn solve(
         &mut self,
         opt: &NewtonOptions,
-        mut on_iter: Option<&mut dyn FnMut(usize, IterationReport<'_>)>,
+        mut on_iter: Option<OnIteration<'_>>,
     ) -> Result<u32, CoupledFailure> {
         let nb = self.nb();
         self.prepare(nb);

@@ -20,9 +20,12 @@ use super::coupled::dense_solve;
 use super::newton::{NewtonFailure, RodWork};
 use crate::model::Rod;
 
+/// A node's free index and its column and row parts of an edge contact.
+type NodePart = (usize, [f64; 2], [f64; 2]);
+
 /// Per node of edge contact j: its free index and the column u = L (w n) and row v = P (w n)
 /// parts there (None for a driven node).
-fn parts(w: &RodWork, j: usize) -> [Option<(usize, [f64; 2], [f64; 2])>; 2] {
+fn parts(w: &RodWork, j: usize) -> [Option<NodePart>; 2] {
     let e = w.edges[j];
     let ws = e.weights();
     let mut out = [None, None];

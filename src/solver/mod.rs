@@ -791,7 +791,7 @@ impl Simulation {
             }
             // The end of the bracket on or just inside the surface: the step ends at contact.
             let theta = b;
-            if theta < 1.0 - 1e-9 && best.map_or(true, |(t, _)| theta < t) {
+            if theta < 1.0 - 1e-9 && best.is_none_or(|(t, _)| theta < t) {
                 best = Some((theta, i));
             }
         }
@@ -978,10 +978,10 @@ fn rod_works(scenario: &Scenario, rods: &[Rod]) -> Vec<RodWork> {
     work
 }
 
-fn build_actuators(
-    scenario: &Scenario,
-    rods: &[Rod],
-) -> (Vec<Actuator>, Vec<String>, Vec<(usize, Option<f64>)>) {
+/// The actuators, their names, and per rod (actuator, its fixed offset if any).
+type Actuators = (Vec<Actuator>, Vec<String>, Vec<(usize, Option<f64>)>);
+
+fn build_actuators(scenario: &Scenario, rods: &[Rod]) -> Actuators {
     let (programs, rod_actuator) = crate::scenario::actuation::groups(scenario);
     let actuators: Vec<Actuator> = programs
         .into_iter()

@@ -206,10 +206,7 @@ fn a_spike_is_flagged_alike_on_the_auto_and_the_step_recording() {
         "{ra}"
     );
     assert_eq!(rs.get("decimated"), None);
-    assert_eq!(
-        ra["steps"].as_u64().unwrap() < rs["steps"].as_u64().unwrap(),
-        true
-    );
+    assert!(ra["steps"].as_u64().unwrap() < rs["steps"].as_u64().unwrap());
 }
 
 #[test]

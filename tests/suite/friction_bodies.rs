@@ -15,6 +15,9 @@ fn shipped(name: &str, sets: &[&str]) -> Scenario {
     Scenario::load(std::path::Path::new(&path), &sets).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// A body's position, velocity, angular velocity, contact force and contact torque at a step.
+type BodyState = ([f64; 2], [f64; 2], f64, [f64; 2], f64);
+
 /// Every step's particle/body state and contacts.
 #[derive(Default)]
 struct Trace {
@@ -22,7 +25,7 @@ struct Trace {
     dt: Vec<f64>,
     q0: Vec<[f64; 2]>,
     u0: Vec<[f64; 2]>,
-    body: Vec<([f64; 2], [f64; 2], f64, [f64; 2], f64)>,
+    body: Vec<BodyState>,
     contacts: Vec<Vec<ContactView>>,
     slips: usize,
     sticks: usize,

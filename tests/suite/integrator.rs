@@ -596,7 +596,7 @@ fn a_node_released_right_after_landing_does_not_rebound_under_bdf2() {
             "{sets:?}: {u:?}, {:.3e} m/s off the reference, held {held} steps",
             gap(u, u_ref)
         );
-        assert!(held >= 1 && held <= 3, "{sets:?}: held {held} steps");
+        assert!((1..=3).contains(&held), "{sets:?}: held {held} steps");
         assert!(gap(u, u_ref) < 1e-2, "{sets:?}: {u:?} against {u_ref:?}");
     }
 }

@@ -568,7 +568,7 @@ fn a_damaged_chunk_is_named_and_read_up_to() {
     assert_eq!(rep["incomplete"], true);
     let steps = rep["steps"].as_u64().unwrap();
     assert!(
-        steps >= 1 && steps < 501,
+        (1..501).contains(&steps),
         "read up to the damage: {steps} steps"
     );
     // One flipped bit that still decompresses: the CRC finds it, and nothing of the damaged
@@ -659,7 +659,9 @@ fn golden_guards_pass_and_fail_on_their_regressions() {
     let d = dir.path();
     let golden = Path::new(ROOT).join("recordings/golden");
     let sine = scenario("point-mass-sine");
-    let guards: [(&str, PathBuf, Vec<&str>, Vec<Vec<&str>>); 3] = [
+    // (name, golden scenario, its settings, the regressions' settings)
+    type Guard<'a> = (&'a str, PathBuf, Vec<&'a str>, Vec<Vec<&'a str>>);
+    let guards: [Guard; 3] = [
         (
             "grasp-proximity",
             golden.join("grasp-proximity.toml"),

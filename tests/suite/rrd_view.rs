@@ -186,7 +186,7 @@ fn the_seed_grasp_view_shows_phases_honest_arrows_and_bookmarks() {
     let peak_step = reactions
         .iter()
         // The MCAP's reaction norms are f32: the step whose norm is the peak rounded to f32.
-        .find(|(_, f)| f.iter().any(|&x| x == peak as f32 as f64))
+        .find(|(_, f)| f.contains(&(peak as f32 as f64)))
         .map(|(s, _)| *s)
         .unwrap();
     assert_eq!(pk["step"].as_u64(), Some(peak_step));
