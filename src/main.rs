@@ -69,9 +69,10 @@ enum Command {
         /// What the recordings hold: auto = every step with its Newton iterations in windows
         /// around each event (contact change, stick/slip, dt change, Newton trouble, spike),
         /// every k-th step elsewhere (k from the run's length, docs/recording-format.md);
-        /// step = every step; iteration = every step and every Newton iteration.
-        #[arg(long, value_enum, default_value_t = DetailArg::Auto)]
-        detail: DetailArg,
+        /// step = every step; iteration = every step and every Newton iteration [default:
+        /// auto; a 3D scenario records every step and takes step only].
+        #[arg(long, value_enum)]
+        detail: Option<DetailArg>,
         /// With --detail auto: record every N-th step outside the windows [default: from the
         /// run's length and node count].
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -81,9 +82,9 @@ enum Command {
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
         flush_every: Option<u64>,
         /// How the .rrd and the MCAP scene scale force arrows: linear (one scale per recording,
-        /// from the run's largest force, printed in the scene) or log.
-        #[arg(long, value_enum, default_value_t = ArrowsArg::Linear)]
-        arrows: ArrowsArg,
+        /// from the run's largest force, printed in the scene) or log [default: linear].
+        #[arg(long, value_enum)]
+        arrows: Option<ArrowsArg>,
         /// How the MCAP stores the per-node numbers of /sim/step and /sim/iteration: f32
         /// (with an exact fingerprint of each step) or f64 (exact) [default: the scenario's
         /// [output] precision, else f32].
@@ -263,6 +264,42 @@ struct Outputs {
     /// `--check`: the thresholds and where to write the report.
     check: Option<(gripsim::replay::Thresholds, Option<PathBuf>)>,
     arrows: gripsim::record::ArrowScale,
+    /// The recording options given that only a planar run honours (option, value): a 3D
+    /// run records every step in f64, with fixed arrow scales, in its writers' own chunks.
+    planar_only: Vec<(&'static str, String)>,
+}
+
+/// The recording options of `run` given on the command line that a 3D run cannot honour
+/// ([`Outputs::planar_only`]); those that say what a 3D run does anyway (`--detail step`,
+/// `--precision f64`, `--arrows linear`) are not among them.
+fn planar_only(
+    detail: Option<DetailArg>,
+    auto_every: Option<u64>,
+    flush_every: Option<u64>,
+    precision: Option<PrecisionArg>,
+    arrows: Option<ArrowsArg>,
+) -> Vec<(&'static str, String)> {
+    fn name<T: ValueEnum>(v: &T) -> String {
+        v.to_possible_value()
+            .map_or_else(String::new, |p| p.get_name().to_string())
+    }
+    let mut given = Vec::new();
+    if let Some(d) = detail.filter(|d| !matches!(d, DetailArg::Step)) {
+        given.push(("--detail", name(&d)));
+    }
+    if let Some(n) = auto_every {
+        given.push(("--auto-every", n.to_string()));
+    }
+    if let Some(n) = flush_every {
+        given.push(("--flush-every", n.to_string()));
+    }
+    if let Some(p) = precision.filter(|p| matches!(p, PrecisionArg::F32)) {
+        given.push(("--precision", name(&p)));
+    }
+    if let Some(a) = arrows.filter(|a| matches!(a, ArrowsArg::Log)) {
+        given.push(("--arrows", name(&a)));
+    }
+    given
 }
 
 fn main() -> ExitCode {
@@ -290,12 +327,13 @@ fn main() -> ExitCode {
             if perturb {
                 sets.push("solve.imperfection=1e-3".into());
             }
+            let planar_only = planar_only(detail, auto_every, flush_every, precision, arrows);
             let out = Outputs {
                 rrd,
                 mcap,
                 csv,
                 summary,
-                detail: match detail {
+                detail: match detail.unwrap_or(DetailArg::Auto) {
                     DetailArg::Auto => Detail::Auto(Default::default()),
                     DetailArg::Step => Detail::Step,
                     DetailArg::Iteration => Detail::Iteration,
@@ -307,10 +345,11 @@ fn main() -> ExitCode {
                     PrecisionArg::F64 => gripsim::scenario::Precision::F64,
                 }),
                 check: check.then_some((thresholds, check_json)),
-                arrows: match arrows {
+                arrows: match arrows.unwrap_or(ArrowsArg::Linear) {
                     ArrowsArg::Linear => gripsim::record::ArrowScale::Linear,
                     ArrowsArg::Log => gripsim::record::ArrowScale::Log,
                 },
+                planar_only,
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
@@ -763,6 +802,14 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary and
 /// `.rrd` (src/record/rerun3.rs), with `--set` overrides.
 fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
+    // Refused before anything is read or written: an option that would change nothing.
+    if let Some((option, value)) = out.planar_only.first() {
+        eprintln!(
+            "error: {}: {option} {value} applies to planar scenarios only; a 3D run records every step, in f64, with fixed arrow scales, in chunks of its writers' own sizes (drop the option)",
+            path.display()
+        );
+        return ExitCode::from(2);
+    }
     let sc = match gripsim::scenario::three::Scenario3::load_with(path, sets) {
         Ok(s) => s,
         Err(e) => {

@@ -2163,3 +2163,57 @@ fn tr_bdf2_with_a_free_body() {
         ],
     );
 }
+
+/// The recording options a 3D run cannot honour are refused before anything is read or
+/// written (exit 2, one line naming the scenario, the option and its value); those that say
+/// what a 3D run does anyway are taken.
+#[test]
+fn planar_recording_options_are_refused_for_a_3d_scenario() {
+    let text = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/3d-two-finger-sphere.toml"),
+    )
+    .unwrap();
+    let case = Case::new(&text);
+    let outputs = ["--rrd", "a.rrd", "--mcap", "a.mcap", "--summary", "s.json"];
+    for (option, value) in [
+        ("--detail", "iteration"),
+        ("--detail", "auto"),
+        ("--auto-every", "3"),
+        ("--flush-every", "7"),
+        ("--precision", "f32"),
+        ("--arrows", "log"),
+    ] {
+        let mut args = vec![option, value];
+        args.extend(outputs);
+        let out = case.run("run", &args, &[]);
+        let err = failure(&out, &case.path.display().to_string());
+        has(
+            &err,
+            &[&format!("{option} {value}"), "planar scenarios only"],
+        );
+        case.assert_untouched();
+    }
+    let out = case.run(
+        "run",
+        &[
+            "--detail",
+            "step",
+            "--precision",
+            "f64",
+            "--arrows",
+            "linear",
+            "--no-record",
+            "--summary",
+            "s.json",
+            "-q",
+        ],
+        &["solve.t_end=0.0005"],
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(listing(case.dir.path()), ["case.toml", "s.json"]);
+}
