@@ -799,10 +799,10 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
     );
 }
 
-/// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary and
-/// `.rrd` (src/record/rerun3.rs), with `--set` overrides.
+/// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary, `.rrd`
+/// and `.mcap` (src/record/rerun3.rs, mcap3.rs), with `--set` overrides.
 fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
-    // Refused before anything is read or written: an option that would change nothing.
+    // Refused before anything is read or written: an option the run would silently ignore.
     if let Some((option, value)) = out.planar_only.first() {
         eprintln!(
             "error: {}: {option} {value} applies to planar scenarios only; a 3D run records every step, in f64, with fixed arrow scales, in chunks of its writers' own sizes (drop the option)",
