@@ -5,6 +5,9 @@
 //! The force is linear in the node velocities, so its work over a backward Euler step,
 //! τ k dt ṡ², is never negative.
 
+use crate::energy::bend::curvature_derivatives;
+use crate::model::Rod;
+
 /// The strain gradient of the stretch element (x₀, y₀, x₁, y₁) with rest length `rest`:
 /// ∇ε = (−t, t)/l̄, t the unit edge.
 #[inline]
@@ -36,6 +39,62 @@ pub fn viscous<const N: usize>(
             for c in 0..N {
                 h[a][c] = tau_k * g[a] * g[c] * vfac[c / 2];
             }
+        }
+    }
+}
+
+/// One element's Jacobian of its viscous force ([`rod_viscous`]): a stretch element's
+/// (nodes e, e + 1) or a bending element's (nodes i − 1, i, i + 1).
+pub enum ElementJacobian<'a> {
+    Stretch(&'a [[f64; 4]; 4]),
+    Bend(&'a [[f64; 6]; 6]),
+}
+
+/// The Kelvin–Voigt forces of every element of `rod` at positions `q` and node velocities `v`
+/// (interleaved), added into `fd`: the force the material resists with (it enters eq. 2's
+/// residual beside ∇E, and the force on the nodes is −fd). With `vfac` (dv/dΔq per node)
+/// each element's Jacobian goes to `jacobian` with the element's first node. A rod without
+/// a retardation time has none.
+pub fn rod_viscous(
+    rod: &Rod,
+    q: &[f64],
+    v: &[f64],
+    fd: &mut [f64],
+    vfac: Option<&[f64]>,
+    mut jacobian: impl FnMut(usize, ElementJacobian<'_>),
+) {
+    let (tau, n) = (rod.damping_time, rod.n);
+    let no_vfac: &[f64] = &[];
+    let (mut f4, mut h4) = ([0.0; 4], [[0.0; 4]; 4]);
+    for e in 0..n.saturating_sub(1) {
+        let s = 2 * e;
+        let x = [q[s], q[s + 1], q[s + 2], q[s + 3]];
+        let ve = [v[s], v[s + 1], v[s + 2], v[s + 3]];
+        let g = stretch_strain_gradient(&x, rod.rest_length[e]);
+        let k = rod.ea * rod.rest_length[e];
+        let vf = vfac.map_or(no_vfac, |f| &f[e..e + 2]);
+        viscous(&g, &ve, tau * k, vf, &mut f4, vfac.map(|_| &mut h4));
+        for a in 0..4 {
+            fd[s + a] += f4[a];
+        }
+        if vfac.is_some() {
+            jacobian(e, ElementJacobian::Stretch(&h4));
+        }
+    }
+    let (mut f6, mut h6, mut g6) = ([0.0; 6], [[0.0; 6]; 6], [0.0; 6]);
+    for i in 1..n.saturating_sub(1) {
+        let s = 2 * (i - 1);
+        let x = [q[s], q[s + 1], q[s + 2], q[s + 3], q[s + 4], q[s + 5]];
+        let ve = [v[s], v[s + 1], v[s + 2], v[s + 3], v[s + 4], v[s + 5]];
+        curvature_derivatives(&x, &mut g6, None);
+        let k = rod.ei / rod.bend_length(i);
+        let vf = vfac.map_or(no_vfac, |f| &f[i - 1..i + 2]);
+        viscous(&g6, &ve, tau * k, vf, &mut f6, vfac.map(|_| &mut h6));
+        for a in 0..6 {
+            fd[s + a] += f6[a];
+        }
+        if vfac.is_some() {
+            jacobian(i - 1, ElementJacobian::Bend(&h6));
         }
     }
 }

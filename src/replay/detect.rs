@@ -29,7 +29,7 @@
 //! rules) that pushes to [`Findings`] and a count in [`Counts`].
 
 use super::bruise::PressureSample;
-use crate::energy::{bend::bend, stretch::stretch};
+use crate::energy::{bend::bend, damping::rod_viscous, stretch::stretch};
 use crate::events::{Event, Observer, RodStepView};
 use crate::model::Rod;
 use crate::obstacle::Obstacle;
@@ -577,7 +577,9 @@ pub struct Detector {
     /// a displacement is known only to within it.
     q_round: f64,
     have_prev: bool,
+    /// Per node: the smooth force at the step's end, and a damped rod's viscous force.
     force: Vec<f64>,
+    viscous: Vec<f64>,
     nodes: Vec<Vec<NodeState>>,
     pending: Vec<ContactSample>,
     out: Findings,
@@ -629,6 +631,7 @@ impl Detector {
             dynamic: sc.solve.mode == Mode::Dynamic,
             have_prev: false,
             force: vec![0.0; 2 * nmax],
+            viscous: vec![0.0; 2 * nmax],
             pending: Vec::new(),
             out: Findings::default(),
             steps: 0,
@@ -818,6 +821,16 @@ impl Detector {
         let n = rod.n;
         let f = &mut self.force[..2 * n];
         smooth_force(rod, self.gravity, cur.q, f);
+        if rod.damping_time > 0.0 && dt > 0.0 {
+            // The material's viscous force at the step's end explains what an impact does to
+            // the nodes beside it within the step (the solver's, at the end velocities).
+            let fd = &mut self.viscous[..2 * n];
+            fd.fill(0.0);
+            rod_viscous(rod, cur.q, cur.u, fd, None, |_, _| {});
+            for (f, d) in f.iter_mut().zip(fd.iter()) {
+                *f -= d;
+            }
+        }
         let a_scene = self.scales.acceleration;
         let th = self.th;
         for i in 0..n {

@@ -19,8 +19,8 @@
 use super::banded::BandLu;
 use crate::contact::compliant::{CompliantCircle, Pressed};
 pub use crate::contact::{Constraint, Corner};
-use crate::energy::bend::{bend, curvature_derivatives};
-use crate::energy::damping::{stretch_strain_gradient, viscous};
+use crate::energy::bend::bend;
+use crate::energy::damping::{rod_viscous, ElementJacobian};
 use crate::energy::stretch::stretch;
 use crate::model::Rod;
 
@@ -999,47 +999,12 @@ fn damping(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions, hessian: bool) {
     }
     step_velocities(rod, w, opt.dt);
     w.fd.fill(0.0);
-    let tau = rod.damping_time;
-    let (n, q) = (rod.n, &w.qn);
-    let (mut f4, mut h4) = ([0.0; 4], [[0.0; 4]; 4]);
-    for e in 0..n - 1 {
-        let s = 2 * e;
-        let x = [q[s], q[s + 1], q[s + 2], q[s + 3]];
-        let v = [w.v1[s], w.v1[s + 1], w.v1[s + 2], w.v1[s + 3]];
-        let g = stretch_strain_gradient(&x, rod.rest_length[e]);
-        let k = rod.ea * rod.rest_length[e];
-        let jac = if hessian { Some(&mut h4) } else { None };
-        viscous(&g, &v, tau * k, &w.vfac[e..e + 2], &mut f4, jac);
-        for a in 0..4 {
-            w.fd[s + a] += f4[a];
-        }
-        if hessian {
-            scatter(&mut w.band, &w.free_index, e, &h4);
-        }
-    }
-    let (mut f6, mut h6, mut g6) = ([0.0; 6], [[0.0; 6]; 6], [0.0; 6]);
-    for i in 1..n - 1 {
-        let s = 2 * (i - 1);
-        let x = [q[s], q[s + 1], q[s + 2], q[s + 3], q[s + 4], q[s + 5]];
-        let v = [
-            w.v1[s],
-            w.v1[s + 1],
-            w.v1[s + 2],
-            w.v1[s + 3],
-            w.v1[s + 4],
-            w.v1[s + 5],
-        ];
-        curvature_derivatives(&x, &mut g6, None);
-        let k = rod.ei / rod.bend_length(i);
-        let jac = if hessian { Some(&mut h6) } else { None };
-        viscous(&g6, &v, tau * k, &w.vfac[i - 1..i + 2], &mut f6, jac);
-        for a in 0..6 {
-            w.fd[s + a] += f6[a];
-        }
-        if hessian {
-            scatter(&mut w.band, &w.free_index, i - 1, &h6);
-        }
-    }
+    let (band, free_index) = (&mut w.band, &w.free_index);
+    let vfac = hessian.then_some(&w.vfac[..]);
+    rod_viscous(rod, &w.qn, &w.v1, &mut w.fd, vfac, |first, jac| match jac {
+        ElementJacobian::Stretch(h) => scatter(band, free_index, first, h),
+        ElementJacobian::Bend(h) => scatter(band, free_index, first, h),
+    });
 }
 
 /// r = c M (Δq − dt u) + ∇E − λ F on every DOF: eq. 2's reaction (the drive force on driven
