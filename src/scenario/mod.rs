@@ -679,16 +679,6 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "use mode = \"dynamic\", or remove [friction]",
         ));
     }
-    if solve.integrator == Integrator::TrBdf2 && !bodies.is_empty() {
-        // Free bodies take a backward Euler step in each TR-BDF2 stage: jaw-grasp-hold then
-        // drops the fruit it holds under the other integrators (docs/model.md).
-        return Err(top.err_hint(
-            "solve.integrator",
-            Some(&Value::String("tr_bdf2".into())),
-            "TR-BDF2 does not handle free bodies (a free obstacle) yet",
-            "use integrator = \"bdf2\" or \"backward_euler\" for a scene with a free body",
-        ));
-    }
     let expect = expect::parse(&top)?;
     let contact = contact::parse(&top)?;
     let mut flush_every = 100;

@@ -2148,22 +2148,6 @@ fn a_grip_force_that_is_never_reached_is_a_run_time_error_naming_the_phase() {
     );
 }
 
-/// TR-BDF2 does not handle free bodies yet (jaw-grasp-hold dropped its fruit under it): a
-/// scene with a free obstacle and `integrator = "tr_bdf2"` is refused, naming the key.
-#[test]
-fn tr_bdf2_with_a_free_body() {
-    let text = std::fs::read_to_string(crate::common::scenario("jaw-grasp-hold")).unwrap();
-    let err = reject_set(&text, &["solve.integrator=\"tr_bdf2\""]);
-    has(
-        &err,
-        &[
-            &kv("solve.integrator", "\"tr_bdf2\""),
-            "does not handle free bodies",
-            "\"bdf2\"",
-        ],
-    );
-}
-
 /// The recording options a 3D run cannot honour are refused before anything is read or
 /// written (exit 2, one line naming the scenario, the option and its value); those that say
 /// what a 3D run does anyway are taken.

@@ -890,12 +890,13 @@ fn run_check(name: &str, sets: &[&str], extra: &[&str]) -> (i32, Value, Value) {
 /// R_n ≤ 0 no tangential hold is possible). Before, it was released, re-penetrated in the same
 /// step and was then locked stuck: jaw-grasp-drop at 10× finer Δt (5e-6 s) stopped each prong
 /// tip dead on the fruit it slid over at 0.11 m/s in one step, a tangential impulse 17 times
-/// the normal one — 2 unexplained spikes and 2 toggling tips, exit 1.
+/// the normal one — 2 unexplained spikes and 2 toggling tips, exit 1. (Run to 0.72 s: the
+/// drop the scenario expects is declared at 0.670 s with the jaws' damping.)
 #[test]
 fn a_stuck_contact_that_pulls_slides_before_it_is_released() {
     let (code, rep, sum) = run_check(
         "jaw-grasp-drop",
-        &["solve.dt=5e-6", "solve.t_end=0.66"],
+        &["solve.dt=5e-6", "solve.t_end=0.72"],
         &[],
     );
     assert_eq!(count(&rep, "unexplained"), 0, "{rep:#}");
@@ -912,10 +913,17 @@ fn a_stuck_contact_that_pulls_slides_before_it_is_released() {
 /// One rebound is not a chatter: at 10× finer Δt profiled-close's prong tip touches the fruit,
 /// lifts off by about 1 nm for 5 steps (pulled off by its own vibration), holds 17 steps and
 /// leaves: 4 changes in 0.13 ms, which the old default (4) flagged. The 5th change in the
-/// window is what makes a chatter (the hump, tested above, makes one every 4 steps).
+/// window is what makes a chatter (the hump, tested above, makes one every 4 steps). The
+/// rebound is the undamped prong's: the shipped jaws' material damping stills the vibration that
+/// pulls the tip off, so the jaws are run undamped here.
 #[test]
 fn one_rebound_after_an_impact_is_not_toggling() {
-    let sets = ["solve.dt=5e-6", "solve.t_end=0.12"];
+    let sets = [
+        "solve.dt=5e-6",
+        "solve.t_end=0.12",
+        "rod.0.loss_factor=0",
+        "rod.1.loss_factor=0",
+    ];
     let (code, rep, _) = run_check("profiled-close", &sets, &[]);
     assert_eq!((code, count(&rep, "toggling")), (0, 0), "{rep:#}");
     let (code, rep, _) = run_check("profiled-close", &sets, &["--stick-toggles", "4"]);
