@@ -97,6 +97,14 @@ pub struct Actuator {
     sensed: Option<(f64, Measure)>,
 }
 
+/// Adaptive steps per force-sensor time constant while a phase ends on the sensed grip
+/// ([`Actuator::grip_end_resolution`]).
+pub const SENSOR_STEPS: f64 = 50.0;
+
+/// The part of a grip end's target the sensed grip must have reached before the steps are
+/// held to the sensor's resolution ([`Actuator::grip_end_resolution`]).
+pub const GRIP_ONSET: f64 = 0.25;
+
 impl Actuator {
     /// `clamp_centroid0`: the centroid of the group's clamped nodes at t = 0 in the program's
     /// frame ([`super::clamp_centroid`]); only `width` ends use it. The program starts at t = 0.
@@ -188,6 +196,20 @@ impl Actuator {
         let (k, t0, _) = self.state_at(t);
         let (tau, _) = self.program.phases.get(k)?.analytic_end()?;
         Some(t0 + tau)
+    }
+
+    /// While the committed phase ends on the sensed grip (force or torque) through a sensor
+    /// of time constant τ (`force_filter` > 0): the longest step that resolves that end,
+    /// τ / [`SENSOR_STEPS`]. The end is seen at a step's end, and the squeeze goes on to
+    /// it, so a longer step would end the squeeze on a stronger grip.
+    /// Before the sensed grip has reached [`GRIP_ONSET`] of its target (the approach) the
+    /// steps are free.
+    pub fn grip_end_resolution(&self) -> Option<f64> {
+        let ph = self.program.phases.get(self.phase)?;
+        let tau = self.program.force_filter;
+        let target = ph.end.grip_force.or(ph.end.grip_torque)?;
+        let near = self.peak.is_some_and(|p| p >= GRIP_ONSET * target);
+        (tau > 0.0 && near).then_some(tau / SENSOR_STEPS)
     }
 
     /// The closing width at pose `pose`: 2 |x of the transformed clamp centroid − c|.

@@ -380,7 +380,17 @@ impl Simulation {
                     s.dt
                 }
             }
-            Stepping::Adaptive => self.next_dt.clamp(s.dt_min, s.dt_max),
+            Stepping::Adaptive => {
+                // A squeeze that ends on the sensed grip is resolved in steps the sensor sees.
+                let grip = self
+                    .actuators
+                    .iter()
+                    .filter_map(|a| a.grip_end_resolution())
+                    .fold(s.dt_max, f64::min);
+                self.next_dt
+                    .clamp(s.dt_min, s.dt_max)
+                    .min(grip.max(s.dt_min))
+            }
         }
     }
 

@@ -217,3 +217,39 @@ fn damped_jaws_give_one_verdict_under_every_integrator_and_dt() {
         }
     }
 }
+
+/// Adaptive steps end a squeeze on the grip fixed steps end it on: once the sensed grip has
+/// reached a quarter of its target, the steps are at most the sensor's time constant / 50
+/// (`actuation::actuator::SENSOR_STEPS`). The end is seen at a step's end and the jaws close until
+/// then, so before that cap the second-order runs, whose steps through the squeeze are
+/// longest, ended on a weaker grip: jaw-grasp-hold's margin at the lift 1.27 (BDF2) and 1.24
+/// (TR-BDF2) against 1.396 at fixed Δt.
+#[test]
+fn adaptive_steps_end_the_squeeze_on_the_fixed_step_grip() {
+    let fixed = summary(&shipped("jaw-grasp-hold", &[]))
+        .grasp
+        .unwrap()
+        .safety_margin_at_lift
+        .unwrap();
+    for integrator in ["backward_euler", "bdf2", "tr_bdf2"] {
+        let sets = [
+            format!("solve.integrator=\"{integrator}\""),
+            "solve.stepping=\"adaptive\"".to_string(),
+            "solve.time_of_impact=true".to_string(),
+            "solve.rtol=1e-6".to_string(),
+        ];
+        let sets: Vec<&str> = sets.iter().map(String::as_str).collect();
+        let s = summary(&shipped("jaw-grasp-hold", &sets));
+        let g = s.grasp.unwrap();
+        let m = g.safety_margin_at_lift.unwrap();
+        println!(
+            "{integrator}: margin {m:.4} against {fixed:.4} at fixed dt, held {}",
+            g.held
+        );
+        assert!(g.held, "{integrator}");
+        assert!(
+            (m - fixed).abs() < 0.015 * fixed,
+            "{integrator}: {m} against {fixed}"
+        );
+    }
+}
