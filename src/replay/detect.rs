@@ -572,10 +572,9 @@ pub struct Detector {
     /// last change's), which explains the jump of a node free at the step's end: it was held
     /// for part of the step (docs/replay.md).
     inside: Vec<Vec<Option<[f64; 2]>>>,
-    /// TR-BDF2: an accepted step's first-stage changes are kept (see [`ContactSample`]).
-    tr_bdf2: bool,
     /// The run's integrator: which smooth velocity changes a free node may have taken
-    /// ([`Detector::smooth_dv`]).
+    /// ([`Detector::smooth_dv`]); under TR-BDF2 an accepted step's first-stage changes are kept
+    /// (see [`ContactSample`]).
     integrator: crate::scenario::Integrator,
     /// Velocities of the step before the previous one, per rod, and the previous step's dt
     /// (BDF2's history; `have_prev2` when both are the stream's consecutive steps).
@@ -632,7 +631,6 @@ impl Detector {
             prev_contact: rods.iter().map(|r| vec![false; r.n]).collect(),
             arrived: rods.iter().map(|r| vec![false; r.n]).collect(),
             inside: rods.iter().map(|r| vec![None; r.n]).collect(),
-            tr_bdf2: sc.solve.integrator == crate::scenario::Integrator::TrBdf2,
             integrator: sc.solve.integrator,
             prev2_u: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
             prev_dt: 0.0,
@@ -788,7 +786,8 @@ impl Detector {
         let (window, need) = (self.th.stick_window, self.th.stick_toggles);
         // TR-BDF2's first stage ends at t + γ dt of the step's start, the last step's end
         // (computed as the solver does, so it is the same number).
-        let stage1 = (self.tr_bdf2 && step > 0 && self.last_step == Some(step - 1))
+        let tr_bdf2 = self.integrator == crate::scenario::Integrator::TrBdf2;
+        let stage1 = (tr_bdf2 && step > 0 && self.last_step == Some(step - 1))
             .then_some(self.t_end + crate::solver::TR_BDF2_GAMMA * dt);
         for c in pending {
             let accepted_time = c.t == t || stage1 == Some(c.t);
