@@ -8,10 +8,10 @@
 //! * **Spike** (per free node and step, dynamic runs): the velocity change not explained by the
 //!   smooth forces, e = Δv − Δt f(q_{k+1})/m (elastic + gravity + loads, recomputed from the
 //!   positions as implicit Euler evaluates them; under BDF2 and TR-BDF2 also their own
-//!   relations, the one that explains most kept: [`Detector::smooth_dv`]), is split into what a perfectly inelastic,
-//!   frictionless contact does along the outward normal of every surface the node is held
-//!   against (cancel what the forces push into it — support — and remove at most the normal
-//!   velocity the node brought into the step — impact) and the rest.
+//!   relations, the one that explains most kept: [`Detector::smooth_dv`]), is split into what
+//!   a perfectly inelastic, frictionless contact does along the outward normal of every
+//!   surface the node is held against (cancel what the forces push into it — support — and
+//!   remove at most the normal velocity the node brought into the step — impact) and the rest.
 //!   - `impact`: the impact part is ≥ `spike_floor` and the displacement it stands for,
 //!     jump × Δt, ≥ `spike_displacement` (its implied acceleration, jump / Δt, is no measure:
 //!     a coarser step makes it smaller and the impact worse), unless the impact was located
@@ -841,7 +841,6 @@ impl Detector {
         }
     }
 
-    /// `impact` and `unexplained` for the free nodes of rod `r`.
     /// The smooth force at the step's end into `self.force`: elastic, gravity and loads, less
     /// a damped rod's viscous force at the end velocities (which explains what an impact does
     /// to the nodes beside it within the step, as the solver's does).
@@ -894,6 +893,7 @@ impl Detector {
         (be, second)
     }
 
+    /// `impact` and `unexplained` for the free nodes of rod `r` (its end force in `self.force`).
     fn spikes(&mut self, r: usize, step: u64, t: f64, dt: f64, cur: &RodSample<'_>) {
         let n = self.rods[r].n;
         let a_scene = self.scales.acceleration;
@@ -1218,8 +1218,8 @@ mod tests {
     /// A free stream of the seed grasp's prong whose bend alternates between a tip pulled
     /// 1 mm aside and the rest shape (so the elastic force at the step ends alternates
     /// between large and nothing), its velocities made by `integrator`'s relation; `kick`
-    /// adds 1 m/s to the tip's y velocity at step 6 (a rest shape at its end). What a detector for `detector` finds
-    /// (kind, node, step).
+    /// adds 1 m/s to the tip's y velocity at step 6 (a rest shape at its end). What a
+    /// detector for `detector` finds (kind, node, step).
     fn spikes_of_a_stream(
         integrator: crate::scenario::Integrator,
         detector: crate::scenario::Integrator,
