@@ -30,6 +30,9 @@ pub struct BodyContact {
     pub coulomb: Coulomb,
     pub locked: bool,
     pub switches: u8,
+    /// A compliant fruit on the obstacle: its normal force is the law's F(δ) of the point's
+    /// indentation δ = target − a·ΔX, not a constraint's multiplier (None: rigid).
+    pub law: Option<super::compliant::LineContact>,
 }
 
 impl BodyContact {
@@ -46,6 +49,19 @@ impl BodyContact {
     #[inline]
     pub fn is_stuck(&self) -> bool {
         matches!(self.grip, Grip::Stick { .. })
+    }
+    /// A compliant contact's indentation at body displacement `dx` (m, > 0 pressed).
+    #[inline]
+    pub fn indentation(&self, dx: &[f64; 3]) -> f64 {
+        self.target - dot3(&self.row(self.normal), dx)
+    }
+    /// A compliant contact's normal force and its stiffness dF/dδ at `dx` ((0, 0) for a rigid one).
+    #[inline]
+    pub fn law_force(&self, dx: &[f64; 3]) -> (f64, f64) {
+        match self.law {
+            Some(l) => l.force(self.indentation(dx)),
+            None => (0.0, 0.0),
+        }
     }
 }
 
@@ -153,6 +169,7 @@ pub fn linearise(
         coulomb: Coulomb::FRICTIONLESS,
         locked: false,
         switches: 0,
+        law: None,
     };
     let (a, b, t) = (c.row(n), c.row(c.tangent()), c.tangent());
     c.target = n[0] * (q.closest[0] - w[0]) + n[1] * (q.closest[1] - w[1]) + dot3(&a, dx);

@@ -198,15 +198,31 @@ impl LineContact {
     }
 }
 
-/// A fixed circular fruit of elastic material, as rod r's nodes see it: the centre, the radius
-/// grown by the rod's contact offset, and the law.
+/// A circular fruit of elastic material, as rod r's nodes see it: the centre, the radius grown
+/// by the rod's contact offset, and the law. A free fruit's centre follows its body's pose
+/// (the solver moves it with every Newton iterate of the body).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CompliantCircle {
     pub obstacle: usize,
+    /// The free body that carries the fruit (None: fixed).
+    pub body: Option<usize>,
     pub center: [f64; 2],
     /// The fruit's radius plus the prong's contact offset (h/2 for a face, 0 at the centreline).
     pub reach: f64,
     pub law: LineContact,
+    /// Coulomb coefficients between the rod and this fruit (friction decided from the law's
+    /// normal force, src/solver/fruit.rs).
+    pub coulomb: super::friction::Coulomb,
+}
+
+/// A node sliding on a compliant fruit: the kinetic force −μ_k F s t at the law's normal
+/// force F (t = (−n_y, n_x), s the slip direction along it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LawSlip {
+    pub obstacle: usize,
+    pub sign: f64,
+    /// Stick/slip switches in this step (the hold's are counted on the hold).
+    pub switches: u8,
 }
 
 /// The contact of one node with a compliant circle: the force along the outward normal, the
@@ -219,6 +235,29 @@ pub struct Pressed {
     pub force: f64,
     /// ∂(−F n)/∂x, row-major 2 × 2 (added to the Newton Jacobian).
     pub stiffness: [[f64; 2]; 2],
+    /// dF/dδ (N/m) and the curvature of the level line through the node, ∂n/∂x = κ t tᵀ
+    /// (1/ρ for a circle).
+    pub dforce: f64,
+    pub curvature: f64,
+}
+
+impl Pressed {
+    /// The kinetic friction −μ_k F s t of a node sliding in direction `s` along t, and its
+    /// derivative ∂f/∂x = μ_k s (F′ t nᵀ + F κ n tᵀ) (∂F/∂x = −F′ nᵀ, ∂t/∂x = −κ n tᵀ).
+    pub fn kinetic(&self, mu_k: f64, s: f64) -> ([f64; 2], [[f64; 2]; 2]) {
+        let n = self.normal;
+        let t = [-n[1], n[0]];
+        let c = mu_k * s;
+        let f = [-c * self.force * t[0], -c * self.force * t[1]];
+        let (a, b) = (c * self.dforce, c * self.force * self.curvature);
+        let mut k = [[0.0; 2]; 2];
+        for x in 0..2 {
+            for y in 0..2 {
+                k[x][y] = a * t[x] * n[y] + b * n[x] * t[y];
+            }
+        }
+        (f, k)
+    }
 }
 
 impl CompliantCircle {
@@ -249,6 +288,8 @@ impl CompliantCircle {
             indentation: delta,
             force: f,
             stiffness: s,
+            dforce: k,
+            curvature: 1.0 / rho,
         })
     }
 }
@@ -260,6 +301,7 @@ pub fn circles_for(
     offset: f64,
     obstacles: &[crate::obstacle::Obstacle],
     materials: &[Option<Material>],
+    body_of: &[usize],
 ) -> Vec<CompliantCircle> {
     use crate::obstacle::Obstacle;
     use crate::scenario::Section;
@@ -279,9 +321,11 @@ pub fn circles_for(
         };
         out.push(CompliantCircle {
             obstacle: k,
+            body: body_of.get(k).copied().filter(|&b| b != usize::MAX),
             center: c.center,
             reach: c.radius + offset,
             law: LineContact::new(c.radius, r_prong, b, prong, m),
+            coulomb: super::friction::Coulomb::FRICTIONLESS,
         });
     }
     out

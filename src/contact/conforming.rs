@@ -443,9 +443,11 @@ mod tests {
         let apple = Material::preset("apple").unwrap();
         CompliantCircle {
             obstacle: 0,
+            body: None,
             center: [0.0, 0.0],
             reach: 0.055,
             law: LineContact::new(0.05, f64::INFINITY, 0.02, 0.75 / 1e6, &apple),
+            coulomb: crate::contact::friction::Coulomb::FRICTIONLESS,
         }
     }
 

@@ -57,6 +57,22 @@ pub struct Constraint {
     /// Stick/slip switches of this contact in the current step (a contact that keeps switching
     /// is held in its last state for the rest of the step).
     pub switches: u8,
+    /// A compliant fruit's friction hold: the node presses into the fruit by the force law
+    /// (its normal is not held) and static friction holds it along the surface. Then `normal`
+    /// is the held direction, the surface's tangent t = (−n_y, n_x) for the fruit's outward
+    /// normal n given here; `target` holds t·x − (Gᵀt)·ΔX where the node was at the start of
+    /// the step. None for a rigid contact.
+    pub law: Option<LawHold>,
+}
+
+/// What a compliant contact's friction hold needs besides the held direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LawHold {
+    /// The fruit's outward normal at the node.
+    pub surface_normal: [f64; 2],
+    /// The pair's Coulomb coefficients (the constraint's own are frictionless: it is a
+    /// tangential hold, not a surface).
+    pub coulomb: Coulomb,
 }
 
 impl Constraint {
@@ -72,6 +88,28 @@ impl Constraint {
             grip: Grip::Slide { sign: 0.0 },
             coulomb: Coulomb::FRICTIONLESS,
             switches: 0,
+            law: None,
+        }
+    }
+
+    /// A compliant contact's friction hold on obstacle `obstacle` (outward normal `n` at the
+    /// node): the node at `qk` (its place at the start of the step) keeps its position along the
+    /// surface's tangent relative to the surface (plus the body's motion, `body`).
+    pub fn law_hold(
+        obstacle: usize,
+        n: [f64; 2],
+        qk: [f64; 2],
+        coulomb: Coulomb,
+        body: Option<BodyLink>,
+    ) -> Self {
+        let t = [-n[1], n[0]];
+        Self {
+            body,
+            law: Some(LawHold {
+                surface_normal: n,
+                coulomb,
+            }),
+            ..Self::on_surface(obstacle, t, t[0] * qk[0] + t[1] * qk[1])
         }
     }
 

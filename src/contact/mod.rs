@@ -22,6 +22,6 @@ pub mod edge;
 pub mod friction;
 pub mod surfaces;
 
-pub use constraint::{BodyLink, Constraint, Corner, Grip};
+pub use constraint::{BodyLink, Constraint, Corner, Grip, LawHold};
 pub use detect::*;
 pub use surfaces::Surfaces;

@@ -82,16 +82,16 @@ pub fn parse(
             ))
         }
     };
-    if free || !matches!(shape, Obstacle::Circle(_)) {
+    if !matches!(shape, Obstacle::Circle(_)) {
         return Err(r.err_hint(
             "material",
             Some(v),
             format!(
-                "a compliant material is implemented for fixed circles only (this is a {}{})",
+                "a compliant material is implemented for circles only (this is a {}{})",
                 if free { "free " } else { "" },
                 shape.kind()
             ),
-            "give the fruit as a fixed circle, or remove `material` (rigid)",
+            "give the fruit as a circle, or remove `material` (rigid)",
         ));
     }
     Ok(Some(m))

@@ -142,9 +142,7 @@ fn parse_body(
             ));
         }
     };
-    if r.has("depth") && !r.has("density") {
-        r.positive("depth")?;
-    }
+    let depth = r.opt_positive("depth")?;
     let inertia = match r.opt_positive("inertia")? {
         Some(j) => j,
         None => mass * polar / area,
@@ -174,6 +172,7 @@ fn parse_body(
         angular_velocity: r.opt_f64("angular_velocity")?.unwrap_or(0.0),
         radius,
         hold_tolerance,
+        depth: depth.unwrap_or(2.0 * radius),
     })
 }
 

@@ -47,6 +47,13 @@ impl Simulation {
             let pose = if at_start { b.pose } else { b.trial_pose() };
             self.placement[b.spec.obstacle] = Some((b.spec.centroid, pose));
         }
+        for w in &mut self.work {
+            for c in &mut w.compliant {
+                if let Some(Some((_, pose))) = c.body.and(self.placement.get(c.obstacle)) {
+                    c.center = pose.c;
+                }
+            }
+        }
     }
 
     /// Body `bi`'s shape at the start of the step and at the pose being solved.
@@ -158,11 +165,17 @@ impl Simulation {
                 continue;
             }
             changed |= match self.work[r].contact[i] {
+                Some(c) if c.law.is_some() => self.update_law_hold(ctx, r, i, c, pass, obs),
                 Some(c) => self.update_held(ctx, r, i, c, pass, obs),
-                None => self.detect_new(ctx, r, i, pass, obs),
+                None => {
+                    self.detect_new(ctx, r, i, pass, obs)
+                        || self.update_law_free(ctx, r, i, pass, obs)
+                }
             };
         }
         changed |= self.update_edges(r);
+        // A rod solved alone that now presses into a fruit on a free body is solved with it.
+        changed |= !self.is_member[r] && self.presses_body(r);
         changed
     }
 
@@ -409,7 +422,9 @@ impl Simulation {
                 && c.is_stuck()
                 && friction::decide_on(c.coulomb, c.grip, c.switches, lam[0], lam[1], 0.0)
                     .is_some();
-            if lam[0] < 0.0 && !c.locked && !slides_first {
+            // A compliant contact ends where its point leaves the surface (no force).
+            let left = c.law.is_some() && c.indentation(&b.dx) <= 0.0;
+            if left || (lam[0] < 0.0 && !c.locked && !slides_first) {
                 let b = &mut self.bodies[bi];
                 b.contacts.remove(j);
                 if j < b.reaction.len() {
@@ -480,14 +495,20 @@ impl Simulation {
                 out.push(*c);
                 continue;
             };
-            if !at_start && (c.is_stuck() || q.distance >= -tol) {
+            // A compliant contact's point sits inside by its indentation: re-linearised only
+            // where the linearised indentation has drifted from the true one.
+            let keep = match c.law {
+                Some(_) => (q.distance + c.indentation(&dx)).abs() <= tol,
+                None => c.is_stuck() || q.distance >= -tol,
+            };
+            if !at_start && keep {
                 out.push(*c);
                 continue;
             }
             let w0 = start.to_world(at.to_shape(w));
             let mut nc = bodyc::linearise(c.obstacle, c.feature, &at, w, w0, &q, &dx);
-            (nc.grip, nc.coulomb, nc.locked, nc.switches) =
-                (c.grip, c.coulomb, c.locked, c.switches);
+            (nc.grip, nc.coulomb, nc.locked, nc.switches, nc.law) =
+                (c.grip, c.coulomb, c.locked, c.switches, c.law);
             if at_start {
                 (nc.locked, nc.switches) = (false, 0);
             }
@@ -525,6 +546,7 @@ impl Simulation {
                 let w0 = start.to_world(trial.to_shape(*w));
                 let mut c = bodyc::linearise(k, *feature, &trial, *w, w0, q, &b.dx);
                 c.coulomb = self.body_coulomb[bi][k];
+                c.law = self.body_law(bi, k);
                 c.locked = b.released.contains(&(*feature, k));
                 if c.coulomb.mu_s > 0.0 {
                     c.grip = Grip::Stick { anchor: [0.0; 2] };

@@ -169,6 +169,7 @@ impl Coupled<'_> {
             let r = self.members[mi];
             let rod = &self.rods[r];
             let w = &mut self.work[r];
+            follow_bodies(w, self.bodies);
             let (res, node) =
                 newton::residual(rod, w, opt, true, iterations).map_err(|f| (r, f))?;
             if res > opt.force_tol * w.force_scale {
@@ -179,12 +180,14 @@ impl Coupled<'_> {
             }
             newton::add_mass(rod, w, opt);
             couple_blocks(rod, w, &mut self.coupling[r], self.scratch, nb);
+            couple_compliant(rod, w, &mut self.coupling[r], self.scratch, nb);
             newton::filter_rows(rod, w);
             newton::filter_cols(rod, w, opt);
             newton::factor(w, res, iterations).map_err(|f| (r, f))?;
             w.band.solve(&mut w.rhs);
             schur(w, &mut self.coupling[r], self.scratch, nb);
         }
+        press_bodies(self.bodies, self.scratch, nb);
         for (bi, b) in self.bodies.iter().enumerate() {
             let mut g = [
                 self.scratch.g[3 * bi],
@@ -193,13 +196,22 @@ impl Coupled<'_> {
             ];
             let g_raw = g;
             for (ci, c) in b.contacts.iter().enumerate() {
-                let lam = b.reaction.get(ci).copied().unwrap_or([0.0; 2]);
+                let mut lam = b.reaction.get(ci).copied().unwrap_or([0.0; 2]);
+                if c.law.is_some() {
+                    // Its law's normal force is in the bodies' residual already.
+                    lam[0] = 0.0;
+                }
                 let (wn, wt) = force_directions(c);
                 for k in 0..3 {
                     g[k] -= wn[k] * lam[0] + wt[k] * lam[1];
                 }
-                // The contact's own equations: on the surface (and not slipping when stuck).
-                let mut gap = (c.target - dot3(&c.row(c.normal), &b.dx)).abs();
+                // The contact's own equations: on the surface (and not slipping when stuck);
+                // a compliant contact's normal is its law's, already in the balance.
+                let mut gap = if c.law.is_some() {
+                    0.0
+                } else {
+                    (c.target - dot3(&c.row(c.normal), &b.dx)).abs()
+                };
                 if c.is_stuck() {
                     gap = gap.max((c.stick_target - dot3(&c.row(c.tangent()), &b.dx)).abs());
                 }
@@ -245,7 +257,9 @@ impl Coupled<'_> {
             for (ci, c) in b.contacts.iter().enumerate() {
                 let (wn, wt) = force_directions(c);
                 let a = c.row(c.normal);
-                push_row(sc, bi, ci, 0, a, wn, b.spec.radius);
+                if c.law.is_none() {
+                    push_row(sc, bi, ci, 0, a, wn, b.spec.radius);
+                }
                 if c.is_stuck() {
                     push_row(sc, bi, ci, 1, c.row(c.tangent()), wt, b.spec.radius);
                 }
@@ -278,8 +292,17 @@ impl Coupled<'_> {
         }
         for (bi, b) in self.bodies.iter_mut().enumerate() {
             sc.dx[bi] = [sc.rhs[3 * bi], sc.rhs[3 * bi + 1], sc.rhs[3 * bi + 2]];
+            // A compliant contact keeps its law's normal force (set by `press_bodies`).
+            let kept: Vec<f64> = (0..b.contacts.len())
+                .map(|ci| b.reaction.get(ci).map_or(0.0, |r| r[0]))
+                .collect();
             b.reaction.clear();
             b.reaction.resize(b.contacts.len(), [0.0; 2]);
+            for (ci, c) in b.contacts.iter().enumerate() {
+                if c.law.is_some() {
+                    b.reaction[ci][0] = kept[ci];
+                }
+            }
         }
         for (j, (bi, ci, kind, _, _)) in sc.rows.iter().enumerate() {
             self.bodies[*bi].reaction[*ci][*kind] = sc.rhs[nb + j];
@@ -339,6 +362,31 @@ fn body_failure(body: usize, res: f64, iterations: u32) -> NewtonFailure {
         residual: res,
         reason: "the free body's equations could not be solved",
         iterations,
+    }
+}
+
+/// The compliant contacts of the bodies with fixed obstacles (a fruit on a table): the normal
+/// reaction is the law's F(δ) at the current displacement, δ = target − a·ΔX, kept as the
+/// contact's normal reaction; the bodies' residual gains −F w_n and the body system its
+/// stiffness, ∂(−F w_n)/∂ΔX = F′ w_n aᵀ.
+fn press_bodies(bodies: &mut [Body], sc: &mut BodyScratch, nb: usize) {
+    for (bi, b) in bodies.iter_mut().enumerate() {
+        b.reaction.resize(b.contacts.len(), [0.0; 2]);
+        for (ci, c) in b.contacts.iter().enumerate() {
+            if c.law.is_none() {
+                continue;
+            }
+            let (f, k) = c.law_force(&b.dx);
+            b.reaction[ci][0] = f;
+            let (wn, _) = force_directions(c);
+            let a = c.row(c.normal);
+            for r in 0..3 {
+                sc.g[3 * bi + r] -= f * wn[r];
+                for l in 0..3 {
+                    sc.s[(3 * bi + r) * nb + 3 * bi + l] += k * wn[r] * a[l];
+                }
+            }
+        }
     }
 }
 
@@ -441,6 +489,74 @@ fn couple_blocks(rod: &Rod, w: &RodWork, cpl: &mut RodCoupling, sc: &mut BodyScr
                         sc.s[(3 * b + k) * nb + 3 * bj + l] +=
                             dk[0] * cjm[0][l] + dk[1] * cjm[1][l];
                     }
+                }
+            }
+        }
+    }
+}
+
+/// Move the compliant fruits a rod presses into with their bodies' trial poses.
+fn follow_bodies(w: &mut RodWork, bodies: &[Body]) {
+    for c in &mut w.compliant {
+        if let Some(b) = c.body.and_then(|b| bodies.get(b)) {
+            c.center = b.trial_pose().c;
+        }
+    }
+}
+
+/// The coupling of the compliant fruits carried by free bodies (node contacts): node i pressed
+/// into a fruit on body b feels f = F(δ) n (plus −μ_k F s t while it slides), a function of
+/// x_i − c_b alone for a circle (its rotation moves nothing), so ∂f/∂c = −∂f/∂x = −K. The
+/// node's rows gain ∂r_i/∂c = K (B, filtered as the band's rows); the body feels −f at its
+/// surface point c + R n: g += (f, R n × f) (the normal force's moment is zero), with rows
+/// ∂g/∂x_i = H (D, H = [K; ∂τ/∂x]) and ∂g/∂c = −H (S). A node also held against a body (a
+/// friction hold) moves with it (S += H C_i), and its reaction W_i r_i changes with the fruit's
+/// centre (S += W_i K).
+fn couple_compliant(
+    rod: &Rod,
+    w: &RodWork,
+    cpl: &mut RodCoupling,
+    sc: &mut BodyScratch,
+    nb: usize,
+) {
+    if w.edge_mode || !w.compliant.iter().any(|c| c.body.is_some()) {
+        return;
+    }
+    let m = 2 * w.nfree;
+    for i in 0..rod.n {
+        let fi = w.free_index[i];
+        if fi == usize::MAX {
+            continue;
+        }
+        for c in &w.compliant {
+            let Some((b, g, h)) = newton::fruit_force(w, i, c) else {
+                continue;
+            };
+            for row in 0..3 {
+                sc.g[3 * b + row] += g[row];
+                for l in 0..2 {
+                    sc.s[(3 * b + row) * nb + 3 * b + l] -= h[row][l];
+                    cpl.d[(3 * b + row) * m + 2 * fi + l] += h[row][l];
+                }
+            }
+            for col in 0..2 {
+                let (x, y) = newton::rows(h[0][col], h[1][col], w.contact[i]);
+                cpl.b[(3 * b + col) * m + 2 * fi] += x;
+                cpl.b[(3 * b + col) * m + 2 * fi + 1] += y;
+            }
+            let Some(ci) = w.contact[i].filter(|c| c.body.is_some()) else {
+                continue;
+            };
+            let (cm, wm) = maps(&ci);
+            let bj = ci.body.map_or(0, |l| l.body);
+            for row in 0..3 {
+                for l in 0..3 {
+                    sc.s[(3 * b + row) * nb + 3 * bj + l] +=
+                        h[row][0] * cm[0][l] + h[row][1] * cm[1][l];
+                }
+                for l in 0..2 {
+                    sc.s[(3 * bj + row) * nb + 3 * b + l] +=
+                        wm[row][0] * h[0][l] + wm[row][1] * h[1][l];
                 }
             }
         }

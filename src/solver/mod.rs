@@ -6,6 +6,7 @@ pub mod banded;
 mod contacts;
 pub mod coupled;
 mod edges;
+mod fruit;
 pub mod newton;
 mod outputs;
 mod release;
@@ -976,13 +977,23 @@ impl Simulation {
 fn rod_works(scenario: &Scenario, rods: &[Rod]) -> Vec<RodWork> {
     let g = scenario.solve.gravity;
     let mut work: Vec<RodWork> = rods.iter().map(|r| RodWork::new(r, g)).collect();
+    let mut body_of = vec![usize::MAX; scenario.obstacles.len()];
+    for (i, b) in scenario.bodies.iter().enumerate() {
+        body_of[b.obstacle] = i;
+    }
     for (w, spec) in work.iter_mut().zip(&scenario.rods) {
         w.compliant = contact::compliant::circles_for(
             spec,
             scenario.contact.offset(spec),
             &scenario.obstacles,
             &scenario.materials,
+            &body_of,
         );
+        for c in &mut w.compliant {
+            c.coulomb = scenario
+                .friction
+                .between(&spec.name, &scenario.obstacle_names[c.obstacle]);
+        }
         w.edge_mode = scenario.contact.points == crate::scenario::contact::ContactPoints::Edges;
     }
     work

@@ -17,7 +17,7 @@
 //! tangent lines, S = 0, and its whole residual is the reaction.
 
 use super::banded::BandLu;
-use crate::contact::compliant::{CompliantCircle, Pressed};
+use crate::contact::compliant::{CompliantCircle, LawSlip, Pressed};
 pub use crate::contact::{Constraint, Corner};
 use crate::energy::bend::bend;
 use crate::energy::damping::{rod_viscous, ElementJacobian};
@@ -66,6 +66,10 @@ pub struct RodWork {
     /// Per node: its deepest compliant contact at the last residual evaluation (the force
     /// summed over all of them is in the balance).
     pub pressed: Vec<Option<Pressed>>,
+    /// Per node sliding on a compliant fruit: the kinetic friction it feels there (stuck
+    /// nodes are held by a [`Constraint`] with a [`crate::contact::LawHold`] instead).
+    pub law_slip: Vec<Option<LawSlip>>,
+    pub law_slip_saved: Vec<Option<LawSlip>>,
     /// The second-order integrator's state (unused under backward Euler).
     pub bdf: Bdf2,
     /// Material damping of the iterate: node velocities, dv/dΔq per node, viscous force per
@@ -259,6 +263,8 @@ pub fn smooth_contact(a: Option<Constraint>, b: Option<Constraint>) -> bool {
         (None, None) => true,
         (Some(a), Some(b)) => {
             a.obstacle == b.obstacle
+                && a.law.is_none()
+                && b.law.is_none()
                 && a.body.is_none()
                 && b.body.is_none()
                 && a.second.map(|s| s.obstacle) == b.second.map(|s| s.obstacle)
@@ -378,6 +384,8 @@ impl RodWork {
             filter_scale: mean_mass,
             compliant: Vec::new(),
             pressed: vec![None; n],
+            law_slip: vec![None; n],
+            law_slip_saved: vec![None; n],
             v1: vec![0.0; 2 * n],
             vfac: vec![0.0; n],
             fd: vec![0.0; 2 * n],
@@ -956,12 +964,17 @@ pub fn press_compliant(rod: &Rod, w: &mut RodWork, hessian: bool) {
         let p = [w.qn[2 * i], w.qn[2 * i + 1]];
         for c in &w.compliant {
             let Some(pr) = c.press(p) else { continue };
-            w.r[2 * i] -= pr.force * pr.normal[0];
-            w.r[2 * i + 1] -= pr.force * pr.normal[1];
+            let (fk, kk) = match w.law_slip[i] {
+                Some(sl) if sl.obstacle == c.obstacle => pr.kinetic(c.coulomb.mu_k, sl.sign),
+                _ => ([0.0; 2], [[0.0; 2]; 2]),
+            };
+            w.r[2 * i] -= pr.force * pr.normal[0] + fk[0];
+            w.r[2 * i + 1] -= pr.force * pr.normal[1] + fk[1];
             if hessian {
                 for a in 0..2 {
                     for b in 0..2 {
-                        w.band.add(2 * fi + a, 2 * fi + b, pr.stiffness[a][b]);
+                        w.band
+                            .add(2 * fi + a, 2 * fi + b, pr.stiffness[a][b] - kk[a][b]);
                     }
                 }
             }
@@ -970,6 +983,43 @@ pub fn press_compliant(rod: &Rod, w: &mut RodWork, hessian: bool) {
             }
         }
     }
+}
+
+/// The force of compliant fruit `c` on node i when the fruit is carried by a free body, as the
+/// body's equations see it: (body, g, H) with g = (f, τ) what the body's residual gains (the
+/// body feels −f at its surface point c + R n: g += (f, R n × f)), f the force on the node (the
+/// law's F n, plus the kinetic friction while it slides there), and H = ∂g/∂x_i (3 × 2). For a
+/// circle ∂g/∂c = −H and ∂g/∂θ = 0.
+pub fn fruit_force(
+    w: &RodWork,
+    i: usize,
+    c: &CompliantCircle,
+) -> Option<(usize, [f64; 3], [[f64; 2]; 3])> {
+    let b = c.body?;
+    let pr = c.press([w.qn[2 * i], w.qn[2 * i + 1]])?;
+    let n = pr.normal;
+    let mut f = [pr.force * n[0], pr.force * n[1]];
+    // K = ∂f/∂x = −stiffness (+ the kinetic part).
+    let mut k = [
+        [-pr.stiffness[0][0], -pr.stiffness[0][1]],
+        [-pr.stiffness[1][0], -pr.stiffness[1][1]],
+    ];
+    let mut tau = 0.0;
+    let mut dtau = [0.0; 2];
+    if let Some(sl) = w.law_slip[i].filter(|s| s.obstacle == c.obstacle) {
+        let (fk, kk) = pr.kinetic(c.coulomb.mu_k, sl.sign);
+        for a in 0..2 {
+            f[a] += fk[a];
+            for l in 0..2 {
+                k[a][l] += kk[a][l];
+            }
+        }
+        // R n × f_k = −R μ_k s F; ∂/∂x = R μ_k s F′ nᵀ.
+        let rm = c.law.r_fruit * c.coulomb.mu_k * sl.sign;
+        tau = -rm * pr.force;
+        dtau = [rm * pr.dforce * n[0], rm * pr.dforce * n[1]];
+    }
+    Some((b, [f[0], f[1], tau], [k[0], k[1], dtau]))
 }
 
 /// The step's node velocities as functions of Δq: backward Euler Δq/dt, BDF2 (Δq − α Δq_prev)/β

@@ -138,25 +138,14 @@ impl Simulation {
                 if self.rods[r].clamped[i] {
                     continue;
                 }
-                if let Some(v) = self.compliant_contact_view(r, i) {
+                if let Some(v) = self.compliant_contact_view(r, i, dt) {
+                    self.add_fruit_force(r, i, &v);
                     self.contact_out.push(v);
                 }
-                if let Some(c) = self.work[r].contact[i] {
+                // A compliant contact's friction hold is reported with the contact above.
+                if let Some(c) = self.work[r].contact[i].filter(|c| c.law.is_none()) {
                     let v = self.node_contact_view(r, i, &c, dt);
-                    if let Some(l) = c.body {
-                        let o = &mut self.body_out[l.body];
-                        let f = [
-                            -(v.normal_force * c.normal[0] + v.friction_force * c.tangent()[0]),
-                            -(v.normal_force * c.normal[1] + v.friction_force * c.tangent()[1]),
-                        ];
-                        let lever = [
-                            v.point[0] - self.bodies[l.body].pose.c[0],
-                            v.point[1] - self.bodies[l.body].pose.c[1],
-                        ];
-                        o.force[0] += f[0];
-                        o.force[1] += f[1];
-                        o.torque += lever[0] * f[1] - lever[1] * f[0];
-                    }
+                    self.add_body_force(&v);
                     self.contact_out.push(v);
                 }
             }
@@ -176,6 +165,51 @@ impl Simulation {
         for bi in 0..self.bodies.len() {
             self.body_contact_views(bi, dt);
         }
+    }
+
+    /// A rod's contact on a free body, into the body's net contact wrench: minus the force on
+    /// the prong (normal and friction), at the contact point.
+    fn add_body_force(&mut self, v: &ContactView) {
+        let Some(o) = self.body_out.get_mut(v.body) else {
+            return;
+        };
+        let t = [-v.normal[1], v.normal[0]];
+        let f = [
+            -(v.normal_force * v.normal[0] + v.friction_force * t[0]),
+            -(v.normal_force * v.normal[1] + v.friction_force * t[1]),
+        ];
+        let c = self.bodies[v.body].pose.c;
+        let lever = [v.point[0] - c[0], v.point[1] - c[1]];
+        o.force[0] += f[0];
+        o.force[1] += f[1];
+        o.torque += lever[0] * f[1] - lever[1] * f[0];
+    }
+
+    /// A node's compliant contact on a free body, into the body's net contact wrench as the
+    /// step applied it: the normal force −F n through the fruit's centre (a circle), the
+    /// friction −R_t t at the fruit's surface point the solver used (the hold's lever, or
+    /// R n while sliding).
+    fn add_fruit_force(&mut self, r: usize, i: usize, v: &ContactView) {
+        let Some(o) = self.body_out.get_mut(v.body) else {
+            return;
+        };
+        let n = v.normal;
+        let t = [-n[1], n[0]];
+        let lever = match self.work[r].contact[i] {
+            Some(c) if c.law.is_some() => c.body.map_or([0.0; 2], |l| l.lever),
+            _ => {
+                let rf = self.work[r]
+                    .compliant
+                    .iter()
+                    .find(|c| c.obstacle == v.obstacle)
+                    .map_or(0.0, |c| c.law.r_fruit);
+                [rf * n[0], rf * n[1]]
+            }
+        };
+        let (fn_, ft) = (v.normal_force, v.friction_force);
+        o.force[0] -= fn_ * n[0] + ft * t[0];
+        o.force[1] -= fn_ * n[1] + ft * t[1];
+        o.torque -= ft * (lever[0] * t[1] - lever[1] * t[0]);
     }
 
     /// Edge contact j of rod r: its point on the face, normal and shared normal force.
@@ -244,24 +278,51 @@ impl Simulation {
 
     /// Node (r, i)'s contact with a compliant fruit, if it presses into one: its force, the
     /// indentation, and the Hertz half-width and peak pressure of that force.
-    fn compliant_contact_view(&self, r: usize, i: usize) -> Option<ContactView> {
+    fn compliant_contact_view(&self, r: usize, i: usize, dt: f64) -> Option<ContactView> {
         let w = &self.work[r];
         let p = w.pressed[i]?;
-        let law = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?.law;
+        let fruit = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?;
+        let law = fruit.law;
         let bruise = self.scenario.materials[p.obstacle]
             .as_ref()
             .map_or(0.0, |m| m.bruise_pressure);
         let off = self.rod_offset[r];
         let x = [w.q[2 * i], w.q[2 * i + 1]];
+        let t = [-p.normal[1], p.normal[0]];
+        // Friction: the hold's reaction along the surface while stuck; the kinetic force
+        // while sliding.
+        let (friction, stuck, slip) = match (w.contact[i], w.law_slip[i]) {
+            (Some(c), _) if c.law.is_some() && c.obstacle == p.obstacle => {
+                let h = c.normal;
+                let rt = h[0] * w.r[2 * i] + h[1] * w.r[2 * i + 1];
+                (rt * (h[0] * t[0] + h[1] * t[1]), true, 0.0)
+            }
+            (_, Some(s)) if s.obstacle == p.obstacle => {
+                let (fk, _) = p.kinetic(fruit.coulomb.mu_k, s.sign);
+                let v = self.law_slip_rate(r, i, p, fruit, dt);
+                (fk[0] * t[0] + fk[1] * t[1], false, v)
+            }
+            _ => (0.0, false, 0.0),
+        };
+        let mu_s = fruit.coulomb.mu_s;
         Some(ContactView {
             rod: r,
             node: i,
             obstacle: p.obstacle,
-            body: usize::MAX,
+            body: fruit.body.unwrap_or(usize::MAX),
             // The face's point, pressed δ into the fruit's undeformed surface.
             point: [x[0] - off * p.normal[0], x[1] - off * p.normal[1]],
             normal: p.normal,
             normal_force: p.force,
+            friction_force: friction,
+            slip_velocity: slip,
+            stuck,
+            utilisation: if mu_s > 0.0 && p.force > 0.0 {
+                friction.abs() / (mu_s * p.force)
+            } else {
+                0.0
+            },
+            mu_s,
             indentation: p.indentation,
             half_width: law.half_width(p.force),
             peak_pressure: law.peak_pressure(p.force),
@@ -269,6 +330,30 @@ impl Simulation {
             bruise_half_width: law.width_above(p.force, bruise),
             ..RIGID
         })
+    }
+
+    /// The slip velocity along the fruit's tangent of a node sliding on a compliant fruit over
+    /// the step just accepted (its body's motion taken out).
+    fn law_slip_rate(
+        &self,
+        r: usize,
+        i: usize,
+        p: crate::contact::compliant::Pressed,
+        fruit: &crate::contact::compliant::CompliantCircle,
+        dt: f64,
+    ) -> f64 {
+        if dt <= 0.0 {
+            return 0.0;
+        }
+        let w = &self.work[r];
+        let mut d = [w.dq[2 * i], w.dq[2 * i + 1]];
+        if let Some(b) = fruit.body {
+            let x = self.bodies[b].last_dx;
+            let lever = [fruit.law.r_fruit * p.normal[0], fruit.law.r_fruit * p.normal[1]];
+            d[0] -= x[0] - lever[1] * x[2];
+            d[1] -= x[1] + lever[0] * x[2];
+        }
+        (-p.normal[1] * d[0] + p.normal[0] * d[1]) / dt
     }
 
     /// A conforming compliant contact (edge mode): one connected contact arc, its resultant at
@@ -326,12 +411,32 @@ impl Simulation {
             } else {
                 0.0
             };
+            let (indentation, half_width, peak_pressure, bruise, above) = match c.law {
+                Some(law) => {
+                    let bruise = self.scenario.materials[b.spec.obstacle]
+                        .as_ref()
+                        .map_or(0.0, |m| m.bruise_pressure);
+                    (
+                        c.indentation(&b.last_dx),
+                        law.half_width(lam[0]),
+                        law.peak_pressure(lam[0]),
+                        bruise,
+                        law.width_above(lam[0], bruise),
+                    )
+                }
+                None => (0.0, 0.0, 0.0, 0.0, 0.0),
+            };
             self.contact_out.push(ContactView {
                 rod: usize::MAX,
                 node: bi,
                 obstacle: c.obstacle,
                 body: usize::MAX,
                 point: [b.pose.c[0] + c.lever[0], b.pose.c[1] + c.lever[1]],
+                indentation,
+                half_width,
+                peak_pressure,
+                bruise_pressure: bruise,
+                bruise_half_width: above,
                 normal: c.normal,
                 normal_force: lam[0],
                 friction_force: rt,

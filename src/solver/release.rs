@@ -36,6 +36,7 @@ impl Simulation {
                     continue;
                 };
                 if c.locked
+                    || c.law.is_some()
                     || c.body.is_some()
                     || c.second.is_some()
                     || c.obstacle != c0.obstacle
@@ -71,7 +72,12 @@ impl Simulation {
         for w in &mut self.work {
             for i in 0..w.contact.len() {
                 let (rn, cone) = match w.contact[i] {
-                    Some(c) if c.body.is_none() && c.second.is_none() && !w.edge_nodes[i] => {
+                    Some(c)
+                        if c.body.is_none()
+                            && c.law.is_none()
+                            && c.second.is_none()
+                            && !w.edge_nodes[i] =>
+                    {
                         let (rn, rt) = friction::split(&c, [w.r[2 * i], w.r[2 * i + 1]]);
                         let cone = match c.grip {
                             Grip::Stick { .. } if c.coulomb.mu_s > 0.0 => {

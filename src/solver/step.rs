@@ -179,6 +179,10 @@ impl Simulation {
             let rod = &self.rods[r];
             let w = &mut self.work[r];
             w.contact_saved.copy_from_slice(&w.contact);
+            for s in w.law_slip.iter_mut().flatten() {
+                s.switches = 0;
+            }
+            w.law_slip_saved.copy_from_slice(&w.law_slip);
             w.edges_saved.clone_from(&w.edges);
             w.edge_released.clear();
             w.step_dt = if ctx.dynamic { ctx.dt } else { 0.0 };
@@ -228,6 +232,12 @@ impl Simulation {
         for r in 0..self.rods.len() {
             for i in 0..self.rods[r].n {
                 if let Some(c) = self.work[r].contact[i] {
+                    if c.law.is_some() {
+                        let w = &self.work[r];
+                        let p = [w.q[2 * i], w.q[2 * i + 1]];
+                        self.work[r].contact[i] = self.law_hold_at(r, c.obstacle, p);
+                        continue;
+                    }
                     let w = &self.work[r];
                     let ahead = ctx.bdf2
                         && w.bdf.on
@@ -368,7 +378,8 @@ impl Simulation {
             let m = self.work[r]
                 .contact
                 .iter()
-                .any(|c| c.is_some_and(|c| c.body.is_some()));
+                .any(|c| c.is_some_and(|c| c.body.is_some()))
+                || self.presses_body(r);
             if m != self.is_member[r] {
                 self.is_member[r] = m;
                 // The coupled system has no edge rows: a rod joining a body group is held at
@@ -452,6 +463,7 @@ impl Simulation {
     pub(super) fn rollback(&mut self) {
         for w in &mut self.work {
             w.contact.copy_from_slice(&w.contact_saved);
+            w.law_slip.copy_from_slice(&w.law_slip_saved);
             w.clear_release_marks();
             w.edges.clone_from(&w.edges_saved);
             w.edge_released.clear();

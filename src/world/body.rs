@@ -29,6 +29,9 @@ pub struct BodySpec {
     /// A fruit is `held` when it ends the lift within this distance (m) of where it sat in
     /// the gripper when the lift began.
     pub hold_tolerance: f64,
+    /// Extent out of the plane (m): `depth` as given, else the body's diameter 2 `radius` (a
+    /// round fruit is as deep as it is wide). The length of its line contact on a table.
+    pub depth: f64,
 }
 
 /// Area (m² per m of depth), centroid and polar second moment of area about the centroid

@@ -14,6 +14,7 @@ mod faults;
 mod first_contact;
 mod friction_bodies;
 mod frictionless_golden;
+mod fruit;
 mod integrator;
 mod pick_and_place;
 mod properties;
