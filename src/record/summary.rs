@@ -206,6 +206,8 @@ pub struct SummaryCollector {
     tips: Vec<Tip>,
     grasp: super::grasp::GraspTracker,
     pressure: Option<PressureSummary>,
+    /// The obstacles' names (a body's own contact is named by the obstacle it presses).
+    obstacles: Vec<String>,
 }
 
 impl SummaryCollector {
@@ -287,10 +289,12 @@ impl SummaryCollector {
             p.max_bruise_width_m = p.max_bruise_width_m.max(2.0 * c.bruise_half_width);
             if c.peak_pressure > p.max_pressure_pa {
                 p.max_pressure_pa = c.peak_pressure;
-                p.max_pressure_node = NodeRef {
-                    rod: self.names.get(c.rod).cloned().unwrap_or_default(),
-                    node: c.node,
+                // A body's own contact (a fruit on the table) names the obstacle it presses.
+                let rod = match self.names.get(c.rod) {
+                    Some(n) => n.clone(),
+                    None => self.obstacles.get(c.obstacle).cloned().unwrap_or_default(),
                 };
+                p.max_pressure_node = NodeRef { rod, node: c.node };
                 p.max_pressure_point = c.point;
                 p.max_pressure_time_s = t;
                 p.half_width_at_max_m = c.half_width;
@@ -314,6 +318,7 @@ impl Observer for SummaryCollector {
                 self.scenario = info.scenario_name.to_string();
                 self.mode = format!("{:?}", info.mode).to_lowercase();
                 self.names = info.rods.iter().map(|r| r.name.clone()).collect();
+                self.obstacles = info.obstacle_names.to_vec();
                 self.rods = info
                     .rods
                     .iter()

@@ -119,3 +119,49 @@ fn a_compliant_disc_rests_on_the_table_with_m_g_at_the_laws_indentation() {
     assert!((c.indentation - delta).abs() < 1e-6 * delta, "{}", c.indentation);
     assert!((c.peak_pressure - law.peak_pressure(m * G)).abs() < 1e-6 * c.peak_pressure);
 }
+
+/// The run's summary (as `gripsim run --summary` writes it).
+fn summary(sc: &Scenario) -> gripsim::record::summary::Summary {
+    let mut sim = Simulation::new(sc);
+    let mut col = gripsim::record::summary::SummaryCollector::new();
+    sim.run(&mut col).unwrap_or_else(|e| panic!("{e}"));
+    col.finish(&sim.stats, 0.0)
+}
+
+#[test]
+fn a_compliant_fruit_dropped_from_10_cm_bruises_and_from_1_cm_does_not() {
+    // Apple flesh (E 1.5 MPa, bruising above 0.1 MPa) on a rigid table, the impact resolved
+    // in time (dt 1e-5 s: ~400 steps per contact) and at half that step.
+    let mut peaks = Vec::new();
+    for (h, bruised) in [(0.10, true), (0.01, false)] {
+        for dt in ["1e-5", "5e-6"] {
+            let t_end = (2.0 * h / G).sqrt() + 0.01;
+            let sc = scenario(
+                DISC_ON_TABLE,
+                &[
+                    &format!("obstacle.1.center=[0.0,{}]", 0.04 + h),
+                    &format!("solve.t_end={t_end}"),
+                    &format!("solve.dt={dt}"),
+                ],
+            );
+            let s = summary(&sc);
+            let p = s.contact_pressure.expect("the table pressed the fruit");
+            println!(
+                "drop {h} m, dt {dt}: peak force {:.3} N, p0 {:.1} kPa ({:.3} of the bruise \
+                 threshold) on {:?}, bruised {}",
+                p.peak_contact_force_n,
+                p.max_pressure_pa / 1e3,
+                p.bruise_ratio,
+                p.max_pressure_node.rod,
+                p.bruised
+            );
+            assert_eq!(p.bruised, bruised, "drop from {h} m");
+            assert_eq!(p.max_pressure_node.rod, "table");
+            peaks.push(p.max_pressure_pa);
+        }
+    }
+    // The peak pressure converges in dt (backward Euler's damping of the impact: first order).
+    for pair in peaks.chunks(2) {
+        assert!((pair[0] - pair[1]).abs() < 0.02 * pair[1], "{pair:?}");
+    }
+}
