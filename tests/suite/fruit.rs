@@ -165,3 +165,57 @@ fn a_compliant_fruit_dropped_from_10_cm_bruises_and_from_1_cm_does_not() {
         assert!((pair[0] - pair[1]).abs() < 0.02 * pair[1], "{pair:?}");
     }
 }
+
+fn shipped(name: &str, sets: &[&str]) -> Scenario {
+    let path = format!("{}/scenarios/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    Scenario::load(std::path::Path::new(&path), &sets).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The jaw grasp's S-curve lift: peak acceleration 5.7735 D / T² (D = 4 cm, T = 0.6 s); friction
+/// holds the fruit iff μ_s ΣN ≥ m (g + a), a safety margin μ_s ΣN / (m g) ≥ 1 + a/g.
+fn lift_threshold() -> f64 {
+    let a = 10.0 / 3.0f64.sqrt() * 0.04 / 0.36;
+    1.0 + a / G
+}
+
+#[test]
+fn jaws_hold_a_compliant_fruit_exactly_where_friction_carries_it() {
+    // The shipped jaw grasp with an apple's flesh on the free fruit: the friction of the jaws
+    // scaled so that the margin at the lift is 2 % above and below m (g + a) / (m g).
+    let need = lift_threshold();
+    for integrator in ["backward_euler", "tr_bdf2"] {
+        let base = [
+            "obstacle.1.material=apple".to_string(),
+            format!("solve.integrator={integrator}"),
+        ];
+        let sets: Vec<&str> = base.iter().map(String::as_str).collect();
+        let s = summary(&shipped("jaw-grasp-hold", &sets));
+        let g = s.grasp.unwrap();
+        let m0 = g.safety_margin_at_lift.unwrap();
+        let p = s.contact_pressure.expect("the jaws press the apple");
+        println!(
+            "{integrator}: margin at the lift {m0:.4} (mu_s 0.6), held {}, peak p0 {:.1} kPa",
+            g.held,
+            p.max_pressure_pa / 1e3
+        );
+        assert!(g.held && !p.bruised);
+        for (f, held) in [(1.02, true), (0.98, false)] {
+            let mu = 0.6 * f * need / m0;
+            let mut sets = base.to_vec();
+            for k in 0..2 {
+                sets.push(format!("friction.pair.{k}.mu_s={mu}"));
+                sets.push(format!("friction.pair.{k}.mu_k={}", 0.8 * mu));
+            }
+            let sets: Vec<&str> = sets.iter().map(String::as_str).collect();
+            let g = summary(&shipped("jaw-grasp-hold", &sets)).grasp.unwrap();
+            println!(
+                "  {f} x threshold: margin {:.4} (needed {need:.4}): held {} dropped {}",
+                g.safety_margin_at_lift.unwrap(),
+                g.held,
+                g.dropped
+            );
+            assert_eq!((g.held, g.dropped), (held, !held), "{integrator} {f}");
+        }
+    }
+}
