@@ -219,3 +219,78 @@ fn jaws_hold_a_compliant_fruit_exactly_where_friction_carries_it() {
         }
     }
 }
+
+/// Over windows of every length from the start: Δ(m v) = Σ F dt + m g t and Δ(J ω) = Σ τ dt,
+/// with F and τ the contact force and moment the step reports on the body. Returns the worst
+/// relative error (of m g t, and of m g t × the body's radius for the moment).
+fn momentum_error(tr: &Trace, m: f64, j: f64, radius: f64) -> f64 {
+    let (mut px, mut py, mut l) = (0.0, 0.0, 0.0);
+    let (v0, w0) = (tr.body[0].1, tr.body[0].2);
+    let mut worst = 0.0f64;
+    for k in 1..tr.body.len() {
+        let (_, v, w, f, tq) = tr.body[k];
+        let dt = tr.dt[k];
+        px += f[0] * dt;
+        py += (f[1] - m * G) * dt;
+        l += tq * dt;
+        let scale = m * G * tr.t[k];
+        let ex = (m * (v[0] - v0[0]) - px).abs() / scale;
+        let ey = (m * (v[1] - v0[1]) - py).abs() / scale;
+        let er = (j * (w - w0) - l).abs() / (scale * radius);
+        worst = worst.max(ex).max(ey).max(er);
+    }
+    worst
+}
+
+#[test]
+fn a_compliant_fruits_momentum_changes_by_its_contact_and_gravity_impulses() {
+    // The jaw grasp on an apple: squeezed (compliant contacts held by friction), lifted, and
+    // its own compliant contact with the table; then with friction too weak, so it slides.
+    for mu in ["0.6", "0.3"] {
+        let sets = [
+            "obstacle.1.material=apple".to_string(),
+            format!("friction.pair.0.mu_s={mu}"),
+            format!("friction.pair.1.mu_s={mu}"),
+            "friction.pair.0.mu_k=0.25".to_string(),
+            "friction.pair.1.mu_k=0.25".to_string(),
+        ];
+        let sets: Vec<&str> = sets.iter().map(String::as_str).collect();
+        let sc = shipped("jaw-grasp-hold", &sets);
+        let (m, j) = (sc.bodies[0].mass, sc.bodies[0].inertia);
+        let (_, tr) = run(&sc);
+        let worst = momentum_error(&tr, m, j, 0.04);
+        let slid = tr
+            .contacts
+            .iter()
+            .flatten()
+            .any(|c| c.rod != usize::MAX && c.normal_force > 0.0 && !c.stuck);
+        println!("mu_s {mu}: momentum balance worst relative error {worst:.2e}, slid {slid}");
+        assert!(worst < 1e-9, "{worst:e}");
+    }
+}
+
+#[test]
+fn a_stiffer_fruit_approaches_the_rigid_fruit_monotonically() {
+    // The jaw grasp with fruit flesh of growing stiffness: the margin at the lift (the grip
+    // the squeeze ends on) grows monotonically towards its limit, and every run holds. The
+    // limit is the rigid fruit's run but for the prong's own face compliance, which the law's
+    // E* keeps as E_fruit → ∞ (E* → E_prong / (1 − ν_p²) = 67 MPa for these jaws): within 0.1 %.
+    let rigid = summary(&shipped("jaw-grasp-hold", &[])).grasp.unwrap();
+    let m_rigid = rigid.safety_margin_at_lift.unwrap();
+    let mut last = 0.0;
+    for e in [1e6, 1e7, 1e8, 1e9, 1e12] {
+        let set = format!("obstacle.1.material={{E={e},nu=0.3,bruise_pressure=1e5}}");
+        let g = summary(&shipped("jaw-grasp-hold", &[&set])).grasp.unwrap();
+        let m = g.safety_margin_at_lift.unwrap();
+        println!(
+            "E_fruit {e:e}: margin at the lift {m:.6} (rigid {m_rigid:.6}, {:+.3} %), held {}",
+            100.0 * (m / m_rigid - 1.0),
+            g.held
+        );
+        assert!(g.held && !g.dropped);
+        assert!(m > last, "not monotone at E = {e:e}: {m} after {last}");
+        last = m;
+    }
+    assert!((last - m_rigid).abs() < 1e-3 * m_rigid, "{last} vs {m_rigid}");
+    assert!(rigid.held);
+}
