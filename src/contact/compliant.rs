@@ -241,22 +241,36 @@ pub struct Pressed {
     pub curvature: f64,
 }
 
+/// The kinetic friction −μ_k F s t of a node sliding in direction `s` along the tangent
+/// t = (−n_y, n_x) under normal force F, and ∂f/∂x = −μ_k s (t (∂F/∂x)ᵀ − F κ n tᵀ) for
+/// ∂F/∂x = `df` and ∂t/∂x = −κ n tᵀ.
+pub fn kinetic_force(
+    mu_k: f64,
+    s: f64,
+    force: f64,
+    n: [f64; 2],
+    kappa: f64,
+    df: [f64; 2],
+) -> ([f64; 2], [[f64; 2]; 2]) {
+    let t = [-n[1], n[0]];
+    let c = mu_k * s;
+    let f = [-c * force * t[0], -c * force * t[1]];
+    let mut k = [[0.0; 2]; 2];
+    for x in 0..2 {
+        for y in 0..2 {
+            k[x][y] = -c * (t[x] * df[y] - force * kappa * n[x] * t[y]);
+        }
+    }
+    (f, k)
+}
+
 impl Pressed {
     /// The kinetic friction −μ_k F s t of a node sliding in direction `s` along t, and its
     /// derivative ∂f/∂x = μ_k s (F′ t nᵀ + F κ n tᵀ) (∂F/∂x = −F′ nᵀ, ∂t/∂x = −κ n tᵀ).
     pub fn kinetic(&self, mu_k: f64, s: f64) -> ([f64; 2], [[f64; 2]; 2]) {
         let n = self.normal;
-        let t = [-n[1], n[0]];
-        let c = mu_k * s;
-        let f = [-c * self.force * t[0], -c * self.force * t[1]];
-        let (a, b) = (c * self.dforce, c * self.force * self.curvature);
-        let mut k = [[0.0; 2]; 2];
-        for x in 0..2 {
-            for y in 0..2 {
-                k[x][y] = a * t[x] * n[y] + b * n[x] * t[y];
-            }
-        }
-        (f, k)
+        let df = [-self.dforce * n[0], -self.dforce * n[1]];
+        kinetic_force(mu_k, s, self.force, n, self.curvature, df)
     }
 }
 

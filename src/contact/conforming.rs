@@ -200,6 +200,39 @@ impl Pressing {
         }
     }
 
+    /// Node j's share of the fruit's force along the fruit's outward normal n_j at the node
+    /// (`center` the fruit's centre): (F_n = f_j·n_j, n_j, κ_j = 1/|x_j − c|, ∂F_n/∂x_j
+    /// from the band's diagonal block and the turning of n_j). None off the span, at the centre,
+    /// or where the share does not press. What friction at the node is decided from.
+    pub fn node_normal(
+        &self,
+        j: usize,
+        x: [f64; 2],
+        center: [f64; 2],
+    ) -> Option<(f64, [f64; 2], f64, [f64; 2])> {
+        let f = self.node_force(j);
+        let d = [x[0] - center[0], x[1] - center[1]];
+        let rho = d[0].hypot(d[1]);
+        if rho == 0.0 {
+            return None;
+        }
+        let n = [d[0] / rho, d[1] / rho];
+        let fn_ = f[0] * n[0] + f[1] * n[1];
+        if !(fn_ > 0.0) {
+            return None;
+        }
+        // ∂(f·n)/∂x = nᵀ ∂f/∂x + fᵀ ∂n/∂x, ∂n/∂x = κ t tᵀ.
+        let b = self.band_block(j, j);
+        let t = [-n[1], n[0]];
+        let ft = f[0] * t[0] + f[1] * t[1];
+        let kappa = 1.0 / rho;
+        let df = [
+            n[0] * b[0][0] + n[1] * b[1][0] + ft * kappa * t[0],
+            n[0] * b[0][1] + n[1] * b[1][1] + ft * kappa * t[1],
+        ];
+        Some((fn_, n, kappa, df))
+    }
+
     /// The coefficient c of the rank-one part of ∂f/∂x, c G hᵀ: c = d(F/A)/dA.
     pub fn rank_one(&self) -> f64 {
         (self.dforce - self.force / self.area) / self.area

@@ -181,10 +181,14 @@ impl Coupled<'_> {
             newton::add_mass(rod, w, opt);
             couple_blocks(rod, w, &mut self.coupling[r], self.scratch, nb);
             couple_compliant(rod, w, &mut self.coupling[r], self.scratch, nb);
+            couple_conforming(rod, w, &mut self.coupling[r], self.scratch, nb);
             newton::filter_rows(rod, w);
             newton::filter_cols(rod, w, opt);
             newton::factor(w, res, iterations).map_err(|f| (r, f))?;
-            w.band.solve(&mut w.rhs);
+            super::edges::prepare_conforming(rod, w);
+            let mut rhs = std::mem::take(&mut w.rhs);
+            super::edges::solve_k(w, &mut rhs);
+            w.rhs = rhs;
             schur(w, &mut self.coupling[r], self.scratch, nb);
         }
         press_bodies(self.bodies, self.scratch, nb);
@@ -563,6 +567,126 @@ fn couple_compliant(
     }
 }
 
+/// The coupling of a conforming compliant contact (edge mode) with the free body that carries
+/// the fruit: the nodal forces f_j = (F/A) G_j depend on the nodes and on the fruit's centre
+/// c only through x − c, so ∂f_j/∂c = −Σ_k ∂f_j/∂x_k, with ∂f_j/∂x_k = (F/A) ∂G_j/∂x_k (the
+/// band's blocks) + c_A G_j h_kᵀ (the rank-one part). The nodes' rows gain ∂r_j/∂c =
+/// Σ_k ∂f_j/∂x_k (B), the body feels −Σ_j f_j through its centre (radial pressure: no
+/// moment): g += Σ_j f_j, D = Σ_j ∂f_j/∂x_k, S −= Σ_k D_k.
+fn couple_conforming(
+    rod: &Rod,
+    w: &RodWork,
+    cpl: &mut RodCoupling,
+    sc: &mut BodyScratch,
+    nb: usize,
+) {
+    let m = 2 * w.nfree;
+    for p in &w.pressings {
+        let Some(b) = w
+            .compliant
+            .iter()
+            .find(|c| c.obstacle == p.obstacle)
+            .and_then(|c| c.body)
+        else {
+            continue;
+        };
+        let last = (p.first + p.g.len() - 1).min(rod.n - 1);
+        let ca = p.rank_one();
+        // Σ_j G_j and Σ_k h_k (the rank-one part's sums).
+        let (mut sg, mut sh) = ([0.0; 2], [0.0; 2]);
+        for (g, h) in p.g.iter().zip(&p.h) {
+            for a in 0..2 {
+                sg[a] += g[a];
+                sh[a] += h[a];
+            }
+        }
+        let mut total = [[0.0; 2]; 2];
+        for j in p.first..=last {
+            let f = p.node_force(j);
+            let (gj, hj) = (p.g[j - p.first], p.h[j - p.first]);
+            // Σ_k ∂f_j/∂x_k (node j's rows of B) and Σ_i ∂f_i/∂x_j (node j's columns of D).
+            let mut row_sum = [[0.0; 2]; 2];
+            let mut col_sum = [[0.0; 2]; 2];
+            for k in j.saturating_sub(1).max(p.first)..=(j + 1).min(last) {
+                let (bj, bk) = (p.band_block(j, k), p.band_block(k, j));
+                for x in 0..2 {
+                    for y in 0..2 {
+                        row_sum[x][y] += bj[x][y];
+                        col_sum[x][y] += bk[x][y];
+                    }
+                }
+            }
+            for x in 0..2 {
+                sc.g[3 * b + x] += f[x];
+                for y in 0..2 {
+                    row_sum[x][y] += ca * gj[x] * sh[y];
+                    col_sum[x][y] += ca * sg[x] * hj[y];
+                    total[x][y] += col_sum[x][y];
+                }
+            }
+            let fj = w.free_index[j];
+            if fj == usize::MAX {
+                continue;
+            }
+            for col in 0..2 {
+                let (x, y) = newton::rows(row_sum[0][col], row_sum[1][col], w.contact[j]);
+                cpl.b[(3 * b + col) * m + 2 * fj] += x;
+                cpl.b[(3 * b + col) * m + 2 * fj + 1] += y;
+                for a in 0..2 {
+                    cpl.d[(3 * b + col) * m + 2 * fj + a] += col_sum[col][a];
+                }
+            }
+        }
+        for x in 0..2 {
+            for y in 0..2 {
+                sc.s[(3 * b + x) * nb + 3 * b + y] -= total[x][y];
+            }
+        }
+        couple_sliding(rod, w, p, b, cpl, sc, nb);
+    }
+}
+
+/// The kinetic friction of a conforming contact's sliding nodes on a free body: the body
+/// feels −f_k at its surface point R n_j, g += (f_k, R n_j × f_k); with the node's own block
+/// K, ∂g/∂x_j = [K; ∂τ] and ∂g/∂c = −[K; ∂τ], ∂r_j/∂c = K.
+fn couple_sliding(
+    rod: &Rod,
+    w: &RodWork,
+    p: &crate::contact::conforming::Pressing,
+    b: usize,
+    cpl: &mut RodCoupling,
+    sc: &mut BodyScratch,
+    nb: usize,
+) {
+    let m = 2 * w.nfree;
+    let last = (p.first + p.g.len() - 1).min(rod.n - 1);
+    for j in p.first..=last {
+        let Some((f, k, tau, dtau)) = super::edges::sliding(w, p, j) else {
+            continue;
+        };
+        let h = [k[0], k[1], dtau];
+        let g = [f[0], f[1], tau];
+        let fj = w.free_index[j];
+        for row in 0..3 {
+            sc.g[3 * b + row] += g[row];
+            for l in 0..2 {
+                sc.s[(3 * b + row) * nb + 3 * b + l] -= h[row][l];
+                if fj != usize::MAX {
+                    cpl.d[(3 * b + row) * m + 2 * fj + l] += h[row][l];
+                }
+            }
+        }
+        if fj == usize::MAX {
+            continue;
+        }
+        for col in 0..2 {
+            let (x, y) = newton::rows(k[0][col], k[1][col], w.contact[j]);
+            cpl.b[(3 * b + col) * m + 2 * fj] += x;
+            cpl.b[(3 * b + col) * m + 2 * fj + 1] += y;
+        }
+    }
+}
+
 /// C (2×3: how the body moves the node) and W (3×2: how the node's reaction acts on the body)
 /// of a node held against a body.
 fn maps(c: &Constraint) -> ([[f64; 3]; 2], [[f64; 2]; 3]) {
@@ -614,7 +738,7 @@ fn schur(w: &RodWork, cpl: &mut RodCoupling, sc: &mut BodyScratch, nb: usize) {
     for k in 0..nb {
         let col = &mut cpl.b[k * m..(k + 1) * m];
         if col.iter().any(|x| *x != 0.0) {
-            w.band.solve(col);
+            super::edges::solve_k(w, col);
         }
     }
     for i in 0..nb {

@@ -326,7 +326,55 @@ pub fn press_compliant_edges(rod: &Rod, w: &mut RodWork, hessian: bool) {
             continue;
         };
         apply_pressing(w, &p, hessian);
+        apply_sliding(rod, w, &p, hessian);
         w.pressings.push(p);
+    }
+}
+
+/// Kinetic friction of a conforming contact's node j sliding on the fruit (its law slip):
+/// −μ_k F_n s t at the node's share F_n of the fruit's force along the fruit's normal there.
+/// (force on the node, ∂f/∂x_j (its own block: F_n's dependence on the other nodes is left
+/// to the Newton iteration), and the moment R n × f about the fruit's centre with its
+/// derivative, R the fruit's radius).
+pub type Sliding = ([f64; 2], [[f64; 2]; 2], f64, [f64; 2]);
+
+pub fn sliding(w: &RodWork, p: &crate::contact::conforming::Pressing, j: usize) -> Option<Sliding> {
+    let sl = w.law_slip.get(j).copied().flatten()?;
+    if sl.obstacle != p.obstacle {
+        return None;
+    }
+    let c = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?;
+    let x = [w.qn[2 * j], w.qn[2 * j + 1]];
+    let (fn_, n, kappa, df) = p.node_normal(j, x, c.center)?;
+    let mu = c.coulomb.mu_k;
+    let (f, k) = crate::contact::compliant::kinetic_force(mu, sl.sign, fn_, n, kappa, df);
+    // R n × f = −R μ_k s F_n.
+    let rm = c.law.r_fruit * mu * sl.sign;
+    Some((f, k, -rm * fn_, [-rm * df[0], -rm * df[1]]))
+}
+
+/// The kinetic friction of a conforming contact's sliding nodes into the balance and the band.
+fn apply_sliding(
+    rod: &Rod,
+    w: &mut RodWork,
+    p: &crate::contact::conforming::Pressing,
+    hessian: bool,
+) {
+    let last = (p.first + p.g.len() - 1).min(rod.n - 1);
+    for j in p.first..=last {
+        let fj = w.free_index[j];
+        let Some((f, k, _, _)) = sliding(w, p, j).filter(|_| fj != usize::MAX) else {
+            continue;
+        };
+        w.r[2 * j] -= f[0];
+        w.r[2 * j + 1] -= f[1];
+        if hessian {
+            for x in 0..2 {
+                for y in 0..2 {
+                    w.band.add(2 * fj + x, 2 * fj + y, -k[x][y]);
+                }
+            }
+        }
     }
 }
 

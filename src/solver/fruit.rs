@@ -3,7 +3,7 @@
 
 use super::step::StepCtx;
 use super::Simulation;
-use crate::contact::compliant::{LawSlip, LineContact, Pressed};
+use crate::contact::compliant::{LawSlip, LineContact};
 use crate::contact::friction::{self, Coulomb, Switch};
 use crate::contact::{self, BodyLink, Constraint, Grip};
 use crate::events::{Event, FrictionChange, Observer};
@@ -86,11 +86,37 @@ impl Simulation {
         Some(Constraint::law_hold(k, n, p, c.coulomb, body))
     }
 
-    /// The node's pressing into compliant obstacle `k` at its current iterate.
-    fn law_press(&self, r: usize, i: usize, k: usize) -> Option<(Pressed, Coulomb)> {
+    /// Node i's pressing into compliant obstacle `k` at its current iterate: the normal
+    /// force friction is decided from (node mode: the law's F at the node; edge mode: the
+    /// node's share of the conforming contact's force along the fruit's normal there) and the
+    /// pair's coefficients.
+    fn law_press(&self, r: usize, i: usize, k: usize) -> Option<(f64, Coulomb)> {
         let w = &self.work[r];
         let c = w.compliant.iter().find(|c| c.obstacle == k)?;
-        Some((c.press([w.qn[2 * i], w.qn[2 * i + 1]])?, c.coulomb))
+        let x = [w.qn[2 * i], w.qn[2 * i + 1]];
+        let force = if w.edge_mode {
+            let p = w.pressings.iter().find(|p| p.obstacle == k)?;
+            p.node_normal(i, x, c.center)?.0
+        } else {
+            c.press(x)?.force
+        };
+        Some((force, c.coulomb))
+    }
+
+    /// The compliant fruit node i presses into (with static friction), if any.
+    fn law_pressed(&self, r: usize, i: usize) -> Option<usize> {
+        let w = &self.work[r];
+        if !w.edge_mode {
+            return w.pressed[i].map(|p| p.obstacle);
+        }
+        let x = [w.qn[2 * i], w.qn[2 * i + 1]];
+        w.pressings.iter().map(|p| p.obstacle).find(|&k| {
+            w.compliant
+                .iter()
+                .find(|c| c.obstacle == k)
+                .and_then(|c| w.pressings.iter().find(|p| p.obstacle == k)?.node_normal(i, x, c.center))
+                .is_some()
+        })
     }
 
     /// A node held by friction on a compliant fruit, after a pass: let go when it left the
@@ -105,8 +131,11 @@ impl Simulation {
         pass: u32,
         obs: &mut O,
     ) -> bool {
-        let Some((pr, coulomb)) = self.law_press(r, i, c.obstacle) else {
+        let Some((force, coulomb)) = self.law_press(r, i, c.obstacle) else {
+            // Left the fruit: let go, and not held again in this step (a node at the edge
+            // of a conforming arc, pressed and not by turns, would cycle).
             self.work[r].contact[i] = None;
+            self.work[r].contact_saved_mark(i);
             return true;
         };
         let w = &self.work[r];
@@ -118,7 +147,7 @@ impl Simulation {
         let rt = c.normal[0] * w.r[2 * i] + c.normal[1] * w.r[2 * i + 1];
         let grip = Grip::Stick { anchor: p };
         let Some(Switch::ToSlide { sign }) =
-            friction::decide_on(coulomb, grip, c.switches, pr.force, rt, 0.0)
+            friction::decide_on(coulomb, grip, c.switches, force, rt, 0.0)
         else {
             return false;
         };
@@ -129,7 +158,7 @@ impl Simulation {
             sign,
             switches: c.switches + 1,
         });
-        self.law_event(ctx, pass, r, i, c.obstacle, false, pr.force, rt, 0.0, obs);
+        self.law_event(ctx, pass, r, i, c.obstacle, false, force, rt, 0.0, obs);
         true
     }
 
@@ -144,28 +173,31 @@ impl Simulation {
         obs: &mut O,
     ) -> bool {
         let w = &self.work[r];
-        let (k, slip) = match (w.law_slip[i], w.pressed[i]) {
+        let (k, slip) = match (w.law_slip[i], self.law_pressed(r, i)) {
             (Some(s), _) => (s.obstacle, Some(s)),
-            (None, Some(p)) => (p.obstacle, None),
+            (None, Some(k)) => (k, None),
             (None, None) => return false,
         };
-        let Some((pr, coulomb)) = self.law_press(r, i, k) else {
+        let Some((force, coulomb)) = self.law_press(r, i, k) else {
             self.work[r].law_slip[i] = None;
             return false;
         };
         let qk = [w.q[2 * i], w.q[2 * i + 1]];
+        if slip.is_none() && w.was_released(i) {
+            return false;
+        }
         let Some(mut hold) = self.law_hold_at(r, k, qk) else {
             return false;
         };
         if let Some(s) = slip {
             let v_t = self.law_slip_velocity(ctx, r, i, &hold);
             let grip = Grip::Slide { sign: s.sign };
-            let rt = -coulomb.mu_k * pr.force * s.sign;
-            if friction::decide_on(coulomb, grip, s.switches, pr.force, rt, v_t).is_none() {
+            let rt = -coulomb.mu_k * force * s.sign;
+            if friction::decide_on(coulomb, grip, s.switches, force, rt, v_t).is_none() {
                 return false;
             }
             hold.switches = s.switches + 1;
-            self.law_event(ctx, pass, r, i, k, true, pr.force, rt, v_t, obs);
+            self.law_event(ctx, pass, r, i, k, true, force, rt, v_t, obs);
         }
         let w = &mut self.work[r];
         w.law_slip[i] = None;

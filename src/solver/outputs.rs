@@ -139,7 +139,10 @@ impl Simulation {
                     continue;
                 }
                 if let Some(v) = self.compliant_contact_view(r, i, dt) {
-                    self.add_fruit_force(r, i, &v);
+                    if v.body != usize::MAX {
+                        let f = [v.normal_force * v.normal[0], v.normal_force * v.normal[1]];
+                        self.add_fruit_force(r, i, v.obstacle, v.body, f);
+                    }
                     self.contact_out.push(v);
                 }
                 // A compliant contact's friction hold is reported with the contact above.
@@ -156,8 +159,9 @@ impl Simulation {
                 self.contact_out.push(v);
             }
             for j in 0..self.work[r].pressings.len() {
+                self.pressing_body_force(r, j);
                 for k in 0..self.work[r].pressings[j].regions.len() {
-                    let v = self.region_view(r, &self.work[r].pressings[j].regions[k]);
+                    let v = self.region_view(r, &self.work[r].pressings[j].regions[k], dt);
                     self.contact_out.push(v);
                 }
             }
@@ -185,31 +189,20 @@ impl Simulation {
         o.torque += lever[0] * f[1] - lever[1] * f[0];
     }
 
-    /// A node's compliant contact on a free body, into the body's net contact wrench as the
-    /// step applied it: the normal force −F n through the fruit's centre (a circle), the
-    /// friction −R_t t at the fruit's surface point the solver used (the hold's lever, or
-    /// R n while sliding).
-    fn add_fruit_force(&mut self, r: usize, i: usize, v: &ContactView) {
-        let Some(o) = self.body_out.get_mut(v.body) else {
-            return;
-        };
-        let n = v.normal;
-        let t = [-n[1], n[0]];
-        let lever = match self.work[r].contact[i] {
-            Some(c) if c.law.is_some() => c.body.map_or([0.0; 2], |l| l.lever),
-            _ => {
-                let rf = self.work[r]
-                    .compliant
-                    .iter()
-                    .find(|c| c.obstacle == v.obstacle)
-                    .map_or(0.0, |c| c.law.r_fruit);
-                [rf * n[0], rf * n[1]]
-            }
-        };
-        let (fn_, ft) = (v.normal_force, v.friction_force);
-        o.force[0] -= fn_ * n[0] + ft * t[0];
-        o.force[1] -= fn_ * n[1] + ft * t[1];
-        o.torque -= ft * (lever[0] * t[1] - lever[1] * t[0]);
+    /// Node (r, i)'s compliant contact with fruit `k` on free body `b`, into the body's net
+    /// contact wrench as the step applied it: minus the fruit's force on the node (`normal`:
+    /// the law's, through the fruit's centre — a circle's radial pressure has no moment) and
+    /// minus the friction at the fruit's surface point the solver used.
+    fn add_fruit_force(&mut self, r: usize, i: usize, k: usize, b: usize, normal: [f64; 2]) {
+        let fr = self.node_friction(r, i, k, 0.0);
+        let o = &mut self.body_out[b];
+        o.force[0] -= normal[0];
+        o.force[1] -= normal[1];
+        if let Some((f, lever, _, _)) = fr {
+            o.force[0] -= f[0];
+            o.force[1] -= f[1];
+            o.torque -= lever[0] * f[1] - lever[1] * f[0];
+        }
     }
 
     /// Edge contact j of rod r: its point on the face, normal and shared normal force.
@@ -289,20 +282,9 @@ impl Simulation {
         let off = self.rod_offset[r];
         let x = [w.q[2 * i], w.q[2 * i + 1]];
         let t = [-p.normal[1], p.normal[0]];
-        // Friction: the hold's reaction along the surface while stuck; the kinetic force
-        // while sliding.
-        let (friction, stuck, slip) = match (w.contact[i], w.law_slip[i]) {
-            (Some(c), _) if c.law.is_some() && c.obstacle == p.obstacle => {
-                let h = c.normal;
-                let rt = h[0] * w.r[2 * i] + h[1] * w.r[2 * i + 1];
-                (rt * (h[0] * t[0] + h[1] * t[1]), true, 0.0)
-            }
-            (_, Some(s)) if s.obstacle == p.obstacle => {
-                let (fk, _) = p.kinetic(fruit.coulomb.mu_k, s.sign);
-                let v = self.law_slip_rate(r, i, p, fruit, dt);
-                (fk[0] * t[0] + fk[1] * t[1], false, v)
-            }
-            _ => (0.0, false, 0.0),
+        let (friction, stuck, slip) = match self.node_friction(r, i, p.obstacle, dt) {
+            Some((f, _, stuck, slip)) => (f[0] * t[0] + f[1] * t[1], stuck, slip),
+            None => (0.0, false, 0.0),
         };
         let mu_s = fruit.coulomb.mu_s;
         Some(ContactView {
@@ -332,37 +314,104 @@ impl Simulation {
         })
     }
 
-    /// The slip velocity along the fruit's tangent of a node sliding on a compliant fruit over
-    /// the step just accepted (its body's motion taken out).
-    fn law_slip_rate(
+    /// Friction of compliant obstacle `k` on node (r, i) over the step just accepted: (the
+    /// force on the node, the fruit's surface point about its centre the step applied it at,
+    /// stuck, slip velocity along the fruit's tangent). Stuck: the hold's reaction along the
+    /// surface; sliding: the kinetic force at the law's normal force.
+    fn node_friction(
         &self,
         r: usize,
         i: usize,
-        p: crate::contact::compliant::Pressed,
-        fruit: &crate::contact::compliant::CompliantCircle,
+        k: usize,
         dt: f64,
-    ) -> f64 {
-        if dt <= 0.0 {
-            return 0.0;
-        }
+    ) -> Option<([f64; 2], [f64; 2], bool, f64)> {
         let w = &self.work[r];
-        let mut d = [w.dq[2 * i], w.dq[2 * i + 1]];
-        if let Some(b) = fruit.body {
-            let x = self.bodies[b].last_dx;
-            let lever = [fruit.law.r_fruit * p.normal[0], fruit.law.r_fruit * p.normal[1]];
-            d[0] -= x[0] - lever[1] * x[2];
-            d[1] -= x[1] + lever[0] * x[2];
+        let fruit = w.compliant.iter().find(|c| c.obstacle == k)?;
+        let x = [w.q[2 * i], w.q[2 * i + 1]];
+        let d = [x[0] - fruit.center[0], x[1] - fruit.center[1]];
+        let rho = d[0].hypot(d[1]);
+        let n = [d[0] / rho, d[1] / rho];
+        let surface = [fruit.law.r_fruit * n[0], fruit.law.r_fruit * n[1]];
+        if let Some(c) = w.contact[i].filter(|c| c.law.is_some() && c.obstacle == k) {
+            let h = c.normal;
+            let rt = h[0] * w.r[2 * i] + h[1] * w.r[2 * i + 1];
+            let lever = c.body.map_or(surface, |l| l.lever);
+            return Some(([rt * h[0], rt * h[1]], lever, true, 0.0));
         }
-        (-p.normal[1] * d[0] + p.normal[0] * d[1]) / dt
+        let s = w.law_slip[i].filter(|s| s.obstacle == k)?;
+        let f = if w.edge_mode {
+            let p = w.pressings.iter().find(|p| p.obstacle == k)?;
+            super::edges::sliding(w, p, i)?.0
+        } else {
+            w.pressed[i]?.kinetic(fruit.coulomb.mu_k, s.sign).0
+        };
+        let mut dq = [w.dq[2 * i], w.dq[2 * i + 1]];
+        if let (Some(b), true) = (fruit.body, dt > 0.0) {
+            let x = self.bodies[b].last_dx;
+            dq[0] -= x[0] - surface[1] * x[2];
+            dq[1] -= x[1] + surface[0] * x[2];
+        }
+        let slip = if dt > 0.0 {
+            (-n[1] * dq[0] + n[0] * dq[1]) / dt
+        } else {
+            0.0
+        };
+        Some((f, surface, false, slip))
     }
 
     /// A conforming compliant contact (edge mode): one connected contact arc, its resultant at
     /// the force's centre on the face, its deepest overlap, and the Hertz half-width and peak
     /// pressure of its load over the arc.
-    fn region_view(&self, r: usize, g: &crate::contact::conforming::Region) -> ContactView {
+    /// A conforming contact on a free body (edge mode), into the body's net contact wrench:
+    /// every node's share of the fruit's force and its friction.
+    fn pressing_body_force(&mut self, r: usize, j: usize) {
+        let w = &self.work[r];
+        let p = &w.pressings[j];
+        let Some(b) = w
+            .compliant
+            .iter()
+            .find(|c| c.obstacle == p.obstacle)
+            .and_then(|c| c.body)
+        else {
+            return;
+        };
+        let (k, first, len) = (p.obstacle, p.first, p.g.len());
+        let forces: Vec<(usize, [f64; 2])> = (first..(first + len).min(self.rods[r].n))
+            .map(|i| (i, p.node_force(i)))
+            .collect();
+        for (i, f) in forces {
+            self.add_fruit_force(r, i, k, b, f);
+        }
+    }
+
+    fn region_view(
+        &self,
+        r: usize,
+        g: &crate::contact::conforming::Region,
+        dt: f64,
+    ) -> ContactView {
         let bruise = self.scenario.materials[g.obstacle]
             .as_ref()
             .map_or(0.0, |m| m.bruise_pressure);
+        // Friction over the arc's nodes, along the arc's tangent: stuck when every node that
+        // carries friction is held.
+        let t = [-g.normal[1], g.normal[0]];
+        let (mut friction, mut stuck, mut slip, mut any) = (0.0, true, 0.0f64, false);
+        for i in g.first..=g.last.min(self.rods[r].n - 1) {
+            if let Some((f, _, st, v)) = self.node_friction(r, i, g.obstacle, dt) {
+                friction += f[0] * t[0] + f[1] * t[1];
+                stuck &= st;
+                if v.abs() > slip.abs() {
+                    slip = v;
+                }
+                any = true;
+            }
+        }
+        let fruit = self.work[r]
+            .compliant
+            .iter()
+            .find(|c| c.obstacle == g.obstacle);
+        let mu_s = fruit.map_or(0.0, |c| c.coulomb.mu_s);
         let x = crate::contact::edge::point(&self.work[r].q, g.segment, g.weight);
         let off = self.rod_offset[r];
         let above = if g.peak_pressure > bruise {
@@ -374,10 +423,19 @@ impl Simulation {
             rod: r,
             node: g.segment,
             obstacle: g.obstacle,
-            body: usize::MAX,
             point: [x[0] - off * g.normal[0], x[1] - off * g.normal[1]],
             normal: g.normal,
             normal_force: g.resultant,
+            body: fruit.and_then(|c| c.body).unwrap_or(usize::MAX),
+            friction_force: friction,
+            slip_velocity: slip,
+            stuck: any && stuck,
+            utilisation: if mu_s > 0.0 && g.resultant > 0.0 {
+                friction.abs() / (mu_s * g.resultant)
+            } else {
+                0.0
+            },
+            mu_s,
             indentation: g.depth,
             half_width: g.half_width,
             peak_pressure: g.peak_pressure,
