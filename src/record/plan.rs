@@ -255,7 +255,11 @@ fn writable_folder(dir: &Path) -> Result<(), String> {
         match std::fs::metadata(&d) {
             Ok(m) if m.is_dir() => return may_write(&d),
             Ok(_) => return Err(format!("{} is not a folder", d.display())),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            // Missing, or under a file (ENOTDIR): the file is found further up.
+            Err(e)
+                if e.kind() == std::io::ErrorKind::NotFound
+                    || e.raw_os_error() == Some(libc::ENOTDIR) =>
+            {
                 d = match d.parent() {
                     Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
                     _ => PathBuf::from("."),
@@ -402,4 +406,79 @@ fn normalize(p: &Path) -> PathBuf {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Held outputs wait under their `.partial` names and get their final names together;
+    /// an older final file stays until then, and a plan whose output is missing commits none.
+    #[test]
+    fn held_outputs_are_renamed_together() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.json"), dir.path().join("b.csv"));
+        std::fs::write(&a, b"earlier").unwrap();
+        let mut plan = OutputPlan::new();
+        plan.output("--summary", &a).output("--csv", &b);
+        plan.check().unwrap();
+        let held = plan.hold();
+        assert!(holds(&a) && holds(&b));
+        crate::record::write_atomic(&a, b"new a").unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"earlier", "not renamed yet");
+        assert_eq!(
+            std::fs::read(dir.path().join("a.partial.json")).unwrap(),
+            b"new a"
+        );
+        // b was not written: nothing is committed.
+        let e = held.commit().unwrap_err();
+        assert!(e.contains("--csv") && e.contains("was not written"), "{e}");
+        assert_eq!(std::fs::read(&a).unwrap(), b"earlier");
+        assert!(!holds(&a), "released when dropped");
+
+        let held = plan.hold();
+        crate::record::write_atomic(&a, b"new a").unwrap();
+        crate::record::write_atomic(&b, b"new b").unwrap();
+        held.commit().unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"new a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"new b");
+        let mut left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a.json", "b.csv"]);
+    }
+
+    #[test]
+    fn inputs_inside_an_output_folder_and_unwritable_paths_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir_all(d.join("out/cases")).unwrap();
+        std::fs::write(d.join("out/cases/s.toml"), b"x").unwrap();
+        std::fs::write(d.join("file"), b"x").unwrap();
+        let mut plan = OutputPlan::new();
+        plan.input("the scenario", &d.join("out/cases/s.toml"))
+            .folder("--out", &d.join("out/./cases"));
+        let e = plan.check().unwrap_err();
+        assert!(e.contains("(an input) is inside --out"), "{e}");
+        let mut plan = OutputPlan::new();
+        plan.output("--csv", &d.join("file/sub/x.csv"));
+        let e = plan.check().unwrap_err();
+        assert!(e.contains("file is not a folder"), "{e}");
+        let mut plan = OutputPlan::new();
+        plan.folder("--out", &d.join("file"));
+        assert!(plan.check().unwrap_err().contains("is not a folder"));
+        // Inputs may be read twice; outputs may not clash with them.
+        let mut plan = OutputPlan::new();
+        plan.input("run A", &d.join("file"))
+            .input("run B", &d.join("file"));
+        plan.check().unwrap();
+        plan.output("--json", &d.join("./file"));
+        let e = plan.check().unwrap_err();
+        assert!(
+            e.contains("--json") && e.contains("run A") && e.contains("(an input)"),
+            "{e}"
+        );
+    }
 }
