@@ -15,6 +15,7 @@ mod first_contact;
 mod friction_bodies;
 mod frictionless_golden;
 mod integrator;
+mod no_data_loss;
 mod pick_and_place;
 mod properties;
 mod rec3d;
