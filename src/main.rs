@@ -353,44 +353,7 @@ fn main() -> ExitCode {
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
-        Command::Validate { scenario, sets } if gripsim::scenario::three::file_is_3d(&scenario) => {
-            match gripsim::scenario::three::Scenario3::load_with(&scenario, &sets) {
-                Ok(sc) => {
-                    say!(
-                        "{}: ok ({:?}, 3D, {} finger(s) of {} node(s), {} obstacle(s), fruit: {})",
-                        scenario.display(),
-                        sc.name,
-                        sc.fingers,
-                        sc.prong.points.len(),
-                        sc.obstacles.len(),
-                        if sc.fruit.is_some() { "yes" } else { "no" }
-                    );
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::from(2)
-                }
-            }
-        }
-        Command::Validate { scenario, sets } => match Scenario::load(&scenario, &sets) {
-            Ok(sc) => {
-                let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
-                say!(
-                    "{}: ok ({:?}, {} rod(s), {} node(s), {} obstacle(s))",
-                    scenario.display(),
-                    sc.name,
-                    sc.rods.len(),
-                    nodes,
-                    sc.obstacles.len()
-                );
-                ExitCode::SUCCESS
-            }
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::from(2)
-            }
-        },
+        Command::Validate { scenario, sets } => validate(&scenario, &sets),
         Command::Scenarios { dir } => list_scenarios(&dir),
         Command::Bench {
             quick,
@@ -445,12 +408,108 @@ fn file_name(name: &str) -> String {
         .collect()
 }
 
-fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
-    if gripsim::scenario::three::file_is_3d(path) {
-        return run3(path, out, no_record, sets, quiet);
+/// A scenario read once (a pipe or FIFO too: process substitution) and parsed as what its
+/// text says it is.
+enum Loaded {
+    Planar(Box<Scenario>),
+    Three(Box<gripsim::scenario::three::Scenario3>),
+}
+
+/// Read the scenario at `path` once and parse it with the `--set` overrides; also returns
+/// its text (the recordings store it, and the plan of the outputs reads the files it names).
+fn load(
+    path: &Path,
+    sets: &[String],
+) -> Result<(String, Loaded), gripsim::scenario::ScenarioError> {
+    let text = gripsim::scenario::input::read_text(path)?;
+    let file = path.display().to_string();
+    let loaded = if gripsim::scenario::three::is_3d(&text) {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        Loaded::Three(Box::new(
+            gripsim::scenario::three::Scenario3::from_str_with(&text, &file, dir, sets)?,
+        ))
+    } else {
+        Loaded::Planar(Box::new(Scenario::from_str(&text, &file, sets)?))
+    };
+    Ok((text, loaded))
+}
+
+fn validate(path: &Path, sets: &[String]) -> ExitCode {
+    match load(path, sets) {
+        Ok((_, Loaded::Three(sc))) => {
+            say!(
+                "{}: ok ({:?}, 3D, {} finger(s) of {} node(s), {} obstacle(s), fruit: {})",
+                path.display(),
+                sc.name,
+                sc.fingers,
+                sc.prong.points.len(),
+                sc.obstacles.len(),
+                if sc.fruit.is_some() { "yes" } else { "no" }
+            );
+            ExitCode::SUCCESS
+        }
+        Ok((_, Loaded::Planar(sc))) => {
+            let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
+            say!(
+                "{}: ok ({:?}, {} rod(s), {} node(s), {} obstacle(s))",
+                path.display(),
+                sc.name,
+                sc.rods.len(),
+                nodes,
+                sc.obstacles.len()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
     }
-    let sc = match Scenario::load(path, sets) {
-        Ok(s) => s,
+}
+
+/// The plan of a run's files: the scenario and the files it names as inputs, every output
+/// named ([`gripsim::record::OutputPlan`]); checked before anything is written.
+fn plan_outputs(
+    path: &Path,
+    text: &str,
+    sets: &[String],
+    out: &Outputs,
+) -> Result<gripsim::record::OutputPlan, String> {
+    let mut plan = gripsim::record::OutputPlan::new();
+    plan.scenario(path, text, sets);
+    let check_json = out.check.as_ref().and_then(|(_, j)| j.as_deref());
+    for (what, p) in [
+        ("--rrd", out.rrd.as_deref()),
+        ("--mcap", out.mcap.as_deref()),
+        ("--csv", out.csv.as_deref()),
+        ("--summary", out.summary.as_deref()),
+        ("--check-json", check_json),
+    ] {
+        if let Some(p) = p {
+            plan.output(what, p);
+        }
+    }
+    plan.check().map(|_| plan)
+}
+
+/// After a run whose outputs were not given their final names: the files as they are, under
+/// their `.partial` names.
+fn uncommitted(files: &mut [(&str, Finished)]) {
+    for (_, f) in files.iter_mut().filter(|(_, f)| f.complete) {
+        let o = gripsim::record::OutputFile::new(&f.path);
+        if !o.is_through() {
+            f.path = o.partial.clone();
+            f.complete = false;
+        }
+    }
+}
+
+fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
+    let (text, sc) = match load(path, sets) {
+        Ok((text, Loaded::Planar(sc))) => (text, *sc),
+        Ok((text, Loaded::Three(sc))) => {
+            return run3(path, &text, *sc, out, no_record, sets, quiet)
+        }
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::from(2);
@@ -488,20 +547,21 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         },
     };
     // Every output its own file, none of them an input, each one a path that can take a file:
-    // checked before anything is created.
-    let outputs: Vec<(&str, &Path)> = [
-        ("--rrd", &out.rrd),
-        ("--mcap", &out.mcap),
-        ("--csv", &out.csv),
-        ("--summary", &out.summary),
-    ]
-    .into_iter()
-    .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
-    .collect();
-    if let Err(e) = gripsim::record::check_distinct(&outputs, &[("the scenario", path)]) {
-        eprintln!("error: {e}");
-        return ExitCode::from(2);
+    // checked before anything is created. The outputs are renamed into place together, when
+    // the run completed and every one was written.
+    if let Some((th, _)) = &out.check {
+        if let Err(e) = th.validate() {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
     }
+    let held = match plan_outputs(path, &text, sets, &out) {
+        Ok(plan) => plan.hold(),
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     // From here a signal stops the run and the files are closed properly.
     install_signal_handlers();
     // Wall time from here: the survey and the recording are part of what the command costs.
@@ -556,15 +616,12 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     })();
     if let Err(e) = created {
         eprintln!("error: cannot create a recording: {e}");
+        // Nothing half made: the partial files created so far go.
+        drop(sinks);
+        held.discard();
         return ExitCode::from(2);
     }
 
-    if let Some((th, _)) = &out.check {
-        if let Err(e) = th.validate() {
-            eprintln!("error: {e}");
-            return ExitCode::from(2);
-        }
-    }
     let mut sim = Simulation::new(&sc);
     // A recording that cannot be written (disk full) stops the run too: the other files are
     // then closed properly and the error is reported.
@@ -636,40 +693,59 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
             failed = true;
         }
     }
+    let report = match (detector, &out.check) {
+        (Some(d), Some((_, json))) => {
+            let report = gripsim::replay::CheckReport::of(
+                format!("(run of {})", path.display()),
+                &sc.name,
+                if sc.solve.mode == gripsim::scenario::Mode::Dynamic {
+                    "dynamic"
+                } else {
+                    "static"
+                },
+                d.detector,
+                None,
+                Some(result.is_ok()),
+            );
+            if let Some(p) = json {
+                let mut text = serde_json::to_string_pretty(&report).expect("a report serialises");
+                text.push('\n');
+                if let Err(e) = gripsim::record::write_atomic(p, text.as_bytes()) {
+                    eprintln!(
+                        "error: cannot write the check report to {}: {e}",
+                        p.display()
+                    );
+                    failed = true;
+                }
+            }
+            Some(report)
+        }
+        _ => None,
+    };
+    // A completed run whose every output was written: all of them get their final names now;
+    // else every one keeps its .partial name and the files of earlier runs stay.
+    let committed = result.is_ok() && !failed && {
+        let done = held.commit();
+        if let Err(e) = &done {
+            eprintln!("error: {e}");
+            failed = true;
+        }
+        done.is_ok()
+    };
+    if !committed {
+        uncommitted(&mut files);
+    }
     if !quiet {
         print_summary(&summary);
         print_recordings(&files, opts, auto_stats);
     }
     let mut check_code = 0u8;
-    if let (Some(d), Some((_, json))) = (detector, &out.check) {
-        let report = gripsim::replay::CheckReport::of(
-            format!("(run of {})", path.display()),
-            &sc.name,
-            if sc.solve.mode == gripsim::scenario::Mode::Dynamic {
-                "dynamic"
-            } else {
-                "static"
-            },
-            d.detector,
-            None,
-            Some(result.is_ok()),
-        );
+    if let Some(report) = report {
         if !quiet || report.flagged {
             say!(
                 "\ncheck\n{}",
                 gripsim::replay::format_check(&report).trim_end()
             );
-        }
-        if let Some(p) = json {
-            let mut text = serde_json::to_string_pretty(&report).expect("a report serialises");
-            text.push('\n');
-            if let Err(e) = gripsim::record::write_atomic(p, text.as_bytes()) {
-                eprintln!(
-                    "error: cannot write the check report to {}: {e}",
-                    p.display()
-                );
-                failed = true;
-            }
         }
         check_code = u8::from(report.flagged);
     }
@@ -801,8 +877,16 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
 
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary, `.rrd`
 /// and `.mcap` (src/record/rerun3.rs, mcap3.rs), with `--set` overrides.
-fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
-    // Refused before anything is read or written: an option the run would silently ignore.
+fn run3(
+    path: &Path,
+    text: &str,
+    sc: gripsim::scenario::three::Scenario3,
+    mut out: Outputs,
+    no_record: bool,
+    sets: &[String],
+    quiet: bool,
+) -> ExitCode {
+    // Refused before anything is written: an option the run would silently ignore.
     if let Some((option, value)) = out.planar_only.first() {
         eprintln!(
             "error: {}: {option} {value} applies to planar scenarios only; a 3D run records every step, in f64, with fixed arrow scales, in chunks of its writers' own sizes (drop the option)",
@@ -810,60 +894,12 @@ fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: 
         );
         return ExitCode::from(2);
     }
-    let sc = match gripsim::scenario::three::Scenario3::load_with(path, sets) {
-        Ok(s) => s,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return ExitCode::from(2);
-        }
-    };
     // As planar: with no output named, the run is recorded to recordings/<name>.rrd and .mcap.
     if !no_record && out.rrd.is_none() && out.mcap.is_none() && out.csv.is_none() {
         let base = Path::new("recordings").join(file_name(&sc.name));
         out.rrd = Some(base.with_extension("rrd"));
         out.mcap = Some(base.with_extension("mcap"));
     }
-    let check_json = out.check.as_ref().and_then(|(_, j)| j.clone());
-    let outputs: Vec<(&str, &Path)> = [
-        ("--rrd", &out.rrd),
-        ("--mcap", &out.mcap),
-        ("--csv", &out.csv),
-        ("--summary", &out.summary),
-        ("--check-json", &check_json),
-    ]
-    .into_iter()
-    .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
-    .collect();
-    if let Err(e) = gripsim::record::check_distinct(&outputs, &[("the scenario", path)]) {
-        eprintln!("error: {e}");
-        return ExitCode::from(2);
-    }
-    let mut rrd = match &out.rrd {
-        Some(p) => match gripsim::record::rerun3::Rrd3::create(p, &sc.name) {
-            Ok(r) => Some(r),
-            Err(e) => {
-                eprintln!("error: {e}");
-                return ExitCode::from(2);
-            }
-        },
-        None => None,
-    };
-    let mut mcap = match &out.mcap {
-        Some(p) => {
-            let text = std::fs::read_to_string(path).unwrap_or_default();
-            match gripsim::record::mcap3::Mcap3::create(p, &sc.name, &text, sets) {
-                Ok(m) => Some(m),
-                Err(e) => {
-                    if let Some(r) = rrd {
-                        let _ = r.abandon();
-                    }
-                    eprintln!("error: {e}");
-                    return ExitCode::from(2);
-                }
-            }
-        }
-        None => None,
-    };
     let mut check = match &out.check {
         Some((th, _)) => {
             if let Err(e) = th.validate() {
@@ -878,6 +914,37 @@ fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: 
                 }
             }
         }
+        None => None,
+    };
+    // As planar: checked before anything is created, renamed into place together.
+    let held = match plan_outputs(path, text, sets, &out) {
+        Ok(plan) => plan.hold(),
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let mut rrd = match &out.rrd {
+        Some(p) => match gripsim::record::rerun3::Rrd3::create(p, &sc.name) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        },
+        None => None,
+    };
+    let mut mcap = match &out.mcap {
+        Some(p) => match gripsim::record::mcap3::Mcap3::create(p, &sc.name, text, sets) {
+            Ok(m) => Some(m),
+            Err(e) => {
+                if let Some(r) = rrd {
+                    let _ = r.abandon();
+                }
+                eprintln!("error: {e}");
+                return ExitCode::from(2);
+            }
+        },
         None => None,
     };
     let start = std::time::Instant::now();
@@ -900,40 +967,7 @@ fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: 
     // their `.partial` names with the error as the run's end, as a planar run's.
     let s = match result {
         Ok(s) => s,
-        Err(e) => {
-            let mut kept = Vec::new();
-            let closed = [
-                rrd.map(|r| r.finish_failed()),
-                mcap.map(|m| m.finish_failed()),
-            ];
-            for c in closed.into_iter().flatten() {
-                match c {
-                    Ok(p) => kept.push(p.display().to_string()),
-                    Err(e) => eprintln!("error: {e}"),
-                }
-            }
-            let signal = STOP.load(Ordering::Relaxed);
-            if signal != 0 && e.starts_with(gripsim::rod3d::run3::INTERRUPTED) {
-                eprintln!(
-                    "{e} by {}; the recordings are closed and keep their .partial names",
-                    signal_name(signal)
-                );
-                return ExitCode::from(signal as u8);
-            }
-            let hint = if e.contains("did not converge") {
-                "hint: lower solve.dt or raise solve.max_newton_iterations; "
-            } else {
-                ""
-            };
-            eprintln!(
-                "error: {}: {e} ({hint}the recordings end at the last accepted step and keep \
-                 their .partial names{}{})",
-                path.display(),
-                if kept.is_empty() { "" } else { ": " },
-                kept.join(", ")
-            );
-            return ExitCode::from(2);
-        }
+        Err(e) => return run3_failed(path, &e, rrd, mcap),
     };
     let mut closed = match rrd {
         Some(r) => r.finish(),
@@ -952,6 +986,25 @@ fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: 
             eprintln!("error: cannot write the summary to {}: {e}", p.display());
             return ExitCode::from(2);
         }
+    }
+    let report = check.map(|c| {
+        c.detector
+            .finish(&format!("{} (live)", path.display()), &s.name)
+    });
+    if let (Some(report), Some((_, Some(p)))) = (&report, &out.check) {
+        let text = serde_json::to_string_pretty(report).expect("a report serialises");
+        if let Err(e) = gripsim::record::write_atomic(p, (text + "\n").as_bytes()) {
+            eprintln!(
+                "error: cannot write the check report to {}: {e}",
+                p.display()
+            );
+            return ExitCode::from(2);
+        }
+    }
+    // Every output was written: all of them get their final names now.
+    if let Err(e) = held.commit() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
     }
     if !quiet {
         println!(
@@ -983,26 +1036,55 @@ fn run3(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: 
             }
         }
     }
-    if let Some(c) = check {
-        let report = c
-            .detector
-            .finish(&format!("{} (live)", path.display()), &s.name);
+    if let Some(report) = report {
         print!("{}", gripsim::replay::three::format_check(&report));
-        if let Some(p) = &check_json {
-            let text = serde_json::to_string_pretty(&report).expect("a report serialises");
-            if let Err(e) = gripsim::record::write_atomic(p, (text + "\n").as_bytes()) {
-                eprintln!(
-                    "error: cannot write the check report to {}: {e}",
-                    p.display()
-                );
-                return ExitCode::from(2);
-            }
-        }
         if report.flagged {
             return ExitCode::from(1);
         }
     }
     ExitCode::SUCCESS
+}
+
+/// A 3D run that stopped (an error or a signal): its recordings are closed under their
+/// `.partial` names with the error as the run's end; the exit status says why.
+fn run3_failed(
+    path: &Path,
+    e: &str,
+    rrd: Option<gripsim::record::rerun3::Rrd3>,
+    mcap: Option<gripsim::record::mcap3::Mcap3>,
+) -> ExitCode {
+    let mut kept = Vec::new();
+    let closed = [
+        rrd.map(|r| r.finish_failed()),
+        mcap.map(|m| m.finish_failed()),
+    ];
+    for c in closed.into_iter().flatten() {
+        match c {
+            Ok(p) => kept.push(p.display().to_string()),
+            Err(e) => eprintln!("error: {e}"),
+        }
+    }
+    let signal = STOP.load(Ordering::Relaxed);
+    if signal != 0 && e.starts_with(gripsim::rod3d::run3::INTERRUPTED) {
+        eprintln!(
+            "{e} by {}; the recordings are closed and keep their .partial names",
+            signal_name(signal)
+        );
+        return ExitCode::from(signal as u8);
+    }
+    let hint = if e.contains("did not converge") {
+        "hint: lower solve.dt or raise solve.max_newton_iterations; "
+    } else {
+        ""
+    };
+    eprintln!(
+        "error: {}: {e} ({hint}the recordings end at the last accepted step and keep \
+         their .partial names{}{})",
+        path.display(),
+        if kept.is_empty() { "" } else { ": " },
+        kept.join(", ")
+    );
+    ExitCode::from(2)
 }
 
 fn print_summary(s: &gripsim::record::summary::Summary) {

@@ -19,6 +19,7 @@ pub mod grasp;
 pub mod mcap;
 pub mod mcap3;
 mod mcap_file;
+pub mod plan;
 pub mod pressure;
 pub mod proto;
 pub mod rerun;
@@ -28,6 +29,7 @@ pub mod summary;
 
 use crate::events::{Observer, RodStepView};
 use crate::obstacle::Obstacle;
+pub use plan::{Held, OutputPlan};
 use std::path::{Path, PathBuf};
 
 /// Colour of free bodies (fruit) in the scene.
@@ -249,11 +251,11 @@ enum Target {
     /// Nothing, or a regular file (possibly behind symlinks): write a `.partial` sibling of
     /// the file and rename it onto the file when the run completed.
     File,
-    /// A device or FIFO (possibly behind symlinks), e.g. `/dev/null`: written through, never
-    /// replaced, no `.partial` file and no rename.
+    /// A character device or FIFO (possibly behind symlinks), e.g. `/dev/null`: written
+    /// through, never replaced, no `.partial` file and no rename.
     Through,
-    /// Something that cannot take a recording (a directory, a socket, a dangling symlink):
-    /// refused before anything is written, with this reason.
+    /// Something that cannot take a recording (a directory, a socket, a block device, a
+    /// dangling symlink): refused before anything is written, with this reason.
     Refused(String),
 }
 
@@ -306,14 +308,20 @@ impl Writeback {
 /// While the run lasts the file is `DIR/NAME.partial.EXT`; only a run that completed renames
 /// it to `DIR/NAME.EXT`. A run that was interrupted, failed or was killed leaves the
 /// `.partial` file (closed properly unless the process was killed), so a half run never sits
-/// under the name of a whole one. An older file at the final path is removed when the new run
-/// starts, so the final path never holds a recording of an earlier run next to this run's
-/// partial file.
+/// under the name of a whole one. An older file at the final path is left as it is until the
+/// rename replaces it: a run that does not complete never destroys the result of an earlier
+/// one (the final name then holds the last completed run, the `.partial` file beside it the
+/// one that stopped).
 ///
-/// Only a regular file (or nothing) at the path is ever removed or renamed onto: a symlink is
-/// followed (the new file replaces the file it points at, the link stays), a device or FIFO
-/// (`/dev/null`, a named pipe) is written through, and a directory, socket or dangling
-/// symlink is refused with a clear error before the run starts ([`OutputFile::check`]).
+/// When the path is held by an [`OutputPlan`] ([`Held`]), [`OutputFile::settle`] of a
+/// completed file leaves the rename to [`Held::commit`], which renames all the command's
+/// outputs together once every one of them was written.
+///
+/// Only a regular file (or nothing) at the path is ever renamed onto: a symlink is followed
+/// (the new file replaces the file it points at, the link stays), a character device or
+/// FIFO (`/dev/null`, a named pipe) is written through, and a directory, socket, block device
+/// or dangling symlink is refused with a clear error before the run starts
+/// ([`OutputFile::check`]).
 #[derive(Debug, Clone)]
 pub struct OutputFile {
     /// The path as given.
@@ -382,8 +390,14 @@ fn classify(path: &Path) -> (Target, PathBuf) {
         Target::File
     } else if ft.is_dir() {
         Target::Refused("is a directory; give a file name".into())
-    } else if ft.is_char_device() || ft.is_block_device() || ft.is_fifo() {
+    } else if ft.is_char_device() || ft.is_fifo() {
         Target::Through
+    } else if ft.is_block_device() {
+        Target::Refused(
+            "is a block device (a disk); recordings go to a file, or to a character device \
+             such as /dev/null"
+                .into(),
+        )
     } else {
         Target::Refused("is a socket; give a file name".into())
     };
@@ -428,8 +442,8 @@ impl OutputFile {
         }
     }
 
-    /// Make the directory, remove an older final file, and create the partial file (or open
-    /// the device).
+    /// Make the directory and create the partial file (or open the device). An older final
+    /// file stays until the partial file is renamed onto it.
     pub fn create(&self) -> Result<std::fs::File, RecordError> {
         self.check()?;
         if self.target == Target::Through {
@@ -445,15 +459,6 @@ impl OutputFile {
             .filter(|p| !p.as_os_str().is_empty())
         {
             std::fs::create_dir_all(dir).map_err(io)?;
-        }
-        match std::fs::remove_file(&self.final_path) {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                return Err(RecordError::Io {
-                    path: self.final_path.clone(),
-                    source: e,
-                })
-            }
-            _ => {}
         }
         // A leftover partial file of an earlier run goes; whatever else sits under that name
         // (a symlink planted there) is not followed: the new file is created exclusively.
@@ -488,7 +493,9 @@ impl OutputFile {
 
     /// After the file was closed: make it durable, then rename it to its final name when
     /// `complete` (so a crash after the rename cannot leave a whole-looking file whose data
-    /// never reached the disk). A device is left as it is.
+    /// never reached the disk). A device is left as it is. A file held by an [`OutputPlan`]
+    /// stays under its partial name, for [`Held::commit`] to rename with the command's other
+    /// outputs.
     pub fn settle(&self, complete: bool) -> Result<Finished, RecordError> {
         if self.target == Target::Through {
             return Ok(Finished {
@@ -502,6 +509,12 @@ impl OutputFile {
                 path: self.partial.clone(),
                 source,
             })?;
+        if complete && plan::is_held(&self.partial) {
+            return Ok(Finished {
+                path: self.path.clone(),
+                complete: true,
+            });
+        }
         if complete {
             std::fs::rename(&self.partial, &self.final_path).map_err(|source| RecordError::Io {
                 path: self.final_path.clone(),
@@ -549,127 +562,6 @@ fn open_through(path: &Path) -> Result<std::fs::File, RecordError> {
         }
     }
     Ok(file)
-}
-
-/// The identity of a path for [`check_distinct`]: its device and inode when it exists, and
-/// its absolute path with symlinks resolved as far as they exist.
-#[derive(Debug, Clone, PartialEq, Eq)]
-struct PathId {
-    inode: Option<(u64, u64)>,
-    char_device: bool,
-    canonical: PathBuf,
-}
-
-fn path_id(p: &Path) -> PathId {
-    use std::os::unix::fs::{FileTypeExt, MetadataExt};
-    let meta = std::fs::metadata(p).ok();
-    let canonical = std::fs::canonicalize(p).unwrap_or_else(|_| {
-        // Not there yet: resolve the folder, keep the name.
-        let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-        let mut parts: Vec<std::ffi::OsString> = Vec::new();
-        let mut dir = abs.as_path();
-        loop {
-            if let Ok(c) = std::fs::canonicalize(dir) {
-                let mut out = c;
-                for part in parts.iter().rev() {
-                    out.push(part);
-                }
-                return normalize(&out);
-            }
-            match (dir.file_name(), dir.parent()) {
-                (Some(name), Some(parent)) => {
-                    parts.push(name.to_os_string());
-                    dir = parent;
-                }
-                _ => return normalize(&abs),
-            }
-        }
-    });
-    PathId {
-        inode: meta.as_ref().map(|m| (m.dev(), m.ino())),
-        char_device: meta.is_some_and(|m| m.file_type().is_char_device()),
-        canonical,
-    }
-}
-
-/// `a/./b/../c` → `a/c` (lexically; only for paths that do not exist yet).
-fn normalize(p: &Path) -> PathBuf {
-    use std::path::Component;
-    let mut out = PathBuf::new();
-    for c in p.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                out.pop();
-            }
-            other => out.push(other.as_os_str()),
-        }
-    }
-    out
-}
-
-/// Check, before a command writes anything, that its outputs are different files from each
-/// other (also through symlinks, `./`, `..` and hard links, and counting the `.partial` file
-/// each one is written as) and from every input, and that each output path can take a file.
-/// `outputs` and `inputs` are (what, path) pairs, e.g. ("--rrd", "out/r.rrd"); the error is
-/// one line naming both. The same character device (`/dev/null`) may take several outputs.
-pub fn check_distinct(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> Result<(), String> {
-    struct Entry<'a> {
-        what: &'a str,
-        path: &'a Path,
-        ids: Vec<PathId>,
-        is_output: bool,
-    }
-    let mut entries: Vec<Entry> = Vec::new();
-    for &(what, path) in inputs {
-        entries.push(Entry {
-            what,
-            path,
-            ids: vec![path_id(path)],
-            is_output: false,
-        });
-    }
-    for &(what, path) in outputs {
-        let out = OutputFile::new(path);
-        out.check()
-            .map_err(|e| format!("{what} {}: {}", path.display(), error_reason(&e)))?;
-        let mut ids = vec![path_id(path)];
-        if !out.is_through() {
-            ids.push(path_id(&out.final_path));
-            ids.push(path_id(&out.partial));
-        }
-        entries.push(Entry {
-            what,
-            path,
-            ids,
-            is_output: true,
-        });
-    }
-    for (j, b) in entries.iter().enumerate() {
-        for a in &entries[..j] {
-            if !(a.is_output || b.is_output) {
-                continue;
-            }
-            let clash = a.ids.iter().any(|x| {
-                b.ids.iter().any(|y| {
-                    let same =
-                        x.canonical == y.canonical || (x.inode.is_some() && x.inode == y.inode);
-                    same && !(x.char_device && y.char_device && a.is_output && b.is_output)
-                })
-            });
-            if clash {
-                let role = if a.is_output { "" } else { " (an input)" };
-                return Err(format!(
-                    "{} {} and {} {}{role} are the same file (or one is the other's .partial file): give each output its own path",
-                    b.what,
-                    b.path.display(),
-                    a.what,
-                    a.path.display()
-                ));
-            }
-        }
-    }
-    Ok(())
 }
 
 /// An error with its causes: "I/O error from writing…: No space left on device (os error 28)".

@@ -574,7 +574,7 @@ impl RerunSink {
         blueprint: Blueprint,
     ) -> Result<Self, RecordError> {
         let out = OutputFile::new(path);
-        // Creates the directory and removes an older final file (a device is only opened);
+        // Creates the directory and the partial file (a device is only opened);
         // the SDK opens the file.
         drop(out.create()?);
         let id = format!("{}-{:016x}", name, super::stable_hash(text.as_bytes()));

@@ -98,7 +98,7 @@ impl Rrd3 {
     /// [`Rrd3::create`] with another layout (the replay overlays').
     pub fn create_with(path: &Path, name: &str, blueprint: Blueprint) -> Result<Rrd3, String> {
         let out = super::OutputFile::new(path);
-        // Makes the folder and removes an older final file (a device is only opened); the
+        // Makes the folder and the partial file (a device is only opened); the
         // SDK's file sink opens what `writing` names: the partial file, or the device.
         drop(out.create().map_err(|e| e.to_string())?);
         let partial = out.writing().to_path_buf();

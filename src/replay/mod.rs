@@ -501,12 +501,67 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), ReplayError> {
         .map_err(|e| ReplayError::file(path, format!("cannot write the report: {e}")))
 }
 
+/// The files of a replay command: the runs it reads (and the files their recorded scenarios
+/// name) and the reports it writes.
+fn plan(cmd: &ReplayCommand) -> crate::record::OutputPlan {
+    let mut plan = crate::record::OutputPlan::new();
+    let run = |plan: &mut crate::record::OutputPlan, what: &str, path: &Path| {
+        plan.input(what, path);
+        for f in read::recorded_files(path) {
+            plan.input("a file its recorded scenario names", &f);
+        }
+    };
+    let (json, rrd) = match cmd {
+        ReplayCommand::Check {
+            run: r, json, rrd, ..
+        } => {
+            run(&mut plan, "the run", r);
+            (json.as_deref(), rrd.as_deref())
+        }
+        ReplayCommand::Diff {
+            a, b, json, rrd, ..
+        } => {
+            run(&mut plan, "run A", a);
+            run(&mut plan, "run B", b);
+            (json.as_deref(), rrd.as_deref())
+        }
+        ReplayCommand::Show { run: r, rrd } => {
+            run(&mut plan, "the run", r);
+            (None, Some(rrd.as_path()))
+        }
+    };
+    if let Some(p) = json {
+        plan.output("--json", p);
+    }
+    if let Some(p) = rrd {
+        plan.output("--rrd", p);
+    }
+    plan
+}
+
 /// Run `gripsim replay`: print the human report on stdout, warnings and errors on stderr,
 /// and return the exit status.
+///
+/// Its outputs are checked against its inputs and each other before anything is read or
+/// written, and given their final names together once all were written; a replay that fails
+/// leaves no output of its own (the files that were there before stay as they were).
 pub fn main(args: ReplayArgs) -> u8 {
+    let plan = plan(&args.command);
+    if let Err(e) = plan.check() {
+        eprintln!("error: {e}");
+        return 2;
+    }
+    let held = plan.hold();
     match run_command(args) {
-        Ok(code) => code,
+        Ok(code) => match held.commit() {
+            Ok(()) => code,
+            Err(e) => {
+                eprintln!("error: {e}");
+                2
+            }
+        },
         Err(e) => {
+            held.discard();
             eprintln!("error: {e}");
             2
         }

@@ -301,8 +301,9 @@ fn drive(
         });
     }
     let done = k.finish().map_err(werr)?;
-    if done.path != out {
-        // An incomplete run keeps the sink's .partial name; the user asked for `out`.
+    if done.path != out && !crate::record::plan::holds(out) {
+        // An incomplete run keeps the sink's .partial name; the user asked for `out` (a held
+        // output is renamed by its plan's commit, with the command's other outputs).
         std::fs::rename(&done.path, out)
             .map_err(|e| ReplayError::file(out, format!("cannot rename the output: {e}")))?;
     }

@@ -1129,6 +1129,62 @@ pub fn first_message_schema(path: &Path) -> Option<String> {
     None
 }
 
+/// The scenario a recording holds (`/sim/meta` `scenario_text`, and `sets` when it has them),
+/// read with the same guarded record reader as [`read_messages`], looking no further than the
+/// first few messages (`/sim/meta` is the first); `None` for a file that is not one.
+pub fn recorded_scenario(path: &Path) -> Option<(String, Vec<String>)> {
+    use mcap::records::Record;
+    let records = Records::open(path).ok()?;
+    let mut channels: HashMap<u16, String> = HashMap::new();
+    let mut messages = 0;
+    for record in records {
+        match record.ok()? {
+            Record::Channel(c) => {
+                channels.insert(c.id, c.topic.clone());
+            }
+            Record::Message { header, data } => {
+                if channels.get(&header.channel_id).map(String::as_str) == Some("/sim/meta") {
+                    let v: serde_json::Value = serde_json::from_slice(&data).ok()?;
+                    let text = v.get("scenario_text")?.as_str()?.to_string();
+                    let sets = v
+                        .get("sets")
+                        .and_then(|s| s.as_array())
+                        .map(|a| {
+                            a.iter()
+                                .filter_map(|x| x.as_str().map(str::to_string))
+                                .collect()
+                        })
+                        .unwrap_or_default();
+                    return Some((text, sets));
+                }
+                messages += 1;
+                if messages >= 16 {
+                    return None;
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The files a recording's scenario names (meshes, profile tables), where a replay looks them
+/// up: beside the recording. Empty for a file that is not a recording, or not a regular file
+/// (a pipe is not read ahead of the replay).
+pub fn recorded_files(path: &Path) -> Vec<std::path::PathBuf> {
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Vec::new();
+    }
+    match recorded_scenario(path) {
+        Some((text, sets)) => crate::scenario::input::referenced_files(
+            &text,
+            &sets,
+            crate::scenario::input::scenario_dir(path),
+        ),
+        None => Vec::new(),
+    }
+}
+
 /// Whether every record of an uncompressed chunk ends within the chunk's records length, as far
 /// as `body` (the chunk record's body, perhaps cut short) shows. True for a compressed chunk.
 fn chunk_records_fit(body: &[u8]) -> bool {

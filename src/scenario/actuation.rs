@@ -446,8 +446,7 @@ fn parse_table(p: &TableReader, base: Option<&Path>) -> Result<Law, ScenarioErro
 /// A two-column CSV profile (t, value): the points and their line numbers. One header line
 /// (whose first field is not a number) is skipped; blank lines and `#` comments too.
 fn read_profile(path: &Path) -> Result<(Vec<[f64; 2]>, Vec<usize>), String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read the profile {}: {e}", path.display()))?;
+    let text = super::input::read_referenced(path, "profile")?;
     let (mut pts, mut lines) = (Vec::new(), Vec::new());
     let mut header_allowed = true;
     for (i, line) in text.lines().enumerate() {

@@ -7,6 +7,7 @@ pub mod contact;
 pub mod expect;
 pub mod friction;
 pub mod geometry;
+pub mod input;
 pub mod material;
 pub mod obstacle;
 pub mod overrides;
@@ -17,6 +18,7 @@ use crate::contact::friction::FrictionTable;
 use crate::obstacle::Obstacle;
 use crate::world::body::BodySpec;
 pub use actuation::ActuatorSpec;
+pub use input::{read_capped, MAX_SCENARIO_BYTES};
 pub use reader::ScenarioError;
 use reader::TableReader;
 use toml::Value;
@@ -366,39 +368,10 @@ const PARTICLE_KEYS: &[&str] = &["name", "position", "velocity", "mass", "force"
 const OUTPUT_KEYS: &[&str] = &["flush_every", "precision"];
 
 impl Scenario {
-    /// Read a scenario file, apply `--set` overrides, validate.
+    /// Read a scenario file (once: [`input::read_text`]), apply `--set` overrides, validate.
     pub fn load(path: &std::path::Path, sets: &[String]) -> Result<Scenario, ScenarioError> {
-        let file = path.display().to_string();
-        let bytes = read_capped(path).map_err(|e| ScenarioError {
-            file: file.clone(),
-            key: String::new(),
-            value: String::new(),
-            message: format!("cannot read the file: {e}"),
-            hint: Some(missing_file_hint(path, &e)),
-        })?;
-        if bytes.len() as u64 > MAX_SCENARIO_BYTES {
-            return Err(ScenarioError {
-                file,
-                key: String::new(),
-                value: String::new(),
-                message: format!(
-                    "larger than {} MiB: not a scenario file (reading stopped there)",
-                    MAX_SCENARIO_BYTES >> 20
-                ),
-                hint: Some("a scenario is a short TOML text; check the path".into()),
-            });
-        }
-        let text = String::from_utf8(bytes).map_err(|e| ScenarioError {
-            file: file.clone(),
-            key: String::new(),
-            value: String::new(),
-            message: format!(
-                "not UTF-8 text (invalid byte at offset {})",
-                e.utf8_error().valid_up_to()
-            ),
-            hint: Some("scenario files are TOML text in UTF-8".into()),
-        })?;
-        Self::from_str(&text, &file, sets)
+        let text = input::read_text(path)?;
+        Self::from_str(&text, &path.display().to_string(), sets)
     }
 
     pub fn from_str(text: &str, file: &str, sets: &[String]) -> Result<Scenario, ScenarioError> {
@@ -460,12 +433,6 @@ impl Scenario {
     }
 }
 
-/// The largest scenario file read (16 MiB; a 100 000-vertex polygon takes about 4 MiB). A
-/// longer input (`/dev/zero`, a recording given by mistake) is refused after reading one byte
-/// more than this, before it is parsed.
-pub const MAX_SCENARIO_BYTES: u64 = 16 << 20;
-
-/// Read at most [`MAX_SCENARIO_BYTES`] + 1 bytes of `path` (so a longer one is detected).
 /// Apply `--set` overrides to a scenario's TOML table; an error names the file with the `--set`
 /// text (on one line, whatever it holds), the key and the value.
 pub(crate) fn apply_sets(
@@ -490,15 +457,6 @@ pub(crate) fn apply_sets(
         })?;
     }
     Ok(())
-}
-
-pub fn read_capped(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
-    use std::io::Read as _;
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)?
-        .take(MAX_SCENARIO_BYTES + 1)
-        .read_to_end(&mut bytes)?;
-    Ok(bytes)
 }
 
 /// The hint for a scenario file that cannot be read: a "did you mean" when a `.toml` file

@@ -633,13 +633,8 @@ fn parse_shape(s: &TableReader<'_>, dir: &std::path::Path) -> Result<Shape3, Sce
             let f = s.str("file")?;
             let scale = s.opt_positive("scale")?.unwrap_or(1.0);
             let path = dir.join(f);
-            let text = std::fs::read_to_string(&path).map_err(|e| {
-                s.err(
-                    "file",
-                    s.get("file"),
-                    format!("cannot read {}: {e}", path.display()),
-                )
-            })?;
+            let text = super::input::read_referenced(&path, "mesh")
+                .map_err(|m| s.err("file", s.get("file"), m))?;
             Shape3::Mesh(
                 TriMesh::from_obj(&text, scale).map_err(|m| s.err("file", s.get("file"), m))?,
             )

@@ -331,7 +331,11 @@ fn grid_size(vary: &[Vary]) -> Result<usize, StudyError> {
 /// Check every case of the grid (each is the scenario with its assignments) and hash it: on
 /// `jobs` threads, with a progress line on stderr when it takes a while, stopping within one
 /// case when `opts.stop` says so (then `Ok(None)`).
-fn build_cases(opts: &SweepOptions, jobs: usize) -> Result<Option<(Base, Vec<Case>)>, StudyError> {
+fn build_cases(
+    opts: &SweepOptions,
+    jobs: usize,
+    text: String,
+) -> Result<Option<(Base, Vec<Case>)>, StudyError> {
     if opts.vary.is_empty() {
         return Err(StudyError::Usage(
             "a sweep needs at least one --vary KEY=V1,V2,...".into(),
@@ -347,18 +351,6 @@ fn build_cases(opts: &SweepOptions, jobs: usize) -> Result<Option<(Base, Vec<Cas
     }
     let total = grid_size(&opts.vary)?;
     let keys: Vec<String> = opts.vary.iter().map(|v| v.key.clone()).collect();
-    let text = crate::scenario::read_capped(&opts.scenario)
-        .map_err(|e| io_err(&opts.scenario, format!("cannot read the scenario: {e}")))?;
-    if text.len() as u64 > crate::scenario::MAX_SCENARIO_BYTES {
-        return Err(io_err(
-            &opts.scenario,
-            format!(
-                "larger than {} MiB: not a scenario file",
-                crate::scenario::MAX_SCENARIO_BYTES >> 20
-            ),
-        ));
-    }
-    let text = String::from_utf8(text).map_err(|_| io_err(&opts.scenario, "not UTF-8 text"))?;
     let file = opts.scenario.display().to_string();
     let stopped = || opts.stop.as_ref().is_some_and(|s| s());
     let check = |index: usize| -> Result<(Case, Scenario), StudyError> {
@@ -660,6 +652,64 @@ fn run_case(
     Ok(Outcome::Done(Box::new(rec)))
 }
 
+/// The scenario's text, read once (a pipe or FIFO too: `<(…)`), at most 16 MiB.
+fn read_scenario(path: &Path) -> Result<String, StudyError> {
+    let text = crate::scenario::read_capped(path)
+        .map_err(|e| io_err(path, format!("cannot read the scenario: {e}")))?;
+    if text.len() as u64 > crate::scenario::MAX_SCENARIO_BYTES {
+        return Err(io_err(
+            path,
+            format!(
+                "larger than {} MiB: not a scenario file",
+                crate::scenario::MAX_SCENARIO_BYTES >> 20
+            ),
+        ));
+    }
+    String::from_utf8(text).map_err(|_| io_err(path, "not UTF-8 text"))
+}
+
+/// A folder a sweep (or a merge) may write its table into: one that holds no `summary.csv` or
+/// `summary.md` of its own, i.e. either none or a sweep folder's (`sweep.json` beside them).
+fn claim_folder(out: &Path) -> Result<(), StudyError> {
+    if out.join("sweep.json").exists() {
+        return Ok(());
+    }
+    for name in ["summary.csv", "summary.md"] {
+        let p = out.join(name);
+        if std::fs::symlink_metadata(&p).is_ok() {
+            return Err(StudyError::Usage(format!(
+                "--out {}: it holds a {name} that no sweep wrote (no sweep.json beside it), \
+                 which the sweep would replace: give another folder, or move {} away",
+                out.display(),
+                p.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The files and folders a sweep writes in `out`, checked against its inputs (the scenario
+/// and the files it names) and each other before anything is written
+/// ([`crate::record::OutputPlan`]).
+fn check_outputs(opts: &SweepOptions, text: &str) -> Result<(), StudyError> {
+    let out = &opts.out;
+    let mut plan = crate::record::OutputPlan::new();
+    plan.scenario(&opts.scenario, text, &opts.sets);
+    for name in ["sweep.json", "summary.csv", "summary.md"] {
+        plan.output("--out", &out.join(name));
+    }
+    if let Some(s) = opts.shard {
+        plan.output(
+            "--out",
+            &out.join(format!("summary.shard-{}-of-{}.csv", s.index, s.count)),
+        );
+    }
+    plan.folder("--out", &out.join("cases"))
+        .folder("--out", &out.join("plots"));
+    plan.check().map_err(StudyError::Usage)?;
+    claim_folder(out)
+}
+
 /// Run (or resume) a sweep. Without `--shard` the summary table and plots are written when
 /// every case is done.
 pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
@@ -671,7 +721,9 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
     } else {
         opts.jobs
     };
-    let Some((base, cases)) = build_cases(opts, jobs)? else {
+    let text = read_scenario(&opts.scenario)?;
+    check_outputs(opts, &text)?;
+    let Some((base, cases)) = build_cases(opts, jobs, text)? else {
         // Stopped while the grid was checked: nothing was written.
         return Ok(SweepReport {
             cases: grid_size(&opts.vary)?,
@@ -1211,6 +1263,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StudyError> {
         }
     }
     let manifest = manifest.expect("at least one folder");
+    claim_folder(&out)?;
     let out_cases = out.join("cases");
     std::fs::create_dir_all(&out_cases).map_err(|e| io_err(&out_cases, e))?;
     let mut records = Vec::with_capacity(manifest.cases.len());

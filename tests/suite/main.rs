@@ -16,6 +16,7 @@ mod friction_bodies;
 mod frictionless_golden;
 mod fruit;
 mod integrator;
+mod no_data_loss;
 mod pick_and_place;
 mod properties;
 mod rec3d;
