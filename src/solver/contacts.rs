@@ -162,11 +162,11 @@ impl Simulation {
                 None => self.detect_new(ctx, r, i, pass, obs),
             };
         }
-        changed |= self.update_edges(r);
+        changed |= self.update_edges(ctx, r, pass, obs);
         changed
     }
 
-    fn change(
+    pub(super) fn change(
         &self,
         ctx: &StepCtx,
         pass: u32,
@@ -299,6 +299,8 @@ impl Simulation {
             normal_force: rn,
             tangential_force: rt,
             slip_velocity: v_t,
+            segment: usize::MAX,
+            weight: 0.0,
         }));
         Some(nc)
     }
@@ -377,6 +379,11 @@ impl Simulation {
         let Some((k, prox)) = contact::deepest(&self.rod_surfaces(r), p, 0.0) else {
             return false;
         };
+        if self.beside_edge(r, i, k, prox.normal) {
+            // The edge contact beside it holds that surface there (re-linearised towards
+            // the node, or handing the contact to it: src/solver/edge_sets.rs).
+            return false;
+        }
         let mut c = self.constraint_on(r, k, &prox);
         c.locked = w.was_released(i);
         c.grip = friction::initial_grip(&c, [w.q[2 * i], w.q[2 * i + 1]]);
@@ -449,6 +456,8 @@ impl Simulation {
                     normal_force: lam[0],
                     tangential_force: rt,
                     slip_velocity: v_t,
+                    segment: usize::MAX,
+                    weight: 0.0,
                 }));
                 changed = true;
             }
