@@ -340,4 +340,64 @@ mod tests {
         assert_eq!(c.weights(), [0.75, 0.25]);
         assert!(c.touches(2) && !c.touches(0));
     }
+
+    /// A contact on a free body at lever r, stuck at the point it held at the start.
+    fn stuck_on_body() -> (EdgeContact, Vec<f64>) {
+        let prox = Proximity {
+            distance: -1e-4,
+            closest: [0.002, 0.0],
+            normal: [0.0, 1.0],
+        };
+        let mut c = EdgeContact::at(0, 0, 0.6, &prox);
+        c.body = Some(BodyLink {
+            body: 0,
+            lever: [0.002, 0.03],
+        });
+        c.coulomb = Coulomb {
+            mu_s: 0.5,
+            mu_k: 0.4,
+        };
+        let q0 = vec![-0.01, 0.0001, 0.01, -0.0002, 0.02, 0.0];
+        c.grip = c.stuck_at(&q0);
+        (c, q0)
+    }
+
+    #[test]
+    fn a_stuck_edge_holds_its_point_whole_and_follows_the_body() {
+        let (c, q0) = stuck_on_body();
+        assert_eq!(c.unknowns(), 2);
+        assert_eq!(c.directions(0), ([0.0, 1.0], [0.0, 1.0]));
+        assert_eq!(c.directions(1), ([-1.0, 0.0], [-1.0, 0.0]));
+        // At the start (ΔX = 0) the point is off the line by its depth and on its anchor.
+        let still = [[0.0; 3]];
+        let p0 = c.point(&q0);
+        assert!((c.residual(0, &q0, &still) - (p0[1] - 0.0)).abs() < 1e-18);
+        assert!(c.residual(1, &q0, &still).abs() < 1e-18);
+        // The rows are linear in ΔX with the coefficient −Gᵀ d.
+        let dx = [[1e-4, -2e-4, 3e-3]];
+        for u in 0..2 {
+            let (_, d) = c.directions(u);
+            let a = c.body_row(d);
+            let lin = -(a[0] * dx[0][0] + a[1] * dx[0][1] + a[2] * dx[0][2]);
+            let got = c.residual(u, &q0, &dx) - c.residual(u, &q0, &still);
+            assert!((got - lin).abs() < 1e-18, "{u}: {got} vs {lin}");
+        }
+    }
+
+    #[test]
+    fn a_sliding_edge_carries_the_kinetic_force_in_its_normal_row() {
+        let (mut c, _) = stuck_on_body();
+        c.grip = Grip::Slide { sign: -1.0 };
+        assert_eq!(c.unknowns(), 1);
+        // k = μ_k × sign = −0.4: the column n − k t = (0, 1) + 0.4 (−1, 0).
+        let (col, row) = c.directions(0);
+        assert!((col[0] + 0.4).abs() < 1e-15 && col[1] == 1.0, "{col:?}");
+        assert_eq!(row, [0.0, 1.0]);
+        c.take_increments(&[2.0], 0.5);
+        assert_eq!(c.force, [1.0, 0.4]);
+        // Shared by the nodes with the weights (0.4, 0.6).
+        let f = c.total_force();
+        let n1 = c.node_force(1);
+        assert!((n1[0] - 0.6 * f[0]).abs() < 1e-15 && (n1[1] - 0.6 * f[1]).abs() < 1e-15);
+    }
 }
