@@ -35,6 +35,9 @@ impl Phase {
 pub enum ReleaseReason {
     /// The eq. 2 reaction pulled the node into the obstacle (R·n < 0).
     Adhesive,
+    /// Edge mode: a segment beside the node went into the same surface, and its edge contact
+    /// took the contact from the node (docs/model.md, "Edge contact").
+    HandedOver,
 }
 
 /// Static facts about the run, sent once before the first step.
@@ -143,6 +146,10 @@ pub struct FrictionChange {
     pub tangential_force: f64,
     /// Slip velocity along the contact tangent, relative to the surface (m/s).
     pub slip_velocity: f64,
+    /// An edge contact's switch: its segment (= `node`) and the weight s of its point
+    /// (1 − s) x_i + s x_{i+1}; `usize::MAX` and 0 for a node's or a body's own contact.
+    pub segment: usize,
+    pub weight: f64,
 }
 
 /// One active contact at the end of a step, with its friction state.
@@ -388,6 +395,8 @@ impl Event<'_> {
             Event::FrictionChanged(f) => {
                 let who = if f.rod == usize::MAX {
                     format!("body {}", f.node)
+                } else if f.segment != usize::MAX {
+                    format!("rod {} segment {} (s = {:.4})", f.rod, f.segment, f.weight)
                 } else {
                     format!("rod {} node {}", f.rod, f.node)
                 };

@@ -441,6 +441,7 @@ impl McapSink {
             },
             reason: released.map(|r| match r {
                 ReleaseReason::Adhesive => "adhesive",
+                ReleaseReason::HandedOver => "handed_over",
             }),
             step: c.step,
             t: c.t,

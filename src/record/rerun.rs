@@ -1225,6 +1225,10 @@ impl RerunSink {
                 "contact released (adhesive R = ({:.4}, {:.4}) N): rod {rod:?} node {} from obstacle {} before corrector pass {} ({at}); normal ({:.4}, {:.4}), gap {:.3e} m",
                 c.reaction[0], c.reaction[1], c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap
             ),
+            Some(ReleaseReason::HandedOver) => format!(
+                "contact handed to the segment beside it (R = ({:.4}, {:.4}) N): rod {rod:?} node {} on obstacle {} before corrector pass {} ({at}); normal ({:.4}, {:.4}), gap {:.3e} m",
+                c.reaction[0], c.reaction[1], c.node, c.obstacle, c.pass, c.normal[0], c.normal[1], c.gap
+            ),
         };
         if released.is_none() && !self.marks.first_contact {
             self.marks.first_contact = true;

@@ -269,9 +269,12 @@ impl Contact {
         }
     }
 
-    /// Why it was released (only `adhesive` exists in format 1).
+    /// Why it was released (`adhesive`, or `handed_over` to an edge contact).
     pub fn release_reason(&self) -> ReleaseReason {
-        ReleaseReason::Adhesive
+        match self.reason.as_deref() {
+            Some("handed_over") => ReleaseReason::HandedOver,
+            _ => ReleaseReason::Adhesive,
+        }
     }
 
     /// What the detector reads of this change.

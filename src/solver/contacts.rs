@@ -173,13 +173,13 @@ impl Simulation {
                 }
             };
         }
-        changed |= self.update_edges(r);
+        changed |= self.update_edges(ctx, r, pass, obs);
         // A rod solved alone that now presses into a fruit on a free body is solved with it.
         changed |= !self.is_member[r] && self.presses_body(r);
         changed
     }
 
-    fn change(
+    pub(super) fn change(
         &self,
         ctx: &StepCtx,
         pass: u32,
@@ -312,6 +312,8 @@ impl Simulation {
             normal_force: rn,
             tangential_force: rt,
             slip_velocity: v_t,
+            segment: usize::MAX,
+            weight: 0.0,
         }));
         Some(nc)
     }
@@ -390,6 +392,11 @@ impl Simulation {
         let Some((k, prox)) = contact::deepest(&self.rod_surfaces(r), p, 0.0) else {
             return false;
         };
+        if self.beside_edge(r, i, k, prox.normal) {
+            // The edge contact beside it holds that surface there (re-linearised towards
+            // the node, or handing the contact to it: src/solver/edge_sets.rs).
+            return false;
+        }
         let mut c = self.constraint_on(r, k, &prox);
         c.locked = w.was_released(i);
         c.grip = friction::initial_grip(&c, [w.q[2 * i], w.q[2 * i + 1]]);
@@ -464,6 +471,8 @@ impl Simulation {
                     normal_force: lam[0],
                     tangential_force: rt,
                     slip_velocity: v_t,
+                    segment: usize::MAX,
+                    weight: 0.0,
                 }));
                 changed = true;
             }

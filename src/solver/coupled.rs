@@ -17,6 +17,7 @@
 //! A body's own contacts with fixed obstacles add equality rows on δX with their reactions as
 //! multipliers (a small dense KKT system).
 
+use super::edges_coupled::{self, EdgeSystem};
 use super::newton::{self, IterationReport, NewtonFailure, NewtonOptions, RodWork};
 use crate::contact::body::{dot3, BodyContact};
 use crate::contact::Constraint;
@@ -27,9 +28,9 @@ use crate::world::Body;
 #[derive(Debug, Clone, Default)]
 pub struct RodCoupling {
     /// B = L K C, 2·nfree × nb, column-major (then Z = A⁻¹ B in place).
-    b: Vec<f64>,
+    pub(super) b: Vec<f64>,
     /// D = Σ W_i K_{i,:}, nb × 2·nfree, row-major.
-    d: Vec<f64>,
+    pub(super) d: Vec<f64>,
 }
 
 /// Called with (rod, report) after every Newton update.
@@ -50,6 +51,8 @@ pub struct BodyScratch {
     rhs: Vec<f64>,
     rows: Vec<KktRow>,
     dx: Vec<[f64; 3]>,
+    /// The member rods' edge multipliers (src/solver/edges_coupled.rs).
+    edges: EdgeSystem,
 }
 
 /// What the coupled solve works on.
@@ -170,8 +173,11 @@ impl Coupled<'_> {
             let rod = &self.rods[r];
             let w = &mut self.work[r];
             follow_bodies(w, self.bodies);
-            let (res, node) =
+            let (mut res, mut node) =
                 newton::residual(rod, w, opt, true, iterations).map_err(|f| (r, f))?;
+            if !w.edges.is_empty() {
+                (res, node) = super::edges::forces_into_rhs(rod, w, true);
+            }
             if res > opt.force_tol * w.force_scale {
                 converged = false;
             }
@@ -190,6 +196,18 @@ impl Coupled<'_> {
             super::edges::solve_k(w, &mut rhs);
             w.rhs = rhs;
             schur(w, &mut self.coupling[r], self.scratch, nb);
+            let sc = &mut *self.scratch;
+            let v = edges_coupled::linearise_rod(
+                r,
+                w,
+                &self.coupling[r],
+                self.bodies,
+                &mut sc.edges,
+                &mut sc.g,
+            );
+            if v > opt.step_tol * w.length_scale {
+                converged = false;
+            }
         }
         press_bodies(self.bodies, self.scratch, nb);
         for (bi, b) in self.bodies.iter().enumerate() {
@@ -242,6 +260,7 @@ impl Coupled<'_> {
         let nb = self.nb();
         let sc = &mut *self.scratch;
         sc.s.iter_mut().for_each(|x| *x = 0.0);
+        sc.edges.clear();
         for (bi, b) in self.bodies.iter().enumerate() {
             let g = b.inertial_residual(opt.c, opt.dt, opt.lambda);
             for k in 0..3 {
@@ -270,7 +289,8 @@ impl Coupled<'_> {
             }
         }
         let m = sc.rows.len();
-        let n = nb + m;
+        let me = sc.edges.len();
+        let n = nb + me + m;
         sc.kkt.clear();
         sc.kkt.resize(n * n, 0.0);
         sc.rhs.clear();
@@ -281,7 +301,9 @@ impl Coupled<'_> {
             }
             sc.rhs[i] = -sc.g[i] - sc.gz[i];
         }
+        edges_coupled::fill(&sc.edges, &mut sc.kkt, &mut sc.rhs, n, nb);
         for (j, (bi, ci, kind, a, w)) in sc.rows.iter().enumerate() {
+            let j = me + j;
             for k in 0..3 {
                 sc.kkt[(3 * bi + k) * n + nb + j] = -w[k];
                 sc.kkt[(nb + j) * n + 3 * bi + k] = a[k];
@@ -294,6 +316,7 @@ impl Coupled<'_> {
         if !dense_solve(&mut sc.kkt, &mut sc.rhs, n) {
             return Err((usize::MAX, body_failure(0, res, iterations)));
         }
+        edges_coupled::take(&sc.edges, &sc.rhs[nb..nb + me], self.work);
         for (bi, b) in self.bodies.iter_mut().enumerate() {
             sc.dx[bi] = [sc.rhs[3 * bi], sc.rhs[3 * bi + 1], sc.rhs[3 * bi + 2]];
             // A compliant contact keeps its law's normal force (set by `press_bodies`).
@@ -309,7 +332,7 @@ impl Coupled<'_> {
             }
         }
         for (j, (bi, ci, kind, _, _)) in sc.rows.iter().enumerate() {
-            self.bodies[*bi].reaction[*ci][*kind] = sc.rhs[nb + j];
+            self.bodies[*bi].reaction[*ci][*kind] = sc.rhs[nb + me + j];
         }
         Ok(())
     }
@@ -334,6 +357,7 @@ impl Coupled<'_> {
                     w.rhs[i] -= z[k * m + i] * d;
                 }
             }
+            edges_coupled::add_y(w);
             let full = newton::largest_update(&self.rods[r], w, &dx, res, iterations)
                 .map_err(|f| (r, f))?;
             if w.max_update > 0.0 && full > w.max_update {
@@ -689,7 +713,7 @@ fn couple_sliding(
 
 /// C (2×3: how the body moves the node) and W (3×2: how the node's reaction acts on the body)
 /// of a node held against a body.
-fn maps(c: &Constraint) -> ([[f64; 3]; 2], [[f64; 2]; 3]) {
+pub(super) fn maps(c: &Constraint) -> ([[f64; 3]; 2], [[f64; 2]; 3]) {
     let (_, g) = c.body_columns().unwrap_or((0, [[0.0; 2]; 3]));
     // G as rows: G[a][k] = g[k][a].
     let gm = [[g[0][0], g[1][0], g[2][0]], [g[0][1], g[1][1], g[2][1]]];

@@ -1,33 +1,52 @@
-//! Edge contacts in the rod's Newton system: each is one equation on two nodes, bordered onto
-//! the filtered banded system as a KKT multiplier.
+//! Edge contacts in the rod's Newton system: each holds its segment's point at weight s with
+//! one multiplier (sliding) or two (stuck), bordered onto the filtered banded system.
 //!
-//! With A_j the row of edge contact j (weights (1 − s) n and s n on its segment's two nodes),
-//! L the row filter and P the column filter of the node contacts (src/solver/newton.rs), the
-//! step's equations are
+//! With A_j the rows of edge contact j (weights (1 − s) d and s d on its segment's two nodes,
+//! d = n, and t while stuck), C_j its columns (the same with the force direction c: n and t
+//! stuck, n − k t sliding), L the row filter and P the column filter of the node contacts
+//! (src/solver/newton.rs), the step's equations for the update δ and the multipliers λ are
 //!
 //! ```text
-//! K δ − Σ_j λ_j U_j = −L r,   U_j = L A_jᵀ      (the reactions λ_j A_jᵀ leave the balance)
-//! V_j · δ = −g_j,             V_j = A_j P       (the held point lands on its line)
+//! K δ − Σ_j λ_j U_j = −L r,   U_j = L C_jᵀ      (the reactions λ_j C_jᵀ leave the balance)
+//! V_j · δ = −g_j,             V_j = A_j P       (the held point lands on its line/anchor)
 //! ```
 //!
 //! with K = L J P + s (I − P) the banded matrix the node contacts already give. By the Schur
-//! complement on the banded factor: δ₀ = K⁻¹(−L r), Y_j = K⁻¹ U_j (one banded solve per edge),
-//! (V Y) λ = −g − V δ₀, δ = δ₀ + Y λ. The residual test uses the part of L r that no
-//! multiplier explains: L r − U λ with λ the least-squares multipliers, which are also the
-//! edge contacts' normal forces (N, positive when pressing) reported after convergence.
+//! complement on the banded factor: δ₀ = K⁻¹(−L r), Y_j = K⁻¹ U_j (one banded solve per
+//! multiplier), (V Y) λ = −g − V δ₀, δ = δ₀ + Y λ; the contacts keep the multipliers the solve
+//! applied (taken with the update's damping). The residual test is on the residual those
+//! forces leave, L r − Σ λ U: the forces reported are the ones applied, and with the node
+//! contacts' reactions (`w.r` keeps r̃ = r − Σ C_jᵀ λ_j, each node contact's own reaction) they
+//! close each rod's momentum balance to the Newton residual of its free rows. (A rod solved
+//! with free bodies takes the multipliers' increments in the bodies' dense system instead:
+//! src/solver/edges_coupled.rs.)
 
 use super::coupled::dense_solve;
 use super::newton::{NewtonFailure, RodWork};
 use crate::model::Rod;
 
-/// A node's free index and its column and row parts of an edge contact.
-type NodePart = (usize, [f64; 2], [f64; 2]);
+/// A node's free index and its column and row parts of an edge multiplier.
+pub(super) type NodePart = (usize, [f64; 2], [f64; 2]);
 
-/// Per node of edge contact j: its free index and the column u = L (w n) and row v = P (w n)
-/// parts there (None for a driven node).
-fn parts(w: &RodWork, j: usize) -> [Option<NodePart>; 2] {
+/// The (edge, unknown) pairs of a rod's edge contacts, in the order of their multipliers.
+pub(super) fn unknowns(w: &RodWork) -> impl Iterator<Item = (usize, usize)> + '_ {
+    w.edges
+        .iter()
+        .enumerate()
+        .flat_map(|(j, e)| (0..e.unknowns()).map(move |u| (j, u)))
+}
+
+/// How many multipliers a rod's edge contacts have.
+pub(super) fn count(w: &RodWork) -> usize {
+    w.edges.iter().map(|e| e.unknowns()).sum()
+}
+
+/// Per node of edge contact j, multiplier u: its free index and the column u = L (w c) and
+/// row v = P (w d) parts there (None for a driven node).
+pub(super) fn parts(w: &RodWork, j: usize, u: usize) -> [Option<NodePart>; 2] {
     let e = w.edges[j];
     let ws = e.weights();
+    let (c, d) = e.directions(u);
     let mut out = [None, None];
     for (a, slot) in out.iter_mut().enumerate() {
         let i = e.segment + a;
@@ -35,77 +54,83 @@ fn parts(w: &RodWork, j: usize) -> [Option<NodePart>; 2] {
         if fi == usize::MAX {
             continue;
         }
-        let f = [ws[a] * e.normal[0], ws[a] * e.normal[1]];
-        let c = w.contact[i];
-        let u = super::newton::rows(f[0], f[1], c);
-        let v = super::newton::tangential(f[0], f[1], c);
-        *slot = Some((fi, [u.0, u.1], [v.0, v.1]));
+        let ct = w.contact[i];
+        let uc = super::newton::rows(ws[a] * c[0], ws[a] * c[1], ct);
+        let vr = super::newton::tangential(ws[a] * d[0], ws[a] * d[1], ct);
+        *slot = Some((fi, [uc.0, uc.1], [vr.0, vr.1]));
     }
     out
 }
 
-/// The filtered residual with the edge reactions taken out (least-squares multipliers into
-/// `w.edge_force`), its max-norm and worst node, and the largest constraint violation (m).
-/// Call after `newton::residual` (which leaves −L r in `w.rhs`).
-pub fn residual(rod: &Rod, w: &mut RodWork) -> (f64, usize, f64) {
-    let m = w.edges.len();
-    let mut a = vec![0.0; m * m];
-    let mut b = vec![0.0; m];
-    let all: Vec<_> = (0..m).map(|j| parts(w, j)).collect();
-    for j in 0..m {
-        for (fi, u, _) in all[j].iter().flatten() {
-            b[j] -= u[0] * w.rhs[2 * fi] + u[1] * w.rhs[2 * fi + 1];
-            for k in 0..m {
-                for (fk, uk, _) in all[k].iter().flatten() {
-                    if fk == fi {
-                        a[j * m + k] += u[0] * uk[0] + u[1] * uk[1];
-                    }
-                }
+/// The edge contacts' current forces out of the residual: r̃ = r − Σ (its node's share of F)
+/// (after the eq. 2 residual and the compliant forces are in `w.r`).
+pub fn apply_forces(w: &mut RodWork) {
+    for e in &w.edges {
+        for a in 0..2 {
+            let f = e.node_force(a);
+            let i = e.segment + a;
+            w.r[2 * i] -= f[0];
+            w.r[2 * i + 1] -= f[1];
+        }
+    }
+}
+
+/// The filtered residual the current multipliers leave, L r − Σ λ U (with −L r in `w.rhs`,
+/// as `newton::residual` leaves it): its max-norm and worst node; with `write`, its negative
+/// into `w.rhs` (the right-hand side for the multipliers' increments).
+pub fn forces_into_rhs(rod: &Rod, w: &mut RodWork, write: bool) -> (f64, usize) {
+    let mut v: Vec<f64> = w.rhs.iter().map(|x| -x).collect();
+    for (j, e) in w.edges.iter().enumerate() {
+        for u in 0..e.unknowns() {
+            let lam = if e.is_stuck() { e.force[u] } else { e.force[0] };
+            for (fi, uc, _) in parts(w, j, u).iter().flatten() {
+                v[2 * fi] -= lam * uc[0];
+                v[2 * fi + 1] -= lam * uc[1];
             }
         }
     }
-    if !dense_solve(&mut a, &mut b, m) {
-        b.fill(0.0);
-    }
-    let mut lr: Vec<f64> = w.rhs.iter().map(|x| -x).collect();
-    for j in 0..m {
-        for (fi, u, _) in all[j].iter().flatten() {
-            lr[2 * fi] -= b[j] * u[0];
-            lr[2 * fi + 1] -= b[j] * u[1];
-        }
-    }
-    w.edge_force.clone_from(&b);
     let (mut res, mut worst) = (0.0f64, 0usize);
     for i in 0..rod.n {
         let fi = w.free_index[i];
         if fi == usize::MAX {
             continue;
         }
-        let v = lr[2 * fi].abs().max(lr[2 * fi + 1].abs());
-        if v > res {
-            res = v;
+        let x = v[2 * fi].abs().max(v[2 * fi + 1].abs());
+        if x > res {
+            res = x;
             worst = i;
         }
     }
-    let gmax = w
-        .edges
-        .iter()
-        .map(|e| e.violation(&w.qn).abs())
-        .fold(0.0, f64::max);
-    (res, worst, gmax)
+    if write {
+        for (r, x) in w.rhs.iter_mut().zip(&v) {
+            *r = -x;
+        }
+    }
+    (res, worst)
 }
 
-/// After `w.band.solve(&mut w.rhs)` (δ₀ in `w.rhs`): add the multipliers' part, δ = δ₀ + Y λ.
+/// The largest constraint value of the edge contacts (m) at the iterate `w.qn` and the
+/// bodies' displacements `body_dx`.
+pub fn violation(w: &RodWork, body_dx: &[[f64; 3]]) -> f64 {
+    unknowns(w)
+        .map(|(j, u)| w.edges[j].residual(u, &w.qn, body_dx).abs())
+        .fold(0.0, f64::max)
+}
+
+/// After `solve_k` (δ₀ = K⁻¹(−L r) in `w.rhs`): the multipliers λ into `w.edge_dlam` (totals:
+/// `w.edge_totals`) and their part of the update, δ = δ₀ + Y λ (a rod solved alone: fixed
+/// obstacles only).
 pub fn border(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFailure> {
-    let m = w.edges.len();
+    let list: Vec<(usize, usize)> = unknowns(w).collect();
+    let m = list.len();
     let dim = w.rhs.len();
-    let all: Vec<_> = (0..m).map(|j| parts(w, j)).collect();
+    let all: Vec<_> = list.iter().map(|&(j, u)| parts(w, j, u)).collect();
     let mut ey = std::mem::take(&mut w.edge_y);
     ey.resize(m * dim, 0.0);
-    for j in 0..m {
-        let y = &mut ey[j * dim..(j + 1) * dim];
+    for k in 0..m {
+        let y = &mut ey[k * dim..(k + 1) * dim];
         y.fill(0.0);
-        for (fi, u, _) in all[j].iter().flatten() {
+        for (fi, u, _) in all[k].iter().flatten() {
             y[2 * fi] += u[0];
             y[2 * fi + 1] += u[1];
         }
@@ -114,13 +139,14 @@ pub fn border(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFa
     w.edge_y = ey;
     let mut s = vec![0.0; m * m];
     let mut rhs = vec![0.0; m];
-    for j in 0..m {
-        rhs[j] = -w.edges[j].violation(&w.qn);
-        for (fi, _, v) in all[j].iter().flatten() {
-            rhs[j] -= v[0] * w.rhs[2 * fi] + v[1] * w.rhs[2 * fi + 1];
-            for k in 0..m {
-                let y = &w.edge_y[k * dim..];
-                s[j * m + k] += v[0] * y[2 * fi] + v[1] * y[2 * fi + 1];
+    for k in 0..m {
+        let (j, u) = list[k];
+        rhs[k] = -w.edges[j].residual(u, &w.qn, &[]);
+        for (fi, _, v) in all[k].iter().flatten() {
+            rhs[k] -= v[0] * w.rhs[2 * fi] + v[1] * w.rhs[2 * fi + 1];
+            for l in 0..m {
+                let y = &w.edge_y[l * dim..];
+                s[k * m + l] += v[0] * y[2 * fi] + v[1] * y[2 * fi + 1];
             }
         }
     }
@@ -133,183 +159,50 @@ pub fn border(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFa
             iterations,
         });
     }
-    for j in 0..m {
+    for k in 0..m {
         for d in 0..dim {
-            w.rhs[d] += w.edge_y[j * dim + d] * rhs[j];
+            w.rhs[d] += w.edge_y[k * dim + d] * rhs[k];
         }
     }
+    w.edge_dlam = rhs;
+    w.edge_totals = true;
     Ok(())
 }
 
-/// The edge contacts' forces of the final iterate (after `newton::finish_residual`, which
-/// leaves `w.rhs` stale): −L r into `w.rhs`, then the least-squares multipliers.
-pub fn refresh_forces(rod: &Rod, w: &mut RodWork) {
-    for i in 0..rod.n {
-        let fi = w.free_index[i];
-        if fi == usize::MAX {
-            continue;
-        }
-        let (rx, ry) = super::newton::rows(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
-        w.rhs[2 * fi] = -rx;
-        w.rhs[2 * fi + 1] = -ry;
+/// The multipliers take the solve's values (`w.edge_dlam`: increments, or with
+/// `w.edge_totals` the new totals) with the update's damping `scale`.
+pub fn take_increments(w: &mut RodWork, scale: f64) {
+    if w.edge_dlam.len() != count(w) {
+        w.edge_dlam.clear();
+        return;
     }
-    residual(rod, w);
-}
-
-use super::Simulation;
-use crate::contact::edge::{self, EdgeContact};
-use crate::scenario::contact::ContactPoints;
-
-impl Simulation {
-    /// Whether rod `r`'s segments are tested (`[contact] points = "edges"`; not while the rod
-    /// is solved with a free body, whose coupled system has no edge rows).
-    pub(super) fn edges_on(&self, r: usize) -> bool {
-        self.scenario.contact.points == ContactPoints::Edges
-            && !self.is_member[r]
-            && self.rods[r].n > 1
-    }
-
-    /// The segments of rod `r` (configuration `q`) that a fixed obstacle holds at an interior
-    /// point: (segment, obstacle, weight, proximity), skipping pairs in `held`.
-    fn edge_candidates(
-        &self,
-        r: usize,
-        q: &[f64],
-        held: &[EdgeContact],
-    ) -> Vec<(usize, usize, f64, crate::obstacle::Proximity)> {
-        let rod = &self.rods[r];
-        let s = self.rod_surfaces(r);
-        let mut out = Vec::new();
-        for i in 0..rod.n - 1 {
-            // Two nodes held whole (stuck, or in corners) leave the segment no freedom for a
-            // row of its own.
-            let whole = |j: usize| self.work[r].contact[j].is_some_and(|c| c.holds_whole_node());
-            if rod.clamped[i] || rod.clamped[i + 1] || (whole(i) && whole(i + 1)) {
-                continue;
-            }
-            let a = [q[2 * i], q[2 * i + 1]];
-            let b = [q[2 * i + 2], q[2 * i + 3]];
-            for k in 0..s.len() {
-                if self.body_of[k] != usize::MAX
-                    || held.iter().any(|e| e.segment == i && e.obstacle == k)
-                    || edge::lower_bound(&s, k, a, b) >= 0.0
-                {
-                    continue;
-                }
-                let (w, prox) = edge::closest_on_segment(&s, k, a, b);
-                if prox.distance < 0.0 && edge::interior(w) {
-                    out.push((i, k, w, prox));
-                }
-            }
-        }
-        out
-    }
-
-    /// Edge contacts carried into a step: re-linearised at the start positions (a point whose
-    /// closest point moved onto a node is left to the node).
-    pub(super) fn relinearise_edges_at_start(&mut self, r: usize) {
-        let w = &self.work[r];
-        if w.edges.is_empty() {
-            return;
-        }
-        let s = self.rod_surfaces(r);
-        let q = &w.q;
-        let mut out = Vec::with_capacity(w.edges.len());
-        for e in &w.edges {
-            let i = e.segment;
-            let a = [q[2 * i], q[2 * i + 1]];
-            let b = [q[2 * i + 2], q[2 * i + 3]];
-            let (wt, prox) = edge::closest_on_segment(&s, e.obstacle, a, b);
-            if edge::interior(wt) {
-                out.push(EdgeContact::at(e.obstacle, i, wt, &prox));
-            }
-        }
-        self.work[r].edges = out;
-    }
-
-    /// Rod `r`'s edge contacts after a pass: released when the multiplier pulls,
-    /// re-linearised where the pass left the segment inside, dropped when the deepest point
-    /// slid onto a node; new interior penetrations added. Returns whether the set changed.
-    pub(super) fn update_edges(&mut self, r: usize) -> bool {
-        if !self.edges_on(r) {
-            let had = !self.work[r].edges.is_empty();
-            self.work[r].edges.clear();
-            return had;
-        }
-        let relin_tol = 1e-10 * self.rods[r].length;
-        let s = self.rod_surfaces(r);
-        let w = &self.work[r];
-        let q = &w.qn;
-        let mut released = Vec::new();
-        let mut out = Vec::with_capacity(w.edges.len());
-        let mut changed = false;
-        for (j, e) in w.edges.iter().enumerate() {
-            if w.edge_force.get(j).copied().unwrap_or(0.0) < 0.0 && !e.locked {
-                released.push((e.segment, e.obstacle));
-                changed = true;
-                continue;
-            }
-            let i = e.segment;
-            let whole = |j: usize| w.contact[j].is_some_and(|c| c.holds_whole_node());
-            if whole(i) && whole(i + 1) {
-                changed = true;
-                continue;
-            }
-            let a = [q[2 * i], q[2 * i + 1]];
-            let b = [q[2 * i + 2], q[2 * i + 3]];
-            let (wt, prox) = edge::closest_on_segment(&s, e.obstacle, a, b);
-            if prox.distance >= -relin_tol {
-                out.push(*e);
-            } else if edge::interior(wt) {
-                let ne = EdgeContact {
-                    locked: e.locked,
-                    ..EdgeContact::at(e.obstacle, i, wt, &prox)
-                };
-                changed |= ne != *e;
-                out.push(ne);
+    let mut k = 0;
+    for e in w.edges.iter_mut() {
+        let m = e.unknowns();
+        let mut d = [0.0; 2];
+        for (u, du) in d.iter_mut().enumerate().take(m) {
+            let now = if e.is_stuck() { e.force[u] } else { e.force[0] };
+            *du = if w.edge_totals {
+                w.edge_dlam[k + u] - now
             } else {
-                changed = true;
+                w.edge_dlam[k + u]
+            };
+        }
+        if w.edge_totals && scale == 1.0 {
+            // Exactly the solve's multipliers.
+            e.force[0] = w.edge_dlam[k];
+            if e.is_stuck() {
+                e.force[1] = w.edge_dlam[k + 1];
+            } else {
+                e.slide_friction();
             }
+        } else {
+            e.take_increments(&d[..m], scale);
         }
-        let fresh = self.edge_candidates(r, &self.work[r].qn, &out);
-        let w = &mut self.work[r];
-        w.edge_released.extend(released);
-        for (i, k, wt, prox) in fresh {
-            out.push(EdgeContact {
-                locked: w.edge_released.contains(&(i, k)),
-                ..EdgeContact::at(k, i, wt, &prox)
-            });
-            changed = true;
-        }
-        w.edges = out;
-        w.edge_force.resize(w.edges.len(), 0.0);
-        w.mark_edge_nodes();
-        changed
+        k += m;
     }
-
-    /// The deepest point of rod `r`'s segments inside a rigid obstacle (m, ≥ 0) in edge
-    /// mode (0 otherwise): what the nodes' penetration misses between them.
-    pub(super) fn segment_penetration(&self, r: usize) -> f64 {
-        if self.scenario.contact.points != ContactPoints::Edges || self.rods[r].n < 2 {
-            return 0.0;
-        }
-        let s = self.rod_surfaces(r);
-        let q = &self.work[r].q;
-        let mut pen = 0.0f64;
-        for i in 0..self.rods[r].n - 1 {
-            if self.rods[r].clamped[i] || self.rods[r].clamped[i + 1] {
-                continue;
-            }
-            let a = [q[2 * i], q[2 * i + 1]];
-            let b = [q[2 * i + 2], q[2 * i + 3]];
-            for k in 0..s.len() {
-                if edge::lower_bound(&s, k, a, b) < 0.0 {
-                    pen = pen.max(-edge::closest_on_segment(&s, k, a, b).1.distance);
-                }
-            }
-        }
-        pen
-    }
+    w.edge_dlam.clear();
+    w.edge_totals = false;
 }
 
 /// A compliant fruit's force in edge mode: its pressure distributed along the prong and

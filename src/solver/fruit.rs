@@ -248,6 +248,8 @@ impl Simulation {
             normal_force,
             tangential_force,
             slip_velocity,
+            segment: usize::MAX,
+            weight: 0.0,
         }));
     }
 }

@@ -5,7 +5,9 @@
 pub mod banded;
 mod contacts;
 pub mod coupled;
+mod edge_sets;
 mod edges;
+mod edges_coupled;
 mod fruit;
 pub mod newton;
 mod outputs;

@@ -81,14 +81,16 @@ pub struct RodWork {
     /// Elastic energy of the last iterate, and at the start of the step (J).
     pub energy: f64,
     pub energy_start: f64,
-    /// Edge (segment) contacts (`[contact] points = "edges"`): KKT rows bordered onto the
-    /// band (src/solver/edges.rs), the set at the start of the step, their normal forces
-    /// (N, least-squares multipliers of the last residual), the bordered solves' scratch, the
-    /// (segment, obstacle) pairs released in this step, and per node whether an edge contact
-    /// holds it now or held it at the start of the step.
+    /// Edge (segment) contacts (`[contact] points = "edges"`): rows bordered onto the band
+    /// with their forces as multipliers (src/solver/edges.rs; each contact keeps the forces
+    /// the solve applied), the set at the start of the step, the multipliers of the last
+    /// solve (increments, or totals when `edge_totals`), the bordered solves' scratch, the (segment, obstacle) pairs released
+    /// in this step, and per node whether an edge contact holds it now or held it at the
+    /// start of the step.
     pub edges: Vec<crate::contact::edge::EdgeContact>,
     pub edges_saved: Vec<crate::contact::edge::EdgeContact>,
-    pub edge_force: Vec<f64>,
+    pub edge_dlam: Vec<f64>,
+    pub edge_totals: bool,
     pub edge_y: Vec<f64>,
     pub edge_released: Vec<(usize, usize)>,
     pub edge_nodes: Vec<bool>,
@@ -394,7 +396,8 @@ impl RodWork {
             energy_start: 0.0,
             edges: Vec::new(),
             edges_saved: Vec::new(),
-            edge_force: Vec::new(),
+            edge_dlam: Vec::new(),
+            edge_totals: false,
             edge_y: Vec::new(),
             edge_released: Vec::new(),
             edge_nodes: vec![false; n],
@@ -572,10 +575,10 @@ pub fn solve(
         // Hessians of a one-update step).
         let want_hessian = iterations == 0 && opt.max_iterations > 0 && !stage_chord;
         let (mut res, mut worst) = residual(rod, w, opt, want_hessian, iterations)?;
-        let mut violation = 0.0;
         if !w.edges.is_empty() {
-            (res, worst, violation) = super::edges::residual(rod, w);
+            (res, worst) = super::edges::forces_into_rhs(rod, w, false);
         }
+        let violation = super::edges::violation(w, &[]);
         if res <= ftol && violation <= stol {
             return all_finite(w, res, iterations);
         }
@@ -617,9 +620,6 @@ pub fn solve(
         if upd <= stol {
             // The update is at the round-off floor: accept, with the residual of the final iterate.
             finish_residual(rod, w, opt);
-            if !w.edges.is_empty() {
-                super::edges::refresh_forces(rod, w);
-            }
             return all_finite(w, res, iterations);
         }
     }
@@ -697,8 +697,9 @@ pub fn place_on_targets(rod: &Rod, w: &mut RodWork, body_dx: &[[f64; 3]]) {
 }
 
 /// Assemble the energy (and the Hessian into the band when `hessian`), the eq. 2 residual on
-/// every DOF, and the filtered right-hand side −L r on the free DOFs. Returns the max-norm of
-/// the filtered residual and the node where it is largest.
+/// every DOF, and the filtered right-hand side −L r on the free DOFs (r with the edge contacts'
+/// forces in it; `w.r` without them, see src/solver/edges.rs). Returns the max-norm of the
+/// filtered residual and the node where it is largest.
 pub fn residual(
     rod: &Rod,
     w: &mut RodWork,
@@ -746,6 +747,9 @@ pub fn residual(
         w.rhs[2 * fi] = -rx;
         w.rhs[2 * fi + 1] = -ry;
     }
+    // The edge contacts' forces out of the residual (a node contact's reaction is its own);
+    // the right-hand side keeps them (the rod's own solve finds their totals).
+    super::edges::apply_forces(w);
     Ok((res, worst))
 }
 
@@ -843,8 +847,9 @@ pub fn factor(w: &mut RodWork, res: f64, iterations: u32) -> Result<(), NewtonFa
 /// `body` = (ΔX update per body) through their constraint), damped when the full update would
 /// move a node by more than half the shortest rest edge (where an undamped Newton step can
 /// fold the rod and diverge; the direction is kept, convergence near the solution unchanged).
-/// `scale` overrides the damping (the coupled solve damps all bodies and rods alike). Returns
-/// the largest update.
+/// `scale` overrides the damping (the coupled solve damps all bodies and rods alike). The edge
+/// contacts' multipliers take their increments with the same damping. Returns the largest
+/// update.
 pub fn update(
     rod: &Rod,
     w: &mut RodWork,
@@ -864,6 +869,7 @@ pub fn update(
             }
         }
     };
+    super::edges::take_increments(w, scale);
     let mut upd = 0.0f64;
     for i in 0..rod.n {
         let fi = w.free_index[i];
@@ -941,6 +947,7 @@ pub fn finish_residual(rod: &Rod, w: &mut RodWork, opt: &NewtonOptions) {
     damping(rod, w, opt, false);
     eq2_residual(rod, w, opt);
     press_compliant(rod, w, false);
+    super::edges::apply_forces(w);
 }
 
 /// A compliant fruit's force on every free node pressing into it: F(δ) n joins the balance

@@ -155,7 +155,16 @@ impl Simulation {
         }
         for r in 0..self.rods.len() {
             for j in 0..self.work[r].edges.len() {
-                let v = self.edge_contact_view(r, j);
+                let v = self.edge_contact_view(r, j, dt);
+                let e = self.work[r].edges[j];
+                if let Some(l) = e.body {
+                    // −F on the body at the contact point, as the step applied it (Gᵀ F with
+                    // the lever the contact was linearised at).
+                    let (o, f) = (&mut self.body_out[l.body], e.total_force());
+                    o.force[0] -= f[0];
+                    o.force[1] -= f[1];
+                    o.torque -= l.lever[0] * f[1] - l.lever[1] * f[0];
+                }
                 self.contact_out.push(v);
             }
             for j in 0..self.work[r].pressings.len() {
@@ -205,20 +214,44 @@ impl Simulation {
         }
     }
 
-    /// Edge contact j of rod r: its point on the face, normal and shared normal force.
-    fn edge_contact_view(&self, r: usize, j: usize) -> ContactView {
+    /// Edge contact j of rod r: its point on the face, normal, the forces the step applied
+    /// (shared by the segment's nodes) and its friction state.
+    fn edge_contact_view(&self, r: usize, j: usize, dt: f64) -> ContactView {
         let w = &self.work[r];
         let e = w.edges[j];
         let p = e.point(&w.q);
         let off = self.rod_offset[r];
+        // The held point's motion over the step relative to the surface.
+        let mut slip = e.point(&w.dq);
+        if let Some((b, g)) = e.as_node().body_columns() {
+            let x = self.bodies[b].last_dx;
+            for a in 0..2 {
+                slip[a] -= g[0][a] * x[0] + g[1][a] * x[1] + g[2][a] * x[2];
+            }
+        }
+        let t = e.tangent();
+        let [rn, rt] = e.force;
         ContactView {
             rod: r,
             node: e.segment,
             obstacle: e.obstacle,
-            body: usize::MAX,
+            body: e.body.map_or(usize::MAX, |l| l.body),
             point: [p[0] - off * e.normal[0], p[1] - off * e.normal[1]],
             normal: e.normal,
-            normal_force: w.edge_force.get(j).copied().unwrap_or(0.0),
+            normal_force: rn,
+            friction_force: rt,
+            slip_velocity: if dt > 0.0 {
+                (t[0] * slip[0] + t[1] * slip[1]) / dt
+            } else {
+                0.0
+            },
+            stuck: e.is_stuck(),
+            utilisation: if e.coulomb.mu_s > 0.0 && rn > 0.0 {
+                rt.abs() / (e.coulomb.mu_s * rn)
+            } else {
+                0.0
+            },
+            mu_s: e.coulomb.mu_s,
             segment: e.segment,
             weight: e.weight,
             ..RIGID
@@ -536,8 +569,9 @@ const RIGID: ContactView = ContactView {
 };
 
 /// A free node's contact force at the end of a step: its eq. 2 reaction `r` when a constraint
-/// (its own or an edge's) holds it, plus a compliant fruit's force on it and its share of a
-/// conforming compliant contact's nodal force (edge mode).
+/// (its own or an edge's) holds it (the residual keeps its own contact's part; its shares of
+/// the edge contacts' forces are added back), plus a compliant fruit's force on it and its
+/// share of a conforming compliant contact's nodal force (edge mode).
 fn contact_force(
     w: &super::newton::RodWork,
     i: usize,
@@ -548,6 +582,11 @@ fn contact_force(
 ) -> [f64; 2] {
     let edge = w.edges.iter().any(|e| e.touches(i));
     let mut g = if constrained || edge { r } else { [0.0; 2] };
+    for e in w.edges.iter().filter(|e| e.touches(i) && !initial) {
+        let f = e.node_force(i - e.segment);
+        g[0] += f[0];
+        g[1] += f[1];
+    }
     if let Some(p) = pressed {
         g[0] += p.force * p.normal[0];
         g[1] += p.force * p.normal[1];

@@ -372,22 +372,18 @@ impl Simulation {
         })
     }
 
-    /// Rods holding any node against a free body join the body group.
+    /// Rods holding any node or segment against a free body join the body group.
     fn update_members(&mut self) {
         for r in 0..self.rods.len() {
-            let m = self.work[r]
+            let w = &self.work[r];
+            let m = w
                 .contact
                 .iter()
                 .any(|c| c.is_some_and(|c| c.body.is_some()))
+                || w.edges.iter().any(|e| e.body.is_some())
                 || self.presses_body(r);
             if m != self.is_member[r] {
                 self.is_member[r] = m;
-                // The coupled system has no edge rows: a rod joining a body group is held at
-                // its nodes only (docs/model.md).
-                if m {
-                    self.work[r].edges.clear();
-                    self.work[r].mark_edge_nodes();
-                }
                 self.group_dirty = true;
             }
             if m && self.dirty[r] {
@@ -556,6 +552,13 @@ impl Simulation {
                     if w.contact[i].is_some() || w.edge_nodes[i] {
                         t.contact += w.r[k] * dq;
                     }
+                }
+            }
+            // The edge contacts' forces (out of the residual, which keeps the nodes' own).
+            for e in &w.edges {
+                for a in 0..2 {
+                    let (f, i) = (e.node_force(a), e.segment + a);
+                    t.contact += f[0] * w.dq[2 * i] + f[1] * w.dq[2 * i + 1];
                 }
             }
             // B = E(q₀) − E(q₁) + ∇E(q₁)·Δq: the quadrature error of backward Euler's energy.

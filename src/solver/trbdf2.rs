@@ -46,7 +46,6 @@ struct RodStart {
     contact_saved: Vec<Option<Constraint>>,
     edges: Vec<EdgeContact>,
     edges_saved: Vec<EdgeContact>,
-    edge_force: Vec<f64>,
     edge_nodes: Vec<bool>,
     energy: f64,
     energy_start: f64,
@@ -74,7 +73,6 @@ impl RodStart {
         let mut s = RodStart {
             edges: Vec::with_capacity(n),
             edges_saved: Vec::with_capacity(n),
-            edge_force: Vec::with_capacity(n),
             ..RodStart::default()
         };
         s.save(w);
@@ -90,7 +88,6 @@ impl RodStart {
         self.contact_saved.clone_from(&w.contact_saved);
         self.edges.clone_from(&w.edges);
         self.edges_saved.clone_from(&w.edges_saved);
-        self.edge_force.clone_from(&w.edge_force);
         self.edge_nodes.clone_from(&w.edge_nodes);
         self.rn_end.clone_from(&w.rn_end);
         self.cone_end.clone_from(&w.cone_end);
@@ -113,7 +110,6 @@ impl RodStart {
         w.contact_saved.copy_from_slice(&self.contact_saved);
         w.edges.clone_from(&self.edges);
         w.edges_saved.clone_from(&self.edges_saved);
-        w.edge_force.clone_from(&self.edge_force);
         w.edge_nodes.copy_from_slice(&self.edge_nodes);
         w.rn_end.copy_from_slice(&self.rn_end);
         w.cone_end.copy_from_slice(&self.cone_end);

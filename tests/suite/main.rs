@@ -10,6 +10,7 @@ mod common;
 mod contact3d;
 mod contact_geometry;
 mod edge3d;
+mod edge_friction;
 mod faults;
 mod first_contact;
 mod friction_bodies;
