@@ -449,6 +449,9 @@ fn validate(path: &Path, sets: &[String]) -> ExitCode {
             ExitCode::SUCCESS
         }
         Ok((_, Loaded::Planar(sc))) => {
+            for w in sc.warnings() {
+                eprintln!("warning: {}: {w}", path.display());
+            }
             let nodes: usize = sc.rods.iter().map(|r| r.nodes).sum();
             say!(
                 "{}: ok ({:?}, {} rod(s), {} node(s), {} obstacle(s))",
@@ -515,6 +518,9 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
             return ExitCode::from(2);
         }
     };
+    for w in sc.warnings() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
     if !no_record && out.rrd.is_none() && out.mcap.is_none() && out.csv.is_none() {
         let base = Path::new("recordings").join(file_name(&sc.name));
         out.rrd = Some(base.with_extension("rrd"));

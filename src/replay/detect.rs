@@ -351,6 +351,12 @@ pub struct Findings {
     /// Contacts on a compliant fruit above its bruise threshold.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub bruise: Vec<super::bruise::BruiseFlag>,
+    /// The bruises a scenario expects (`[expect] bruised = true`): reported, not flagged.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub bruise_expected: Vec<super::bruise::BruiseFlag>,
+    /// The scenario expects a bruise and the run made none (flagged).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub bruise_missing: bool,
 }
 
 /// Counts by kind.
@@ -382,7 +388,7 @@ impl Findings {
             slip: self.grasp.iter().filter(|g| g.kind == "slip").count(),
             drop: self.grasp.iter().filter(|g| g.kind == "drop").count(),
             held: self.grasp.iter().filter(|g| g.kind == "held").count(),
-            bruise: self.bruise.len(),
+            bruise: self.bruise.len() + usize::from(self.bruise_missing),
         }
     }
 
@@ -391,6 +397,7 @@ impl Findings {
             && self.sticking.is_empty()
             && self.grasp.is_empty()
             && self.bruise.is_empty()
+            && !self.bruise_missing
     }
 
     fn sort(&mut self) {
@@ -608,6 +615,8 @@ pub struct Detector {
     mu: Vec<f64>,
     /// Contacts on a compliant fruit above its bruise pressure.
     bruise: super::bruise::BruiseRule,
+    /// The scenario expects its fruit to bruise (`[expect] bruised`).
+    bruise_expected: bool,
 }
 
 impl Detector {
@@ -665,6 +674,7 @@ impl Detector {
                 })
                 .collect(),
             bruise: Default::default(),
+            bruise_expected: sc.expect.bruised,
         }
     }
 
@@ -760,7 +770,13 @@ impl Detector {
             self.out.grasp = found.flags;
             self.out.grasp_expected = found.expected;
         }
-        self.out.bruise = std::mem::take(&mut self.bruise).finish();
+        let bruises = std::mem::take(&mut self.bruise).finish();
+        if self.bruise_expected {
+            self.out.bruise_missing = bruises.is_empty();
+            self.out.bruise_expected = bruises;
+        } else {
+            self.out.bruise = bruises;
+        }
         for (r, nodes) in self.nodes.iter_mut().enumerate() {
             for (i, n) in nodes.iter_mut().enumerate() {
                 if let Some(ep) = n.toggle_open.take() {

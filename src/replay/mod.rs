@@ -178,6 +178,12 @@ pub struct CheckReport {
     /// Contacts on a compliant fruit above its bruise threshold.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub bruise: Vec<bruise::BruiseFlag>,
+    /// The bruises the scenario expects (`[expect] bruised = true`): not flagged.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub bruise_expected: Vec<bruise::BruiseFlag>,
+    /// The scenario expects a bruise and the run made none (flagged).
+    #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+    pub bruise_missing: bool,
     /// Stretches of a `--detail auto` recording that hold only some steps: no spike is judged
     /// across their gaps.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
@@ -217,6 +223,8 @@ impl CheckReport {
             grasp: found.grasp,
             grasp_expected: found.grasp_expected,
             bruise: found.bruise,
+            bruise_expected: found.bruise_expected,
+            bruise_missing: found.bruise_missing,
             decimated,
         }
     }
@@ -404,6 +412,28 @@ pub fn format_check(rep: &CheckReport) -> String {
                 f.max_pressure_t, f.ratio, f.bruise_pressure_pa, f.max_bruise_width_m
             );
         }
+    }
+    if rep.bruise_missing {
+        let _ = writeln!(
+            s,
+            "bruise    missing: the scenario expects its fruit to bruise ([expect] bruised = true) and no contact went above its bruise pressure"
+        );
+    }
+    if !rep.bruise_expected.is_empty() {
+        let f = rep
+            .bruise_expected
+            .iter()
+            .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
+            .expect("not empty");
+        let _ = writeln!(
+            s,
+            "expected  bruised as the scenario expects ([expect] bruised = true): {} stretch(es) above the bruise pressure, the highest {:.2}x at rod {} node {} (t = {:.6} s)",
+            rep.bruise_expected.len(),
+            f.ratio,
+            f.rod_name,
+            f.node,
+            f.max_pressure_t
+        );
     }
     if !rep.spikes.is_empty() {
         let _ = writeln!(s, "\nspikes");

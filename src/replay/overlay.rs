@@ -563,6 +563,8 @@ pub fn write_check(out: &Path, run: &Run, rep: &CheckReport) -> Result<(), Repla
         grasp: rep.grasp.clone(),
         grasp_expected: rep.grasp_expected.clone(),
         bruise: rep.bruise.clone(),
+        bruise_expected: rep.bruise_expected.clone(),
+        bruise_missing: rep.bruise_missing,
     };
     let marks = marks(run, &found, false);
     let mut next = 0;

@@ -1369,7 +1369,16 @@ impl Run {
 /// The recorded scenario of a run, checked against the rods `/sim/meta` lists.
 pub fn parse_scenario(path: &Path, meta: &Meta) -> Result<Scenario, ReplayError> {
     let file = format!("{} (/sim/meta scenario_text)", path.display());
-    let sc = Scenario::from_str(&meta.scenario_text, &file, &[]).map_err(|e| {
+    // A recording made before the contact defaults changed says no [contact]: it ran with the
+    // seed's model.
+    let text = match meta.scenario_text.parse::<toml::Table>() {
+        Ok(mut root) if !root.contains_key("contact") => {
+            crate::scenario::contact::recorded_defaults(&mut root);
+            toml::to_string(&root).unwrap_or_else(|_| meta.scenario_text.clone())
+        }
+        _ => meta.scenario_text.clone(),
+    };
+    let sc = Scenario::from_str(&text, &file, &[]).map_err(|e| {
         ReplayError::file(
             path,
             format!("its recorded scenario does not read back: {e}"),

@@ -8,9 +8,9 @@
 //! # points = "nodes"       # only the nodes are tested (the seed's model)
 //! ```
 //!
-//! Absent, contact is at the centreline (the seed's model, which every shipped scenario
-//! written before `[contact]` existed was tuned on; the seed-grasp scenarios say so), and only
-//! nodes are tested (`points = "nodes"`, the seed's model, which every shipped scenario uses).
+//! Absent, a prong touches with its face, at its segments as well as its nodes: the physical
+//! model. The seed's model (centreline contact at the nodes only) is chosen explicitly, as the
+//! seed-grasp scenarios and every scenario measured with it do.
 
 use super::reader::{did_you_mean, TableReader};
 use super::ScenarioError;
@@ -22,10 +22,10 @@ const CONTACT_KEYS: &[&str] = &["surface", "points"];
 #[serde(rename_all = "lowercase")]
 pub enum ContactSurface {
     /// The centreline (the seed's model: the prong's face sits h/2 inside the obstacle).
-    #[default]
     Centreline,
     /// The face towards the obstacle: the centreline stays h/2 (a rectangle's half-height in
-    /// the bending plane, or a circular section's radius) outside it.
+    /// the bending plane, or a circular section's radius) outside it. The default.
+    #[default]
     Face,
 }
 
@@ -35,10 +35,11 @@ pub enum ContactSurface {
 pub enum ContactPoints {
     /// The nodes only (the seed's model): a segment may cut into an obstacle between its
     /// nodes, and an obstacle smaller than a segment can pass between them.
-    #[default]
     Nodes,
     /// The nodes and every segment's closest point (src/contact/edge.rs): a contact may lie
-    /// between nodes, its reaction shared by the two with the barycentric weights.
+    /// between nodes, its reaction shared by the two with the barycentric weights. The
+    /// default.
+    #[default]
     Edges,
 }
 
@@ -49,7 +50,7 @@ pub struct ContactSpec {
     pub points: ContactPoints,
 }
 
-/// Read `[contact]` (absent: centreline contact).
+/// Read `[contact]` (absent: the face, at segments and nodes).
 pub fn parse(top: &TableReader) -> Result<ContactSpec, ScenarioError> {
     let Some(c) = top.opt_table("contact", CONTACT_KEYS)? else {
         return Ok(ContactSpec::default());
@@ -95,6 +96,29 @@ pub fn parse(top: &TableReader) -> Result<ContactSpec, ScenarioError> {
     }
     c.finish()?;
     Ok(spec)
+}
+
+/// Write the contact model into a scenario that chooses none (the defaults), so that the text
+/// a run records says which model it ran with, whatever the defaults of a later version.
+pub fn make_explicit(root: &mut toml::Table) {
+    if !root.contains_key("contact") {
+        let mut t = toml::Table::new();
+        t.insert("surface".into(), "face".into());
+        t.insert("points".into(), "edges".into());
+        root.insert("contact".into(), toml::Value::Table(t));
+    }
+}
+
+/// A recorded scenario without `[contact]` was recorded before the defaults became the face
+/// at segments (every recording since says its model, [`make_explicit`]): it ran with the
+/// seed's model, centreline contact at the nodes, and reads back with it.
+pub fn recorded_defaults(root: &mut toml::Table) {
+    if !root.contains_key("contact") {
+        let mut t = toml::Table::new();
+        t.insert("surface".into(), "centreline".into());
+        t.insert("points".into(), "nodes".into());
+        root.insert("contact".into(), toml::Value::Table(t));
+    }
 }
 
 impl ContactSpec {

@@ -5,13 +5,14 @@
 //! ```toml
 //! [expect]
 //! grasp = "dropped"   # "held" (the default with a free body), "slipped" or "dropped"
+//! bruised = true      # a compliant fruit squeezed too hard on purpose (default false)
 //! ```
 
 use super::reader::{did_you_mean, TableReader};
 use super::ScenarioError;
 use serde::Serialize;
 
-const EXPECT_KEYS: &[&str] = &["grasp"];
+const EXPECT_KEYS: &[&str] = &["grasp", "bruised"];
 
 /// The outcome a scenario expects of its grasp (the first free body in the gripper's lift).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
@@ -38,6 +39,9 @@ impl GraspOutcome {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 pub struct Expect {
     pub grasp: GraspOutcome,
+    /// The fruit is meant to bruise: its bruises are reported, not flagged, and a run that
+    /// does not bruise it is flagged.
+    pub bruised: bool,
 }
 
 /// Read `[expect]` (absent: a held grasp).
@@ -62,6 +66,7 @@ pub fn parse(top: &TableReader) -> Result<Expect, ScenarioError> {
             ));
         }
     };
+    let bruised = e.opt_bool("bruised")?.unwrap_or(false);
     e.finish()?;
-    Ok(Expect { grasp })
+    Ok(Expect { grasp, bruised })
 }

@@ -3,6 +3,7 @@
 //! See `docs/scenario-format.md` for every key.
 
 pub mod actuation;
+mod advice;
 pub mod contact;
 pub mod expect;
 pub mod friction;
@@ -424,6 +425,7 @@ impl Scenario {
             )
         })?;
         apply_sets(&mut root, sets, file)?;
+        contact::make_explicit(&mut root);
         let text = toml::to_string(&root).unwrap_or_else(|_| text.to_string());
         let mut sc = parse_root(&root, file)?;
         sc.text = text;

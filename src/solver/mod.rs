@@ -351,6 +351,13 @@ impl Simulation {
             mode: self.scenario.solve.mode,
         };
         obs.on_event(&Event::RunStart(&info));
+        for message in self.scenario.warnings() {
+            obs.on_event(&Event::Warning {
+                step: 0,
+                t: 0.0,
+                message: &message,
+            });
+        }
         // The initial state as step 0, so recordings start from the rest shape.
         if obs_wants_steps(obs) {
             for r in 0..self.rods.len() {

@@ -1257,7 +1257,7 @@ fn rod_starts_inside_an_obstacle() {
         &err,
         &[
             "key `rod.0.shape` = node 2 at [0.05, 0]",
-            "rod \"prong\" node 2 starts 1.000e-2 m inside obstacle.1 (circle)",
+            "rod \"prong\" node 2's face starts 1.500e-2 m inside obstacle.1 (circle)",
         ],
     );
 }
@@ -1272,7 +1272,7 @@ fn rod_starts_below_a_sine_surface() {
         &err,
         &[
             "key `rod.0.shape` = node 0 at [0, 0]",
-            "rod \"prong\" node 0 starts 5.000e-3 m inside obstacle.1 (sine)",
+            "rod \"prong\" node 0's face starts 1.000e-2 m inside obstacle.1 (sine)",
         ],
     );
 }
@@ -1696,7 +1696,7 @@ fn run_rejects_rod_inside_obstacle() {
     ));
     has(
         &err,
-        &["rod \"prong\" node 2 starts 1.000e-2 m inside obstacle.1"],
+        &["rod \"prong\" node 2's face starts 1.500e-2 m inside obstacle.1"],
     );
 }
 

@@ -307,6 +307,7 @@ clamped = [0, 1]
 drive = {{ kind = "constant_velocity", velocity = [-0.2, 0.0] }}
 [contact]
 surface = "centreline"
+points = "nodes"
 [[obstacle]]
 kind = "circle"
 center = [-0.045, -0.07]

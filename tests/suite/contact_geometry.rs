@@ -1,6 +1,6 @@
-//! Issue 11: where a thick prong touches. `[contact] surface = "face"` holds the prong's face
-//! (h/2, or the section radius, off its centreline) on the obstacle; the seed's centreline
-//! contact stays the default.
+//! Issue 11: where a thick prong touches. `[contact] surface = "face"` (the default) holds the
+//! prong's face (h/2, or the section radius, off its centreline) on the obstacle; the seed's
+//! centreline contact is chosen explicitly.
 
 use gripsim::events::{Event, Observer};
 use gripsim::{Scenario, Simulation};
@@ -25,6 +25,7 @@ dt = 1e-4
 gravity = [0.0, -9.81]
 [contact]
 surface = "{surface}"
+points = "nodes"
 [[rod]]
 name = "prong"
 nodes = 11
@@ -90,7 +91,7 @@ fn run(text: &str) -> Trace {
 #[test]
 fn a_thick_prongs_face_stops_on_the_circle_at_half_its_height_plus_the_radius() {
     let rect = "{ kind = \"rect\", b = 0.02, h = 0.01 }";
-    // The seed's centreline contact (the default, and what surface = "centreline" says): the
+    // The seed's centreline contact (surface = "centreline"): the
     // centreline stops on the circle, the face h/2 inside it.
     let seed = run(&drop_on_circle("centreline", rect, 1e-3, 0.0));
     // The face: the centreline stops h/2 + R from the centre.
@@ -139,10 +140,13 @@ fn a_thick_prongs_face_stops_on_the_circle_at_half_its_height_plus_the_radius() 
 }
 
 #[test]
-fn centreline_is_the_default_and_bit_for_bit_the_same_as_saying_so() {
+fn the_face_at_segments_is_the_default_and_bit_for_bit_the_same_as_saying_so() {
     let rect = "{ kind = \"rect\", b = 0.02, h = 0.01 }";
-    let said = drop_on_circle("centreline", rect, 1e-3, 0.0);
-    let unsaid = said.replace("[contact]\nsurface = \"centreline\"\n", "");
+    let said = drop_on_circle("face", rect, 1e-3, H / 2.0).replace(
+        "points = \"nodes\"",
+        "points = \"edges\"",
+    );
+    let unsaid = said.replace("[contact]\nsurface = \"face\"\npoints = \"edges\"\n", "");
     assert_ne!(said, unsaid);
     let (a, b) = (run(&said), run(&unsaid));
     assert_eq!(a.held, b.held);
@@ -174,7 +178,7 @@ fn contact_surface_errors_name_the_key_and_value() {
         sc.contact.surface,
         gripsim::scenario::contact::ContactSurface::Face
     );
-    // Which points: nodes (the default) or edges.
+    // Which points: nodes (as the text says) or edges.
     use gripsim::scenario::contact::ContactPoints;
     assert_eq!(sc.contact.points, ContactPoints::Nodes);
     let text = drop_on_circle("centreline", rect, 1e-3, 0.0);
@@ -206,6 +210,7 @@ dt = 1e-3
 gravity = [0.0, 0.0]
 [contact]
 surface = "face"
+points = "nodes"
 [[rod]]
 name = "punch"
 nodes = 11
@@ -441,6 +446,7 @@ t_end = 0.2
 dt = 1e-4
 gravity = [0.0, 0.0]
 [contact]
+surface = "centreline"
 points = "{points}"
 [[rod]]
 name = "prong"
@@ -578,6 +584,7 @@ name = "cantilever-on-circle"
 mode = "static"
 gravity = [0.0, 0.0]
 [contact]
+surface = "centreline"
 points = "{points}"
 [[rod]]
 name = "beam"

@@ -121,6 +121,7 @@ E = 2e13
 section = {{ kind = "rect", b = 0.01, h = 0.005 }}
 density = 7800.0
 [contact]
+surface = "centreline"
 points = "edges"
 [[obstacle]]
 name = "left"
@@ -287,6 +288,7 @@ section = { kind = "rect", b = 0.01, h = 0.005 }
 density = 7800.0
 velocity = [0.2, 0.0]
 [contact]
+surface = "centreline"
 points = "edges"
 [[obstacle]]
 name = "table"
