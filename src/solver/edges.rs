@@ -171,7 +171,7 @@ impl Simulation {
 
     /// The segments of rod `r` (configuration `q`) that a fixed obstacle holds at an interior
     /// point: (segment, obstacle, weight, proximity), skipping pairs in `held`.
-    fn edge_candidates(
+    pub(super) fn edge_candidates(
         &self,
         r: usize,
         q: &[f64],
@@ -237,6 +237,7 @@ impl Simulation {
             return had;
         }
         let relin_tol = 1e-10 * self.rods[r].length;
+        let dynamic = self.scenario.solve.mode == crate::scenario::Mode::Dynamic;
         let s = self.rod_surfaces(r);
         let w = &self.work[r];
         let q = &w.qn;
@@ -258,7 +259,8 @@ impl Simulation {
             let a = [q[2 * i], q[2 * i + 1]];
             let b = [q[2 * i + 2], q[2 * i + 3]];
             let (wt, prox) = edge::closest_on_segment(&s, e.obstacle, a, b);
-            if prox.distance >= -relin_tol {
+            // Static mode: re-linearised by `follow_edges` (solver/statics.rs).
+            if prox.distance >= -relin_tol || !dynamic {
                 out.push(*e);
             } else if edge::interior(wt) {
                 let ne = EdgeContact {
@@ -271,7 +273,12 @@ impl Simulation {
                 changed = true;
             }
         }
-        let fresh = self.edge_candidates(r, &self.work[r].qn, &out);
+        // Static mode: the increment's first entry is held first (solver/statics.rs).
+        let fresh = if dynamic {
+            self.edge_candidates(r, &self.work[r].qn, &out)
+        } else {
+            Vec::new()
+        };
         let w = &mut self.work[r];
         w.edge_released.extend(released);
         for (i, k, wt, prox) in fresh {
