@@ -1113,6 +1113,13 @@ fn print_summary(s: &gripsim::record::summary::Summary) {
     );
     say!("wall time       {:.3} s", s.wall_time_s);
     match &s.peak_reaction_node {
+        Some(n) if s.mode == "static" => say!(
+            "peak reaction   {:.4} N at rod {:?} node {} (load factor {:.6}; the equilibrium contact force)",
+            s.peak_reaction_force_n,
+            n.rod,
+            n.node,
+            s.peak_reaction_time_s.unwrap_or(0.0)
+        ),
         Some(n) => say!(
             "peak reaction   {:.4} N at rod {:?} node {} (t = {:.6} s; eq. 2, the seed's figure)",
             s.peak_reaction_force_n,

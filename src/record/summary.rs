@@ -310,6 +310,22 @@ impl SummaryCollector {
     }
 }
 
+impl SummaryCollector {
+    /// Static mode: the peak reaction is the largest equilibrium contact force. A node's
+    /// contact force is its reaction (already counted); an edge contact's is its multiplier,
+    /// which its two nodes share, so the contacts are counted as well (at the contact's node,
+    /// for an edge its segment's first node).
+    fn static_contacts(&mut self, t: f64, contacts: &[crate::events::ContactView]) {
+        for c in contacts.iter().filter(|c| c.rod != usize::MAX) {
+            let f = c.normal_force.hypot(c.friction_force);
+            if f > self.peak {
+                self.peak = f;
+                self.peak_at = Some((c.rod, c.node, t));
+            }
+        }
+    }
+}
+
 impl Observer for SummaryCollector {
     fn on_event(&mut self, event: &Event<'_>) {
         self.grasp.on_event(event);
@@ -438,6 +454,9 @@ impl Observer for SummaryCollector {
                     if d > s.max_tip_deflection_m {
                         s.max_tip_deflection_m = d;
                     }
+                }
+                if self.mode == "static" {
+                    self.static_contacts(*t, contacts);
                 }
             }
             Event::RunEnd { error, .. } => {

@@ -76,7 +76,7 @@ impl Simulation {
 
     /// The constraint holding rod `r`'s node on surface `k` where `prox` says, linearised at the
     /// body's current trial displacement (zero at the start of a step).
-    fn constraint_on(&self, r: usize, k: usize, prox: &Proximity) -> Constraint {
+    pub(super) fn constraint_on(&self, r: usize, k: usize, prox: &Proximity) -> Constraint {
         let mut c = contact::constraint_at(k, prox);
         c.coulomb = self.rod_coulomb[r][k];
         let bi = self.body_of[k];
@@ -174,6 +174,9 @@ impl Simulation {
             };
         }
         changed |= self.update_edges(ctx, r, pass, obs);
+        if !ctx.dynamic {
+            changed |= self.follow_edges(r);
+        }
         // A rod solved alone that now presses into a fruit on a free body is solved with it.
         changed |= !self.is_member[r] && self.presses_body(r);
         changed
@@ -336,7 +339,10 @@ impl Simulation {
         let s = self.rod_surfaces(r);
         let mut nc = c;
         let stuck = matches!(c.grip, Grip::Stick { .. });
-        if !stuck && s.query(c.obstacle, p).distance < -relin_tol {
+        let gap = s.query(c.obstacle, p).distance;
+        // Static mode also follows a node that slid off its tangent point (the equilibrium
+        // holds it on the surface, not on a tangent line).
+        if !stuck && (gap < -relin_tol || (!ctx.dynamic && gap > relin_tol)) {
             nc = self.relinearised(r, i, &c, p, false);
         }
         if c.body.is_some() {
@@ -387,6 +393,10 @@ impl Simulation {
         pass: u32,
         obs: &mut O,
     ) -> bool {
+        if !ctx.dynamic {
+            // Static mode: the increment's first entry is held first (solver/statics.rs).
+            return false;
+        }
         let w = &self.work[r];
         let p = [w.qn[2 * i], w.qn[2 * i + 1]];
         let Some((k, prox)) = contact::deepest(&self.rod_surfaces(r), p, 0.0) else {

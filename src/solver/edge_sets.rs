@@ -46,7 +46,14 @@ impl Simulation {
     /// The edge contact holding segment i of rod r at weight `s` on surface k where `prox`
     /// says, linearised at the body's current trial displacement (zero at the start of a
     /// step); frictionless sliding until the caller sets its grip.
-    fn edge_on(&self, r: usize, i: usize, k: usize, s: f64, prox: &Proximity) -> EdgeContact {
+    pub(super) fn edge_on(
+        &self,
+        r: usize,
+        i: usize,
+        k: usize,
+        s: f64,
+        prox: &Proximity,
+    ) -> EdgeContact {
         let mut e = EdgeContact::at(k, i, s, prox);
         e.coulomb = self.rod_coulomb[r][k];
         let bi = self.body_of[k];
@@ -71,7 +78,7 @@ impl Simulation {
     /// `old` re-linearised at weight `s` where `prox` says, keeping its force and grip: a
     /// stuck point is anchored where its new point was at the start of the step. `start`:
     /// at the start of a step (switches, re-linearisations and the lock begin anew).
-    fn carried_edge(
+    pub(super) fn carried_edge(
         &self,
         r: usize,
         old: &EdgeContact,
@@ -150,7 +157,7 @@ impl Simulation {
 
     /// The segments of rod `r` (configuration `q`) that a surface holds at an interior point:
     /// (segment, obstacle, weight, proximity), skipping pairs in `held` and in `skip`.
-    fn edge_candidates(
+    pub(super) fn edge_candidates(
         &self,
         r: usize,
         held: &[EdgeContact],
@@ -250,7 +257,9 @@ impl Simulation {
                 continue;
             }
             let (wt, prox) = self.segment_closest(r, i, k, &self.work[r].qn);
-            if prox.distance >= -tol
+            // Static mode: held edges follow their surface in `follow_edges` (statics.rs).
+            if !ctx.dynamic
+                || prox.distance >= -tol
                 || (e.locked && !edge::interior(wt))
                 || e.relinearised >= MAX_RELINEARISED
             {
@@ -267,7 +276,13 @@ impl Simulation {
                 changed = true;
             }
         }
-        for (i, k, wt, prox) in self.edge_candidates(r, &out, &pulled) {
+        // Static mode: the increment's first entry is held first (statics.rs).
+        let fresh = if ctx.dynamic {
+            self.edge_candidates(r, &out, &pulled)
+        } else {
+            Vec::new()
+        };
+        for (i, k, wt, prox) in fresh {
             let mut e = self.edge_on(r, i, k, wt, &prox);
             e.locked = self.work[r].edge_released.contains(&(i, k));
             if e.coulomb.mu_s > 0.0 {

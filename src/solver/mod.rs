@@ -13,6 +13,7 @@ pub mod newton;
 mod outputs;
 mod release;
 mod stability;
+mod statics;
 mod step;
 mod trbdf2;
 
@@ -230,6 +231,9 @@ pub struct Simulation {
     body_out: Vec<BodyOut>,
     /// TR-BDF2: the state at the step's start, for a rejection after the first stage.
     stage_start: trbdf2::StageStart,
+    /// Static mode: per edge contact (rod, segment, obstacle) its last re-linearisation in
+    /// this load increment (weight, closest weight − weight), for the secant step.
+    edge_history: Vec<(usize, usize, usize, f64, f64)>,
 }
 
 /// Step-end outputs of one body.
@@ -312,6 +316,7 @@ impl Simulation {
             split_step: false,
             contact_out: Vec::new(),
             stage_start: Default::default(),
+            edge_history: Vec::new(),
         };
         sim.place_bodies(true);
         sim.start_balance();
@@ -677,10 +682,14 @@ impl Simulation {
         while lambda < 1.0 {
             self.check_interrupt()?;
             let target = (lambda + inc).min(1.0);
+            self.edge_history.clear();
             match self.try_step(1.0, target, false, obs) {
                 Ok(()) => {
                     lambda = target;
                     inc = (inc * 1.5).min(1.0);
+                }
+                Err(StepError::Split { rod, node, .. }) => {
+                    inc = self.cut_increment(inc, rod, node, obs)?;
                 }
                 Err(e) => {
                     let f = e.into_failure();
@@ -716,6 +725,41 @@ impl Simulation {
             self.seek_stable_branch(obs)?;
         }
         Ok(())
+    }
+
+    /// Static mode: a point went through an obstacle in the load increment, or a contact
+    /// released and locked in it still pulls (solver/statics.rs): halve the increment
+    /// (counted in `split_steps`), or stop when it would fall below 1e-6.
+    fn cut_increment<O: Observer>(
+        &mut self,
+        inc: f64,
+        rod: usize,
+        node: usize,
+        obs: &mut O,
+    ) -> Result<f64, SimError> {
+        let reason = "static: a point went through an obstacle in this load increment, or a \
+                      contact released and locked in it still pulls; increment cut";
+        self.stats.split_steps += 1;
+        if inc * 0.5 < 1e-6 {
+            return Err(SimError::Diverged {
+                step: self.step + 1,
+                t: self.t + inc,
+                rod: self.part_name(rod),
+                node,
+                residual: 0.0,
+                reason: format!("static solve: {reason} below a load increment of 1e-6"),
+                backoffs: self.stats.backoffs as u32,
+                dt: inc,
+            });
+        }
+        obs.on_event(&Event::DtChanged {
+            step: self.step + 1,
+            t: self.t,
+            old: inc,
+            new: inc * 0.5,
+            reason,
+        });
+        Ok(inc * 0.5)
     }
 
     /// Static mode with an imperfection: the load ramp can still land on the unstable branch

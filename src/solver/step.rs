@@ -150,8 +150,15 @@ impl Simulation {
             if allow_split && ctx.dynamic {
                 self.split_at_release(ctx)?;
             }
-            let changed = self.update_contacts(ctx, pass, obs);
+            let mut changed = self.update_contacts(ctx, pass, obs);
+            if !ctx.dynamic && changed == 0 {
+                // Static mode: new contacts once the held ones have settled.
+                changed = self.static_entries(ctx, pass, obs);
+            }
             if changed == 0 {
+                if !ctx.dynamic {
+                    self.static_settled(ctx)?;
+                }
                 break;
             }
             pass += 1;

@@ -27,6 +27,7 @@ mod replay;
 mod replay_guard;
 mod rod3d;
 mod rrd_view;
+mod static_contact;
 mod stepping;
 mod sweep;
 mod verification;
