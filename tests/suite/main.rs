@@ -27,3 +27,4 @@ mod rrd_view;
 mod stepping;
 mod sweep;
 mod verification;
+mod window;
