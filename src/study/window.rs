@@ -1145,8 +1145,11 @@ impl WindowResult {
                 "g_bruise / g_hold = {}: no safe window (it bruises before it holds)",
                 fmt_g(q)
             ),
-            (None, Some(q)) => format!("g_bruise / g_hold > {} ({})", fmt_g(q), self.headline),
-            _ => format!("no ratio ({})", self.headline),
+            (None, Some(q)) => format!(
+                "g_bruise / g_hold > {} (a boundary lies outside the range)",
+                fmt_g(q)
+            ),
+            _ => "no ratio g_bruise / g_hold: it needs both boundaries".into(),
         }
     }
 
