@@ -5,7 +5,7 @@
 
 use super::plots::{value_maps, MapColors, ValueMap};
 use super::sweep::{CaseRecord, Manifest};
-use super::window::{fmt_g, Boundary, Resolved, Status, WindowResult};
+use super::window::{fmt_g, Boundary, Resolved, Status, Which, WindowResult};
 use crate::bench::plot::ensure_font;
 use plotters::coord::combinators::BindKeyPoints;
 use plotters::coord::Shift;
@@ -416,11 +416,17 @@ fn ratio_map(
             bruise[iy][ix] = found(&res.bruise);
         }
     }
-    // A panel with no value says why (the first design's statement).
+    // A panel with no value says why (from the first design).
     let first = records.iter().find_map(|r| r.window.as_deref());
     let why = |cells: &Vec<Vec<Option<f64>>>, b: fn(&WindowResult) -> &Boundary| match first {
         Some(f) if cells.iter().flatten().all(Option::is_none) => {
-            format!(": none ({})", b(f).note)
+            let why = match (b(f).status, b(f).which) {
+                (Status::NotApplicable, Which::Hold) => "no free body",
+                (Status::NotApplicable, Which::Bruise) => "no compliant material",
+                (Status::NotMonotone, _) => "not monotone",
+                _ => "no boundary in the range",
+            };
+            format!(": none ({why})")
         }
         _ => String::new(),
     };
@@ -441,10 +447,7 @@ fn ratio_map(
     };
     let maps = vec![
         map(
-            &format!(
-                "window ratio g_bruise / g_hold (green > 1: safe){}",
-                notes[0]
-            ),
+            &format!("g_bruise / g_hold (green > 1: safe){}", notes[0]),
             ratio,
             MapColors::Ratio,
             "",
