@@ -160,6 +160,17 @@ enum Command {
         after_help = "Examples:\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary obstacle.0.radius=0.05,0.04 --vary rod.0.E=1e6,1e9 --out out/study\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary rod.0.E=1e6:1e9:7:log --set solve.t_end=0.08 --out out/e\n  gripsim sweep scenarios/seed-grasp-r5.toml --vary obstacle.0.radius=0.03:0.05:9 --shard $SLURM_ARRAY_TASK_ID/8 --out out/r\n  gripsim sweep merge out/r"
     )]
     Sweep(SweepCli),
+    /// The grasp window: the smallest knob value (by default the grip target of the squeeze) at
+    /// which the fruit is held through the lift, and the smallest at which it bruises, each
+    /// to --rtol; with --vary, a map of the window over design parameters (docs/studies.md).
+    ///
+    /// Each evaluation is a normal run (no recordings) with the knob set; independent runs go
+    /// in parallel. Exit 0 when it ran (whatever the window), 2 on bad input, 130/143 when a
+    /// signal stopped it.
+    #[command(
+        after_help = "Examples:\n  gripsim window scenarios/jaw-grasp-hold.toml\n  gripsim window scenarios/jaw-grasp-hold.toml --range 0.5:4 --rtol 0.005 --json out/window.json\n  gripsim window scenarios/jaw-grasp-hold.toml --knob friction.pair.0.mu_s --range 0.2:1.2\n  gripsim window scenarios/jaw-grasp-hold.toml --vary obstacle.2.mass=0.05:0.2:7 --out out/window-mass\n  gripsim sweep merge out/window-mass   # after sharded runs (--shard I/N)"
+    )]
+    Window(WindowCli),
     /// Read recorded runs back: check one for velocity spikes and sticking nodes, diff two,
     /// or turn one into a Rerun .rrd (docs/replay.md).
     #[command(
@@ -224,7 +235,62 @@ struct SweepCli {
     /// No figures (per case and per sweep).
     #[arg(long)]
     no_plots: bool,
+    /// Which cases get their own figures (forces, shapes): all, flagged (a case that stopped
+    /// with an error, warned, or has a spike, sticking episode or bruise the replay check
+    /// flags) or none. The sweep's figures are drawn in any case (unless --no-plots).
+    #[arg(
+        long,
+        value_name = "WHICH",
+        default_value = "flagged",
+        conflicts_with = "no_plots"
+    )]
+    case_plots: gripsim::study::CasePlots,
     /// No progress bar or per-case lines.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// `gripsim window` arguments.
+#[derive(clap::Args)]
+struct WindowCli {
+    /// Scenario file (TOML).
+    scenario: PathBuf,
+    /// The knob: a numeric scenario key in the --set grammar, e.g. friction.pair.0.mu_s
+    /// [default: the grip target of the squeeze, the grip_force (or grip_torque) end of the
+    /// first phase of an [[actuator]] that has one].
+    #[arg(long, value_name = "KEY")]
+    knob: Option<String>,
+    /// The range searched, LO:HI with 0 < LO < HI (the search is in log knob) [default: the
+    /// scenario's value / 8 to × 8].
+    #[arg(long, value_name = "LO:HI", value_parser = gripsim::study::window::parse_range)]
+    range: Option<(f64, f64)>,
+    /// Relative width of each boundary's final bracket.
+    #[arg(long, value_name = "R", default_value = "0.01", value_parser = gripsim::study::window::parse_rtol)]
+    rtol: f64,
+    /// Override a scenario value, e.g. solve.dt=1e-5 (repeatable; before the knob's value).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    sets: Vec<String>,
+    /// Write the result (boundaries, ratio, every run) as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Runs at once [default: one per core].
+    #[arg(long, short, value_name = "N")]
+    jobs: Option<usize>,
+    /// A design parameter: KEY=V1,V2,... or KEY=START:STOP:COUNT[:log] (repeatable: a grid);
+    /// one window search per design, into --out DIR.
+    #[arg(long = "vary", value_name = "KEY=VALUES")]
+    vary: Vec<gripsim::study::Vary>,
+    /// With --vary: the output folder (window.csv, window.json, window.png|svg, a folder per
+    /// design); a re-run resumes.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// With --vary: only the designs k with k mod N = I; join with `gripsim sweep merge`.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<gripsim::study::Shard>,
+    /// With --vary: no picture.
+    #[arg(long)]
+    no_plots: bool,
+    /// No progress lines.
     #[arg(long, short)]
     quiet: bool,
 }
@@ -362,6 +428,7 @@ fn main() -> ExitCode {
             repeats,
         } => bench(quick, stress, out, repeats),
         Command::Sweep(args) => sweep(args),
+        Command::Window(args) => window(args),
         Command::Replay(args) => replay(args),
     }
 }
@@ -1319,6 +1386,12 @@ fn sweep(args: SweepCli) -> ExitCode {
         out,
         shard: args.shard,
         plots: !args.no_plots,
+        case_plots: if args.no_plots {
+            study::CasePlots::None
+        } else {
+            args.case_plots
+        },
+        window: None,
         quiet: args.quiet,
         stop: Some(std::sync::Arc::new(|| STOP.load(Ordering::Relaxed) != 0)),
     };
@@ -1361,6 +1434,134 @@ fn sweep(args: SweepCli) -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+/// `gripsim window`: one search (printed, `--json`), or with `--vary` a map of windows on the
+/// sweep machinery. Exit 0 when it ran, 2 on bad input, 130/143 when a signal stopped it.
+fn window(args: WindowCli) -> ExitCode {
+    use gripsim::study::{self, window};
+    let spec = window::WindowSpec {
+        knob: args.knob,
+        range: args.range,
+        rtol: args.rtol,
+    };
+    let usage = |m: &str| {
+        eprintln!("error: {m}");
+        ExitCode::from(2)
+    };
+    if args.vary.is_empty() {
+        if args.out.is_some() || args.shard.is_some() {
+            return usage("--out and --shard go with --vary (a map of windows over design parameters); one search prints its result (--json FILE keeps it)");
+        }
+    } else if args.json.is_some() {
+        return usage("--json goes with a single search; a map writes DIR/window.json (--out DIR)");
+    }
+    install_signal_handlers();
+    let stop: window::Stop = std::sync::Arc::new(|| STOP.load(Ordering::Relaxed) != 0);
+    let interrupted = |what: &str| {
+        let code = STOP.load(Ordering::Relaxed);
+        eprintln!("interrupted by {}: {what}", signal_name(code));
+        ExitCode::from(if code == 0 { 130 } else { code as u8 })
+    };
+    if !args.vary.is_empty() {
+        let Some(out) = args.out else {
+            return usage(
+                "window --vary needs --out DIR (where window.csv, window.json and window.png go)",
+            );
+        };
+        let resolved = match window::resolve_file(&args.scenario, &args.sets, &spec) {
+            Ok((_, r)) => r,
+            Err(e) => return usage(&e.to_string()),
+        };
+        if !args.quiet {
+            eprintln!(
+                "knob {} ({}), range {}–{}, rtol {}",
+                resolved.knob,
+                resolved.what,
+                window::fmt_g(resolved.lo),
+                resolved.show(resolved.hi),
+                resolved.rtol
+            );
+        }
+        let opts = study::SweepOptions {
+            scenario: args.scenario,
+            vary: args.vary,
+            sets: args.sets,
+            jobs: args.jobs.unwrap_or(0),
+            out,
+            shard: args.shard,
+            plots: !args.no_plots,
+            case_plots: study::CasePlots::None,
+            window: Some(resolved),
+            quiet: args.quiet,
+            stop: Some(stop),
+        };
+        return match study::run_sweep(&opts) {
+            Ok(r) => {
+                for e in &r.plot_errors {
+                    eprintln!("warning: picture not drawn: {e}");
+                }
+                let shard = opts
+                    .shard
+                    .map(|s| format!(" (shard {}/{}: {} of them)", s.index, s.count, r.in_shard))
+                    .unwrap_or_default();
+                println!(
+                    "window map: {} designs{shard}: {} searched, {} skipped (finished before), {:.2} s",
+                    r.cases, r.ran, r.skipped, r.wall_time_s
+                );
+                if r.interrupted {
+                    return interrupted(&format!(
+                        "{} of {} designs are finished in {}; run the same command again to resume",
+                        r.ran + r.skipped,
+                        r.in_shard,
+                        opts.out.join("cases").display()
+                    ));
+                }
+                if let Some(p) = &r.summary {
+                    println!("wrote {}", p.display());
+                }
+                if opts.shard.is_some() {
+                    println!(
+                        "when every shard is done: gripsim sweep merge {}",
+                        opts.out.display()
+                    );
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => usage(&e.to_string()),
+        };
+    }
+    let opts = window::WindowOptions {
+        scenario: args.scenario,
+        sets: args.sets,
+        spec,
+        jobs: args.jobs.unwrap_or(0),
+        stop: Some(stop),
+    };
+    let count = AtomicUsize::new(0);
+    let quiet = args.quiet;
+    let progress = |e: &window::Eval| {
+        if !quiet {
+            let k = count.fetch_add(1, Ordering::Relaxed) + 1;
+            eprintln!("run {k}: {} -> {}", window::fmt_g(e.value), e.outcome());
+        }
+    };
+    match window::run_window(&opts, Some(&progress)) {
+        Ok(Some(r)) => {
+            if let Some(p) = &args.json {
+                if let Err(e) = window::write_result(p, &r) {
+                    return usage(&e.to_string());
+                }
+            }
+            say_part!("{}", r.report());
+            if let Some(p) = &args.json {
+                say!("wrote {}", p.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Ok(None) => interrupted("no result written; run the same command again"),
+        Err(e) => usage(&e.to_string()),
     }
 }
 

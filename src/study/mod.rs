@@ -4,6 +4,9 @@
 //!
 //! - [`sweep`]: the grid, the runs, resuming, shards and merging, `summary.csv`.
 //! - [`plots`]: per-case force, bending stress and shape figures; per-sweep metric figures.
+//! - [`window`]: the grasp window — the drop and bruise boundaries along a knob — and its map
+//!   over design parameters (each design one case of the sweep machinery); [`window_plot`]
+//!   draws the map.
 //!
 //! A case is the base scenario with the sweep's `--set` assignments and then one value of every
 //! `--vary` key applied, in that order, exactly as `gripsim run SCENARIO --set … --set KEY=VALUE`
@@ -11,10 +14,12 @@
 
 pub mod plots;
 pub mod sweep;
+pub mod window;
+pub mod window_plot;
 
 pub use sweep::{
-    merge, run_sweep, CaseRecord, Manifest, MergeOptions, MergeReport, Metrics, SweepOptions,
-    SweepReport,
+    merge, run_sweep, CasePlots, CaseRecord, Manifest, MergeOptions, MergeReport, Metrics,
+    SweepOptions, SweepReport,
 };
 
 use serde::{Deserialize, Serialize};

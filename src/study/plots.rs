@@ -743,11 +743,371 @@ const METRICS: [Metric; 8] = [
     ("max penetration", "m", |m| Some(m.max_penetration_m)),
 ];
 
+/// The most lines of one colour each in a `vs-<key>` figure: a key whose other keys make
+/// more combinations than this gets no line figure when a heat map shows the grid.
+const MAX_LINES: usize = 10;
+
+/// Whether the grid of a two-key sweep is drawn as heat maps (`map-<key1>-<key2>`).
+fn has_map(manifest: &Manifest) -> bool {
+    manifest.vary.len() == 2
+}
+
+/// Whether key `k` gets a `vs-<key>` line figure: always, but in a two-key sweep only when
+/// the other key has few enough values that its lines can be told apart (the heat map shows
+/// the rest).
+fn has_lines(manifest: &Manifest, k: usize) -> bool {
+    !has_map(manifest) || manifest.vary[1 - k].values.len() <= MAX_LINES
+}
+
+/// File stem of the heat-map figure of a two-key sweep.
+pub fn sweep_map_name(manifest: &Manifest) -> String {
+    let part = |k: &str| -> String {
+        k.chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect()
+    };
+    let keys: Vec<String> = manifest.vary.iter().map(|v| part(&v.key)).collect();
+    format!("map-{}", keys.join("-"))
+}
+
+/// The stems of every figure `draw_sweep` writes into `plots/`.
+pub fn sweep_figures(manifest: &Manifest) -> Vec<String> {
+    let mut out: Vec<String> = (0..manifest.vary.len())
+        .filter(|&k| has_lines(manifest, k))
+        .map(|k| sweep_plot_name(&manifest.vary[k].key))
+        .collect();
+    if has_map(manifest) {
+        out.push(sweep_map_name(manifest));
+    }
+    out
+}
+
+/// The metrics of a case for the heat maps: the line figures' and, where any case has them,
+/// the grasp's and the compliant contact's.
+const MAP_METRICS: [Metric; 5] = [
+    ("held (1) / not held (0)", "", |m| {
+        m.held.map(|h| if h { 1.0 } else { 0.0 })
+    }),
+    ("min safety margin over the lift", "μ_s ΣN/(m g)", |m| {
+        m.min_safety_margin
+    }),
+    ("peak grip force of one prong", "N", |m| m.peak_grip_force_n),
+    ("max Hertz pressure p₀", "Pa", |m| m.max_pressure_pa),
+    ("max p₀ / bruise pressure", "", |m| m.bruise_ratio),
+];
+
+/// Heat maps of every metric over a two-key grid (x: the first key, y: the second).
+fn draw_sweep_map(manifest: &Manifest, records: &[&CaseRecord], dir: &Path) -> Result<(), String> {
+    let (kx, ky) = (&manifest.vary[0], &manifest.vary[1]);
+    let (nx, ny) = (kx.values.len(), ky.values.len());
+    let mut maps = Vec::new();
+    for (title, unit, f) in METRICS.iter().chain(MAP_METRICS.iter()) {
+        let mut cells = vec![vec![None; nx]; ny];
+        for (k, rec) in records.iter().enumerate() {
+            // Grid order: the first key varies slowest.
+            let (ix, iy) = (k / ny, k % ny);
+            if ix < nx {
+                cells[iy][ix] = f(rec.run_metrics()).filter(|v| v.is_finite());
+            }
+        }
+        if cells.iter().flatten().all(Option::is_none) {
+            continue;
+        }
+        maps.push(ValueMap {
+            title: title.to_string(),
+            x_label: kx.key.clone(),
+            y_label: ky.key.clone(),
+            x_ticks: kx.values.clone(),
+            y_ticks: ky.values.clone(),
+            cells,
+            unit: unit.to_string(),
+            colors: MapColors::Sequential,
+        });
+    }
+    let title = format!(
+        "sweep over {} × {}: {} cases, one cell per case",
+        kx.key,
+        ky.key,
+        records.len()
+    );
+    value_maps(
+        &dir.join(sweep_map_name(manifest)),
+        &title,
+        &maps,
+        3,
+        (520, 400),
+    )
+}
+
+/// How a [`ValueMap`] colours its cells.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MapColors {
+    /// Blue (the smallest value) → yellow → red (the largest).
+    Sequential,
+    /// A ratio around 1 on a log scale: red below 1, white at 1, green above.
+    Ratio,
+}
+
+/// A heat map of numbers: `cells[y][x]`, None drawn grey.
+#[derive(Debug, Clone)]
+pub struct ValueMap {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub x_ticks: Vec<String>,
+    pub y_ticks: Vec<String>,
+    pub cells: Vec<Vec<Option<f64>>>,
+    pub unit: String,
+    pub colors: MapColors,
+}
+
+impl ValueMap {
+    fn span(&self) -> (f64, f64) {
+        let vals = self.cells.iter().flatten().flatten();
+        let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+        if !lo.is_finite() {
+            return (0.0, 1.0);
+        }
+        (lo, hi)
+    }
+
+    /// The colour of a value, and where it sits on the colour bar (0..1).
+    fn color(&self, v: f64, (lo, hi): (f64, f64)) -> (RGBColor, f64) {
+        match self.colors {
+            MapColors::Sequential => {
+                let f = if hi > lo { (v - lo) / (hi - lo) } else { 0.5 };
+                (force_color(f), f)
+            }
+            MapColors::Ratio => {
+                // log2 ratio, ±3 (×8) at the ends of the scale.
+                let f = ((v.max(1e-12).log2() / 3.0).clamp(-1.0, 1.0) + 1.0) / 2.0;
+                (ratio_color(f), f)
+            }
+        }
+    }
+}
+
+/// Red (0) → white (0.5) → green (1).
+pub fn ratio_color(f: f64) -> RGBColor {
+    let f = if f.is_finite() {
+        f.clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    let lerp = |a: (f64, f64, f64), b: (f64, f64, f64), t: f64| {
+        RGBColor(
+            (a.0 + (b.0 - a.0) * t).round() as u8,
+            (a.1 + (b.1 - a.1) * t).round() as u8,
+            (a.2 + (b.2 - a.2) * t).round() as u8,
+        )
+    };
+    if f < 0.5 {
+        lerp((200.0, 30.0, 40.0), (250.0, 250.0, 245.0), f / 0.5)
+    } else {
+        lerp((250.0, 250.0, 245.0), (30.0, 150.0, 60.0), (f - 0.5) / 0.5)
+    }
+}
+
+/// Heat maps in a grid of `cols` columns, each with its colour bar, to `<base>.png|svg`.
+pub fn value_maps(
+    base: &Path,
+    title: &str,
+    maps: &[ValueMap],
+    cols: usize,
+    panel: (u32, u32),
+) -> Result<(), String> {
+    ensure_font()?;
+    let cols = cols.clamp(1, maps.len().max(1));
+    let rows = maps.len().div_ceil(cols).max(1);
+    let size = (panel.0 * cols as u32, panel.1 * rows as u32 + 40);
+    if let Some(d) = base.parent() {
+        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+    }
+    let png = base.with_extension("png");
+    let svg = base.with_extension("svg");
+    {
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
+        maps_on(&root, title, maps, (rows, cols))?;
+        root.present()
+            .map_err(|e| format!("{}: {e}", png.display()))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
+        maps_on(&root, title, maps, (rows, cols))?;
+        root.present()
+            .map_err(|e| format!("{}: {e}", svg.display()))?;
+    }
+    Ok(())
+}
+
+fn maps_on<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    maps: &[ValueMap],
+    grid: (usize, usize),
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let root = root.titled(title, ("sans-serif", 20)).map_err(e)?;
+    for (area, m) in root.split_evenly(grid).iter().zip(maps) {
+        value_map_on(area, m)?;
+    }
+    Ok(())
+}
+
+/// Every k-th tick label, so that about `room` of them show; numbers with four significant
+/// digits (0.03364, 1e9), other text cut to 12 characters.
+fn thin(labels: &[String], room: usize) -> Vec<String> {
+    let step = labels.len().div_ceil(room.max(1)).max(1);
+    labels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            if i % step != 0 {
+                return String::new();
+            }
+            match l.trim().parse::<f64>() {
+                Ok(v) if v != 0.0 && (v.abs() >= 1e5 || v.abs() < 1e-3) => {
+                    format!("{v:.2e}").replace(".00e", "e").replace("0e", "e")
+                }
+                Ok(v) => super::window::fmt_g(v),
+                Err(_) => l.chars().take(12).collect(),
+            }
+        })
+        .collect()
+}
+
+/// One heat map with its colour bar on the right.
+pub fn value_map_on<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    m: &ValueMap,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    let (w, h) = area.dim_in_pixel();
+    let (plot, bar) = area.split_horizontally(w.saturating_sub(90));
+    let (nx, ny) = (m.x_ticks.len().max(1), m.y_ticks.len().max(1));
+    let mut chart = ChartBuilder::on(&plot)
+        .caption(&m.title, ("sans-serif", 15))
+        .margin(8)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0f64..nx as f64, 0f64..ny as f64)
+        .map_err(e)?;
+    let (xl, yl) = (
+        thin(&m.x_ticks, (w as usize / 64).max(2)),
+        thin(&m.y_ticks, (h as usize / 26).max(2)),
+    );
+    let at = |labels: &[String], v: f64| -> String {
+        let i = v.floor();
+        if (v - i - 0.5).abs() < 1e-6 && i >= 0.0 {
+            labels.get(i as usize).cloned().unwrap_or_default()
+        } else {
+            String::new()
+        }
+    };
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_labels(nx * 2 + 1)
+        .y_labels(ny * 2 + 1)
+        .x_label_formatter(&|v| at(&xl, *v))
+        .y_label_formatter(&|v| at(&yl, *v))
+        .x_desc(m.x_label.as_str())
+        .y_desc(m.y_label.as_str())
+        .label_style(("sans-serif", 11))
+        .draw()
+        .map_err(e)?;
+    let span = m.span();
+    // Values in the cells where they fit.
+    let text =
+        (w as usize).saturating_sub(170) / nx >= 48 && (h as usize).saturating_sub(90) / ny >= 18;
+    for (iy, row) in m.cells.iter().enumerate() {
+        for (ix, cell) in row.iter().enumerate() {
+            let (x0, y0) = (ix as f64, iy as f64);
+            let fill = cell.map_or(RGBColor(215, 215, 215), |v| m.color(v, span).0);
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(x0, y0), (x0 + 1.0, y0 + 1.0)],
+                    fill.filled(),
+                )))
+                .map_err(e)?;
+            if text {
+                let label = cell.map_or("–".to_string(), super::window::fmt_g);
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        label,
+                        (x0 + 0.5, y0 + 0.5),
+                        ("sans-serif", 11).into_font().color(&BLACK).pos(
+                            plotters::style::text_anchor::Pos::new(
+                                plotters::style::text_anchor::HPos::Center,
+                                plotters::style::text_anchor::VPos::Center,
+                            ),
+                        ),
+                    )))
+                    .map_err(e)?;
+            }
+        }
+    }
+    // Colour bar.
+    let (top, bottom) = (40i32, h as i32 - 60);
+    let steps = 100;
+    for k in 0..steps {
+        let f = 1.0 - k as f64 / steps as f64;
+        let col = match m.colors {
+            MapColors::Sequential => force_color(f),
+            MapColors::Ratio => ratio_color(f),
+        };
+        let a = top + (bottom - top) * k / steps;
+        let b = top + (bottom - top) * (k + 1) / steps;
+        bar.draw(&Rectangle::new([(8, a), (24, b + 1)], col.filled()))
+            .map_err(e)?;
+    }
+    bar.draw(&Rectangle::new(
+        [(8, top), (24, bottom)],
+        BLACK.stroke_width(1),
+    ))
+    .map_err(e)?;
+    let (hi_label, lo_label) = match m.colors {
+        MapColors::Sequential => (super::window::fmt_g(span.1), super::window::fmt_g(span.0)),
+        MapColors::Ratio => ("≥ 8".to_string(), "≤ 1/8".to_string()),
+    };
+    let style = ("sans-serif", 11);
+    bar.draw(&Text::new(hi_label, (28, top - 4), style))
+        .map_err(e)?;
+    bar.draw(&Text::new(lo_label, (28, bottom - 8), style))
+        .map_err(e)?;
+    if m.colors == MapColors::Ratio {
+        bar.draw(&Text::new("1", (28, (top + bottom) / 2 - 6), style))
+            .map_err(e)?;
+    }
+    if !m.unit.is_empty() {
+        bar.draw(&Text::new(m.unit.clone(), (4, bottom + 8), style))
+            .map_err(e)?;
+    }
+    Ok(())
+}
+
 /// Every metric against each varied key (one figure per key, one panel per metric, one line
-/// per combination of the other keys' values) into `dir/vs-<key>.png|svg`.
+/// per combination of the other keys' values) into `dir/vs-<key>.png|svg`; a two-key grid
+/// also as heat maps (`dir/map-<key1>-<key2>.png|svg`), which replace the line figure of a
+/// key whose other key has more than [`MAX_LINES`] values.
 pub fn draw_sweep(manifest: &Manifest, records: &[&CaseRecord], dir: &Path) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    if has_map(manifest) {
+        draw_sweep_map(manifest, records, dir)?;
+    }
     for (k, v) in manifest.vary.iter().enumerate() {
+        if !has_lines(manifest, k) {
+            continue;
+        }
         let nums: Option<Vec<f64>> = v
             .values
             .iter()
@@ -802,8 +1162,8 @@ pub fn draw_sweep(manifest: &Manifest, records: &[&CaseRecord], dir: &Path) -> R
                 .map(|i| xs[i])
                 .unwrap_or(f64::NAN);
             match groups.iter_mut().find(|g| g.0 == name) {
-                Some(g) => g.1.push((x, &rec.metrics)),
-                None => groups.push((name, vec![(x, &rec.metrics)])),
+                Some(g) => g.1.push((x, rec.run_metrics())),
+                None => groups.push((name, vec![(x, rec.run_metrics())])),
             }
         }
         let panels: Vec<Panel> = METRICS

@@ -46,12 +46,42 @@ pub struct SweepOptions {
     pub jobs: usize,
     pub out: PathBuf,
     pub shard: Option<Shard>,
-    /// Per-case figures (forces, shapes) and the sweep's metric figures.
+    /// The sweep's figures (`plots/`; `window.png` of a window map).
     pub plots: bool,
+    /// Which cases get their own figures (forces, shapes).
+    pub case_plots: CasePlots,
+    /// A window map: each case (design) is a grasp-window search over the knob
+    /// (`gripsim window --vary`), not one run.
+    pub window: Option<super::window::Resolved>,
     /// No progress bar and no per-case lines.
     pub quiet: bool,
     /// Polled between steps and between cases; true stops the sweep (finished cases stay).
     pub stop: Option<Arc<dyn Fn() -> bool + Send + Sync>>,
+}
+
+/// Which cases of a sweep get their own figures (`forces`, `shapes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CasePlots {
+    /// Every case.
+    All,
+    /// The cases a person will open: those [`flagged`] (an error, a warning, a spike, a
+    /// sticking episode or a bruise).
+    #[default]
+    Flagged,
+    /// None.
+    None,
+}
+
+impl std::str::FromStr for CasePlots {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "all" => Ok(CasePlots::All),
+            "flagged" => Ok(CasePlots::Flagged),
+            "none" => Ok(CasePlots::None),
+            _ => Err(format!("--case-plots {s:?}: expected all, flagged or none")),
+        }
+    }
 }
 
 /// What a sweep did.
@@ -95,17 +125,23 @@ pub struct Manifest {
     /// Rod names of the first case (the per-prong columns).
     pub rods: Vec<String>,
     pub cases: Vec<CaseEntry>,
+    /// A window map's knob, range and tolerance (absent for a sweep).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<super::window::Resolved>,
 }
 
 impl Manifest {
     /// Same grid and same scenarios (the scenario path and `--set` text may differ).
     fn same_grid(&self, other: &Manifest) -> bool {
-        self.vary == other.vary && self.rods == other.rods && self.cases == other.cases
+        self.vary == other.vary
+            && self.rods == other.rods
+            && self.cases == other.cases
+            && self.window == other.window
     }
 }
 
 /// The numbers of one case (a row of `summary.csv`). Node numbers are 0-based.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
     pub completed: bool,
     pub error: Option<String>,
@@ -268,9 +304,25 @@ pub struct CaseRecord {
     pub gripsim_version: String,
     /// The same run by hand: `gripsim run SCENARIO --set … --summary FILE --no-record`.
     pub command: String,
-    pub metrics: Metrics,
+    /// The run's numbers (a sweep's case).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<Metrics>,
+    /// The design's grasp window (a window map's case).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<Box<super::window::WindowResult>>,
     pub warnings: Vec<String>,
     pub plot_error: Option<String>,
+}
+
+impl CaseRecord {
+    /// The run's numbers of a sweep case (all zero and empty for a window map's design, which
+    /// has none; [`finished`] never mixes the two kinds).
+    pub fn run_metrics(&self) -> &Metrics {
+        static NONE: std::sync::OnceLock<Metrics> = std::sync::OnceLock::new();
+        self.metrics
+            .as_ref()
+            .unwrap_or_else(|| NONE.get_or_init(Metrics::default))
+    }
 }
 
 /// A case ready to run.
@@ -351,6 +403,14 @@ fn build_cases(
     }
     let total = grid_size(&opts.vary)?;
     let keys: Vec<String> = opts.vary.iter().map(|v| v.key.clone()).collect();
+    if let Some(w) = &opts.window {
+        if keys.contains(&w.knob) {
+            return Err(StudyError::Usage(format!(
+                "--vary {}: that is the window's knob (the value each design's search varies); vary a design parameter",
+                w.knob
+            )));
+        }
+    }
     let file = opts.scenario.display().to_string();
     let stopped = || opts.stop.as_ref().is_some_and(|s| s());
     let check = |index: usize| -> Result<(Case, Scenario), StudyError> {
@@ -365,10 +425,19 @@ fn build_cases(
                 .collect();
             StudyError::Scenario(format!("case {index} ({}): {e}", what.join(", ")))
         })?;
+        let hash = match &opts.window {
+            // The knob, range and tolerance are part of what a design's result depends on.
+            Some(w) => {
+                w.check_design(&scenario)
+                    .map_err(|e| StudyError::Scenario(format!("case {index}: {e}")))?;
+                hash_text(&format!("{}\n# window {}", scenario.text, w.canonical()))
+            }
+            None => hash_text(&scenario.text),
+        };
         let case = Case {
             index,
             id: case_id(&keys, &values),
-            hash: hash_text(&scenario.text),
+            hash,
             values,
             sets,
         };
@@ -471,7 +540,9 @@ fn build_cases(
     Ok(Some((Base { text, file, first }, cases)))
 }
 
-fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<Option<T>, StudyError> {
+pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(
+    path: &Path,
+) -> Result<Option<T>, StudyError> {
     match std::fs::read(path) {
         Ok(b) => serde_json::from_slice(&b)
             .map(Some)
@@ -508,14 +579,14 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StudyError> {
     })
 }
 
-fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), StudyError> {
+pub(crate) fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), StudyError> {
     let mut text = serde_json::to_string_pretty(v).expect("serialises");
     text.push('\n');
     write_atomic(path, text.as_bytes())
 }
 
 /// Write `path` only when its content changes (so a sweep with nothing new touches nothing).
-fn write_if_changed(path: &Path, bytes: &[u8]) -> Result<bool, StudyError> {
+pub(crate) fn write_if_changed(path: &Path, bytes: &[u8]) -> Result<bool, StudyError> {
     if std::fs::read(path).ok().as_deref() == Some(bytes) {
         return Ok(false);
     }
@@ -523,8 +594,14 @@ fn write_if_changed(path: &Path, bytes: &[u8]) -> Result<bool, StudyError> {
     Ok(true)
 }
 
-/// The finished record of a case folder, if it is one of this scenario.
-fn finished(cases_dir: &Path, id: &str, hash: &str) -> Result<Option<CaseRecord>, StudyError> {
+/// The finished record of a case folder, if it is one of this scenario (and of this kind: a
+/// window map's design when `window`, a sweep's run otherwise).
+fn finished(
+    cases_dir: &Path,
+    id: &str,
+    hash: &str,
+    window: bool,
+) -> Result<Option<CaseRecord>, StudyError> {
     let path = cases_dir.join(id).join("case.json");
     let rec: Option<CaseRecord> = match read_json(&path) {
         Ok(r) => r,
@@ -532,10 +609,13 @@ fn finished(cases_dir: &Path, id: &str, hash: &str) -> Result<Option<CaseRecord>
         Err(_) => return Ok(None),
     };
     match rec {
-        Some(r) if r.scenario_hash == hash => Ok(Some(r)),
+        // A marker without the numbers of its kind is damaged: the case runs again.
+        Some(r) if r.scenario_hash == hash => {
+            Ok((r.window.is_some() == window && r.metrics.is_some() != window).then_some(r))
+        }
         Some(_) => Err(StudyError::Mismatch(format!(
-            "{} holds a result of a different scenario (the base scenario or --set changed since it ran); \
-             use another --out, or delete that folder to recompute it",
+            "{} holds a result of a different scenario (the base scenario, --set, or a window's \
+             knob, range or rtol changed since it ran); use another --out, or delete that folder to recompute it",
             cases_dir.join(id).display()
         ))),
         None => Ok(None),
@@ -552,7 +632,7 @@ fn command_line(scenario: &str, sets: &[String]) -> String {
     s
 }
 
-fn shell_quote(s: &str) -> String {
+pub(crate) fn shell_quote(s: &str) -> String {
     if s.chars()
         .all(|c| c.is_ascii_alphanumeric() || "._-=/+:,".contains(c))
     {
@@ -567,32 +647,49 @@ enum Outcome {
     Interrupted,
 }
 
-/// Run one case into `cases/.tmp-<id>` and rename it to `cases/<id>`.
-fn run_case(
-    case: &Case,
-    base: &Base,
-    opts: &SweepOptions,
-    cases_dir: &Path,
-    keys: &[String],
-) -> Result<Outcome, StudyError> {
-    // Read again (it was checked when the grid was built; only the hash was kept).
-    let scenario = Scenario::from_str(&base.text, &base.file, &case.sets)
-        .map_err(|e| StudyError::Scenario(format!("case {}: {e}", case.index)))?;
-    let tmp = cases_dir.join(format!(".tmp-{}", case.id));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
-    let mut sim = Simulation::new(&scenario);
-    if let Some(stop) = &opts.stop {
+/// One run of a scenario as a sweep runs a case (no recordings): its summary, the trace the
+/// per-case figures are drawn from (time series only when `series`), and what the replay
+/// detector found. None when `stop` interrupted it.
+pub(crate) struct CaseRun {
+    pub summary: Summary,
+    pub trace: Trace,
+    pub found: crate::replay::detect::Counts,
+}
+
+impl CaseRun {
+    /// The case's row: the summary's numbers with the trace's and the detector's counts.
+    pub fn metrics(&self) -> Metrics {
+        Metrics {
+            spikes: self.found.spikes,
+            sticking: self.found.sticking,
+            bruise: self.found.bruise,
+            ..Metrics::from_summary(
+                &self.summary,
+                self.trace.releases,
+                self.trace.warnings.len(),
+            )
+        }
+    }
+}
+
+/// Run `scenario` to its end (or until `stop` says so: then None).
+pub(crate) fn run_scenario(
+    scenario: &Scenario,
+    stop: Option<&Arc<dyn Fn() -> bool + Send + Sync>>,
+    series: bool,
+) -> Option<CaseRun> {
+    let mut sim = Simulation::new(scenario);
+    if let Some(stop) = stop {
         let stop = stop.clone();
         sim.interrupt = Some(Box::new(move || stop()));
     }
     let mut collector = SummaryCollector::new();
-    let mut trace = if opts.plots {
-        Trace::new(&scenario)
+    let mut trace = if series {
+        Trace::new(scenario)
     } else {
-        Trace::counts_only(&scenario)
+        Trace::counts_only(scenario)
     };
-    let mut detector = crate::replay::detect::DetectObserver::new(&scenario, &Default::default());
+    let mut detector = crate::replay::detect::DetectObserver::new(scenario, &Default::default());
     let start = Instant::now();
     let result = {
         let mut fan = Fanout::new();
@@ -604,23 +701,118 @@ fn run_case(
     let found = detector.detector.finish().counts();
     let wall = start.elapsed().as_secs_f64();
     if matches!(result, Err(SimError::Interrupted { .. })) {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Ok(Outcome::Interrupted);
+        return None;
     }
     let summary = collector.finish(&sim.stats, wall);
-    write_json(&tmp.join("summary.json"), &summary)?;
+    Some(CaseRun {
+        summary,
+        trace,
+        found,
+    })
+}
+
+/// Whether a case carries something a person should look at: it stopped with an error, a
+/// warning event, or a velocity spike, sticking episode or bruise the replay check flags.
+pub fn flagged(m: &Metrics) -> bool {
+    !m.completed || m.warnings > 0 || m.spikes > 0 || m.sticking > 0 || m.bruise > 0
+}
+
+/// The per-case figures of a case: drawn for every case, for flagged ones only, or none.
+/// A flagged case is run a second time with its time series kept (the runs are
+/// deterministic: the same numbers), so unflagged cases cost what `--no-plots` costs.
+fn case_figures(
+    case: &Case,
+    scenario: &Scenario,
+    run: &CaseRun,
+    opts: &SweepOptions,
+    keys: &[String],
+    dir: &Path,
+) -> Result<Option<String>, ()> {
+    let draw = match opts.case_plots {
+        CasePlots::None => return Ok(None),
+        CasePlots::All => true,
+        CasePlots::Flagged => flagged(&run.metrics()),
+    };
+    if !draw {
+        return Ok(None);
+    }
+    let label: Vec<String> = keys
+        .iter()
+        .zip(&case.values)
+        .map(|(k, v)| format!("{}={v}", k.rsplit('.').next().unwrap_or(k)))
+        .collect();
+    let again;
+    let series = if opts.case_plots == CasePlots::All {
+        run
+    } else {
+        again = run_scenario(scenario, opts.stop.as_ref(), true).ok_or(())?;
+        &again
+    };
+    Ok(plots::draw_case(&series.trace, &series.summary, &label.join(", "), dir).err())
+}
+
+/// Run one case into `cases/.tmp-<id>` and rename it to `cases/<id>`.
+fn run_case(
+    case: &Case,
+    base: &Base,
+    opts: &SweepOptions,
+    cases_dir: &Path,
+    keys: &[String],
+    inner_jobs: usize,
+) -> Result<Outcome, StudyError> {
+    // Read again (it was checked when the grid was built; only the hash was kept).
+    let scenario = Scenario::from_str(&base.text, &base.file, &case.sets)
+        .map_err(|e| StudyError::Scenario(format!("case {}: {e}", case.index)))?;
+    let tmp = cases_dir.join(format!(".tmp-{}", case.id));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
+    let interrupted = || {
+        let _ = std::fs::remove_dir_all(&tmp);
+        Ok(Outcome::Interrupted)
+    };
+    let scenario_file = opts.scenario.display().to_string();
+    let (metrics, window, warnings, plot_error, command) = match &opts.window {
+        Some(w) => {
+            let Some(result) = super::window::search(
+                &base.text,
+                &base.file,
+                &case.sets,
+                w,
+                inner_jobs,
+                opts.stop.as_ref(),
+                None,
+            )?
+            else {
+                return interrupted();
+            };
+            let command = super::window::command_line(&scenario_file, &case.sets, w);
+            (None, Some(Box::new(result)), Vec::new(), None, command)
+        }
+        None => {
+            let series = opts.case_plots == CasePlots::All;
+            let Some(run) = run_scenario(&scenario, opts.stop.as_ref(), series) else {
+                return interrupted();
+            };
+            // On one line: the same JSON as `gripsim run --summary` writes, in a third less
+            // space (one file-system block for a one-prong case).
+            let mut text = serde_json::to_string(&run.summary).expect("serialises");
+            text.push('\n');
+            write_atomic(&tmp.join("summary.json"), text.as_bytes())?;
+            let Ok(plot_error) = case_figures(case, &scenario, &run, opts, keys, &tmp) else {
+                return interrupted();
+            };
+            let command = command_line(&scenario_file, &case.sets);
+            (
+                Some(run.metrics()),
+                None,
+                run.trace.warnings.clone(),
+                plot_error,
+                command,
+            )
+        }
+    };
     let sc_path = tmp.join("scenario.toml");
     std::fs::write(&sc_path, scenario.text.as_bytes()).map_err(|e| io_err(&sc_path, e))?;
-    let plot_error = if opts.plots {
-        let label: Vec<String> = keys
-            .iter()
-            .zip(&case.values)
-            .map(|(k, v)| format!("{}={v}", k.rsplit('.').next().unwrap_or(k)))
-            .collect();
-        plots::draw_case(&trace, &summary, &label.join(", "), &tmp).err()
-    } else {
-        None
-    };
     let rec = CaseRecord {
         format: FORMAT,
         id: case.id.clone(),
@@ -632,14 +824,10 @@ fn run_case(
         sets: case.sets.clone(),
         scenario_hash: case.hash.clone(),
         gripsim_version: env!("CARGO_PKG_VERSION").to_string(),
-        command: command_line(&opts.scenario.display().to_string(), &case.sets),
-        metrics: Metrics {
-            spikes: found.spikes,
-            sticking: found.sticking,
-            bruise: found.bruise,
-            ..Metrics::from_summary(&summary, trace.releases, trace.warnings.len())
-        },
-        warnings: trace.warnings.clone(),
+        command,
+        metrics,
+        window,
+        warnings,
         plot_error,
     };
     // The marker goes in last, then the folder appears in one rename.
@@ -710,6 +898,46 @@ fn check_outputs(opts: &SweepOptions, text: &str) -> Result<(), StudyError> {
     claim_folder(out)
 }
 
+/// The progress line of a finished case, and whether it is worth a line under the progress
+/// bar (an error or a warning).
+fn case_line(rec: &CaseRecord, ran: usize, total: usize) -> (String, bool) {
+    if let Some(w) = &rec.window {
+        return (
+            format!("[{ran}/{total}] {}: {}", rec.id, w.one_line()),
+            false,
+        );
+    }
+    let Some(m) = &rec.metrics else {
+        return (format!("[{ran}/{total}] {}", rec.id), false);
+    };
+    let line = format!(
+        "[{}/{}] {} {} in {:.2} s: peak eq. 2 (seed) {:.4} N{}, impulse-consistent {:.4} N{}{}{}",
+        ran,
+        total,
+        rec.id,
+        if m.completed { "done" } else { "FAILED" },
+        m.wall_time_s,
+        m.peak_reaction_n,
+        m.peak_reaction_node
+            .map(|n| format!(" at node {n}"))
+            .unwrap_or_default(),
+        m.peak_impulse_consistent_force_n,
+        m.peak_impulse_consistent_node
+            .map(|n| format!(" at node {n}"))
+            .unwrap_or_default(),
+        if m.warnings > 0 {
+            format!("; warning: {}", rec.warnings[0])
+        } else {
+            String::new()
+        },
+        m.error
+            .as_ref()
+            .map(|e| format!("; error: {e}"))
+            .unwrap_or_default(),
+    );
+    (line, !m.completed || m.warnings > 0)
+}
+
 /// Run (or resume) a sweep. Without `--shard` the summary table and plots are written when
 /// every case is done.
 pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
@@ -748,7 +976,23 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
                 scenario_hash: c.hash.clone(),
             })
             .collect(),
+        window: opts.window.clone(),
     };
+    let mpath = opts.out.join("sweep.json");
+    let old: Option<Manifest> = read_json(&mpath).ok().flatten();
+    if let Some(o) = &old {
+        if o.window.is_some() != manifest.window.is_some() {
+            let (has, wants) = if o.window.is_some() {
+                ("a window map (gripsim window --vary)", "a sweep")
+            } else {
+                ("a sweep (gripsim sweep)", "a window map")
+            };
+            return Err(StudyError::Mismatch(format!(
+                "{} holds {has}, not {wants}: use another --out",
+                opts.out.display()
+            )));
+        }
+    }
     let cases_dir = opts.out.join("cases");
     std::fs::create_dir_all(&cases_dir).map_err(|e| io_err(&cases_dir, e))?;
 
@@ -760,14 +1004,12 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
         .filter(|c| opts.shard.is_none_or(|s| s.contains(c.index)))
         .collect();
     for c in &mine {
-        match finished(&cases_dir, &c.id, &c.hash)? {
+        match finished(&cases_dir, &c.id, &c.hash, opts.window.is_some())? {
             Some(r) => records[c.index] = Some(r),
             None => todo.push(c),
         }
     }
     // Shards sharing a folder write the same manifest; only a changed grid rewrites it.
-    let mpath = opts.out.join("sweep.json");
-    let old: Option<Manifest> = read_json(&mpath).ok().flatten();
     if old.as_ref() != Some(&manifest) {
         write_json(&mpath, &manifest)?;
     }
@@ -780,7 +1022,10 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
     };
     let stopped = || opts.stop.as_ref().is_some_and(|s| s());
     if !todo.is_empty() {
+        let all = jobs;
         let jobs = jobs.min(todo.len()).max(1);
+        // A window map with fewer designs than cores runs each design's searches in parallel.
+        let inner_jobs = (all / jobs).max(1);
         let bar = if opts.quiet {
             indicatif::ProgressBar::hidden()
         } else {
@@ -809,7 +1054,7 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
                     }
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(case) = todo.get(k) else { break };
-                    let r = run_case(case, base, opts, cases_dir, keys);
+                    let r = run_case(case, base, opts, cases_dir, keys, inner_jobs);
                     if r.is_err() {
                         halted.store(true, Ordering::Relaxed);
                     }
@@ -823,12 +1068,14 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
                 match r {
                     Ok(Outcome::Done(rec)) => {
                         report.ran += 1;
-                        let m = &rec.metrics;
-                        if !m.completed {
-                            report.failed += 1;
-                        }
-                        if m.warnings > 0 {
-                            report.warned += 1;
+                        let (line, notable) = case_line(&rec, report.ran, todo.len());
+                        if let Some(m) = &rec.metrics {
+                            if !m.completed {
+                                report.failed += 1;
+                            }
+                            if m.warnings > 0 {
+                                report.warned += 1;
+                            }
                         }
                         if let Some(e) = &rec.plot_error {
                             if !report.plot_errors.contains(e) {
@@ -839,23 +1086,9 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
                                 report.plot_errors.push(e.clone());
                             }
                         }
-                        let line = format!(
-                            "[{}/{}] {} {} in {:.2} s: peak eq. 2 (seed) {:.4} N{}, impulse-consistent {:.4} N{}{}{}",
-                            report.ran,
-                            todo.len(),
-                            rec.id,
-                            if m.completed { "done" } else { "FAILED" },
-                            m.wall_time_s,
-                            m.peak_reaction_n,
-                            m.peak_reaction_node.map(|n| format!(" at node {n}")).unwrap_or_default(),
-                            m.peak_impulse_consistent_force_n,
-                            m.peak_impulse_consistent_node.map(|n| format!(" at node {n}")).unwrap_or_default(),
-                            if m.warnings > 0 { format!("; warning: {}", rec.warnings[0]) } else { String::new() },
-                            m.error.as_ref().map(|e| format!("; error: {e}")).unwrap_or_default(),
-                        );
                         if lines {
                             eprintln!("{line}");
-                        } else if !m.completed || m.warnings > 0 {
+                        } else if notable {
                             bar.println(line);
                         }
                         bar.set_message(rec.id.clone());
@@ -892,11 +1125,20 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
         .collect();
     match opts.shard {
         Some(s) => {
+            let stem = if manifest.window.is_some() {
+                "window"
+            } else {
+                "summary"
+            };
             let path = opts
                 .out
-                .join(format!("summary.shard-{}-of-{}.csv", s.index, s.count));
+                .join(format!("{stem}.shard-{}-of-{}.csv", s.index, s.count));
             let idx: Vec<usize> = mine.iter().map(|c| c.index).collect();
-            write_if_changed(&path, summary_csv(&manifest, &idx, &rows).as_bytes())?;
+            let csv = match manifest.window {
+                Some(_) => super::window::map_csv(&manifest, &idx, &rows),
+                None => summary_csv(&manifest, &idx, &rows),
+            };
+            write_if_changed(&path, csv.as_bytes())?;
             report.summary = Some(path);
         }
         None => {
@@ -913,13 +1155,17 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
     Ok(report)
 }
 
-/// `summary.csv`, `summary.md` and the sweep figures, for a complete grid.
+/// `summary.csv`, `summary.md` and the sweep figures, for a complete grid (a window map:
+/// `window.csv`, `window.json` and its picture).
 fn finalize(
     out: &Path,
     manifest: &Manifest,
     records: &[&CaseRecord],
     plots: bool,
 ) -> Result<(PathBuf, Vec<String>), StudyError> {
+    if manifest.window.is_some() {
+        return super::window::finalize_map(out, manifest, records, plots);
+    }
     let idx: Vec<usize> = (0..records.len()).collect();
     let csv = summary_csv(manifest, &idx, records);
     let path = out.join("summary.csv");
@@ -931,10 +1177,9 @@ fn finalize(
     let mut errors = Vec::new();
     if plots {
         let dir = out.join("plots");
-        let missing = manifest.vary.iter().any(|v| {
-            !dir.join(format!("{}.png", plots::sweep_plot_name(&v.key)))
-                .exists()
-        });
+        let missing = plots::sweep_figures(manifest)
+            .iter()
+            .any(|f| !dir.join(format!("{f}.png")).exists());
         if changed || missing {
             if let Err(e) = plots::draw_sweep(manifest, records, &dir) {
                 errors.push(e);
@@ -944,12 +1189,12 @@ fn finalize(
     Ok((path, errors))
 }
 
-fn opt<T: std::fmt::Display>(v: &Option<T>) -> String {
+pub(crate) fn opt<T: std::fmt::Display>(v: &Option<T>) -> String {
     v.as_ref().map(|x| x.to_string()).unwrap_or_default()
 }
 
 /// Floats as Rust's shortest round-trip text: parsing a cell gives back the exact f64.
-fn num(v: f64) -> String {
+pub(crate) fn num(v: f64) -> String {
     format!("{v:?}")
 }
 
@@ -1034,7 +1279,7 @@ fn csv_header(manifest: &Manifest) -> Vec<String> {
 
 fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     let multi = manifest.rods.len() > 1;
-    let m = &r.metrics;
+    let m = r.run_metrics();
     let mut row = vec![index.to_string(), r.id.clone()];
     row.extend(r.parameters.iter().map(|p| p.1.clone()));
     row.extend([
@@ -1152,7 +1397,7 @@ fn summary_md(manifest: &Manifest, records: &[&CaseRecord]) -> String {
     }
     s.push_str("---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (i, r) in records.iter().enumerate() {
-        let m = &r.metrics;
+        let m = r.run_metrics();
         s.push_str(&format!("| {i} |"));
         for p in &r.parameters {
             s.push_str(&format!(" {} |", p.1));
@@ -1264,13 +1509,14 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StudyError> {
     }
     let manifest = manifest.expect("at least one folder");
     claim_folder(&out)?;
+    let windowed = manifest.window.is_some();
     let out_cases = out.join("cases");
     std::fs::create_dir_all(&out_cases).map_err(|e| io_err(&out_cases, e))?;
     let mut records = Vec::with_capacity(manifest.cases.len());
     let mut copied = 0;
     let mut missing = Vec::new();
     for c in &manifest.cases {
-        if let Some(r) = finished(&out_cases, &c.id, &c.scenario_hash)? {
+        if let Some(r) = finished(&out_cases, &c.id, &c.scenario_hash, windowed)? {
             records.push(r);
             continue;
         }
@@ -1280,7 +1526,7 @@ pub fn merge(opts: &MergeOptions) -> Result<MergeReport, StudyError> {
             if cd == out_cases {
                 continue;
             }
-            if let Some(r) = finished(&cd, &c.id, &c.scenario_hash)? {
+            if let Some(r) = finished(&cd, &c.id, &c.scenario_hash, windowed)? {
                 found = Some((cd.join(&c.id), r));
                 break;
             }

@@ -31,3 +31,4 @@ mod static_contact;
 mod stepping;
 mod sweep;
 mod verification;
+mod window;

@@ -95,7 +95,8 @@ fn same(cell: &str, v: &Value, what: &str) {
 fn summary_rows_match_single_runs_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sweep");
-    let stdout = sweep(&out, &["--jobs", "2"]);
+    // Every case's figures (by default only flagged cases get them).
+    let stdout = sweep(&out, &["--jobs", "2", "--case-plots", "all"]);
     assert!(stdout.contains("4 cases: 4 run, 0 skipped"), "{stdout}");
     let (h, rows) = table(&out.join("summary.csv"));
     let col = |name: &str| {
