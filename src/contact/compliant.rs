@@ -223,6 +223,9 @@ pub struct LawSlip {
     pub sign: f64,
     /// Stick/slip switches in this step (the hold's are counted on the hold).
     pub switches: u8,
+    /// Edge mode: the node's part of its arc's kinetic force, as its hold carried the arc's
+    /// friction when the arc began to slide (node mode: 1).
+    pub weight: f64,
 }
 
 /// The contact of one node with a compliant circle: the force along the outward normal, the
@@ -242,15 +245,15 @@ pub struct Pressed {
 }
 
 /// The kinetic friction −μ_k F s t of a node sliding in direction `s` along the tangent
-/// t = (−n_y, n_x) under normal force F, and ∂f/∂x = −μ_k s (t (∂F/∂x)ᵀ − F κ n tᵀ) for
-/// ∂F/∂x = `df` and ∂t/∂x = −κ n tᵀ.
+/// t = (−n_y, n_x) under normal force F, and ∂f/∂x = −μ_k s (t (∂F/∂x)ᵀ − F n dᵀ) for
+/// ∂F/∂x = `df` and ∂t/∂x = −n dᵀ (`dturn` = d: κ t on a circle, ∂n/∂x = κ t tᵀ).
 pub fn kinetic_force(
     mu_k: f64,
     s: f64,
     force: f64,
     n: [f64; 2],
-    kappa: f64,
     df: [f64; 2],
+    dturn: [f64; 2],
 ) -> ([f64; 2], [[f64; 2]; 2]) {
     let t = [-n[1], n[0]];
     let c = mu_k * s;
@@ -258,7 +261,7 @@ pub fn kinetic_force(
     let mut k = [[0.0; 2]; 2];
     for x in 0..2 {
         for y in 0..2 {
-            k[x][y] = -c * (t[x] * df[y] - force * kappa * n[x] * t[y]);
+            k[x][y] = -c * (t[x] * df[y] - force * n[x] * dturn[y]);
         }
     }
     (f, k)
@@ -270,7 +273,9 @@ impl Pressed {
     pub fn kinetic(&self, mu_k: f64, s: f64) -> ([f64; 2], [[f64; 2]; 2]) {
         let n = self.normal;
         let df = [-self.dforce * n[0], -self.dforce * n[1]];
-        kinetic_force(mu_k, s, self.force, n, self.curvature, df)
+        let t = [-n[1], n[0]];
+        let dturn = [self.curvature * t[0], self.curvature * t[1]];
+        kinetic_force(mu_k, s, self.force, n, df, dturn)
     }
 }
 

@@ -157,6 +157,16 @@ pub struct Region {
     pub peak_pressure: f64,
 }
 
+/// A node's share of a conforming contact, as a contact of its own ([`Pressing::node_share`]):
+/// the force F_n along n, ∂F_n/∂x (`dforce`) and ∂t/∂x = −n `dturn`ᵀ for t = (−n_y, n_x).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Share {
+    pub force: f64,
+    pub normal: [f64; 2],
+    pub dforce: [f64; 2],
+    pub dturn: [f64; 2],
+}
+
 /// A rod pressing into one fruit: the resultant, the regions, and what the Newton system needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pressing {
@@ -200,37 +210,34 @@ impl Pressing {
         }
     }
 
-    /// Node j's share of the fruit's force along the fruit's outward normal n_j at the node
-    /// (`center` the fruit's centre): (F_n = f_j·n_j, n_j, κ_j = 1/|x_j − c|, ∂F_n/∂x_j
-    /// from the band's diagonal block and the turning of n_j). None off the span, at the centre,
-    /// or where the share does not press. What friction at the node is decided from.
-    pub fn node_normal(
-        &self,
-        j: usize,
-        x: [f64; 2],
-        center: [f64; 2],
-    ) -> Option<(f64, [f64; 2], f64, [f64; 2])> {
+    /// Node j's share of the fruit's force as a contact of its own: F_n = |f_j| along its
+    /// direction n_j = f_j / |f_j| (the pressure-weighted normal of the part of the arc the
+    /// node carries, not the fruit's normal at the node, which for a node off the fruit can
+    /// lean far from it), with ∂F_n/∂x_j = B nⱼ and ∂n_j/∂x_j = t_j (Bᵀ t_j)ᵀ / F_n for the
+    /// band's diagonal block B = ∂f_j/∂x_j (F_n's dependence on the other nodes left out).
+    /// What friction at the node is decided from and acts along. None off the span.
+    pub fn node_share(&self, j: usize) -> Option<Share> {
         let f = self.node_force(j);
-        let d = [x[0] - center[0], x[1] - center[1]];
-        let rho = d[0].hypot(d[1]);
-        if rho == 0.0 {
+        let force = f[0].hypot(f[1]);
+        if !(force > 0.0) {
             return None;
         }
-        let n = [d[0] / rho, d[1] / rho];
-        let fn_ = f[0] * n[0] + f[1] * n[1];
-        if !(fn_ > 0.0) {
-            return None;
-        }
-        // ∂(f·n)/∂x = nᵀ ∂f/∂x + fᵀ ∂n/∂x, ∂n/∂x = κ t tᵀ.
-        let b = self.band_block(j, j);
+        let n = [f[0] / force, f[1] / force];
         let t = [-n[1], n[0]];
-        let ft = f[0] * t[0] + f[1] * t[1];
-        let kappa = 1.0 / rho;
-        let df = [
-            n[0] * b[0][0] + n[1] * b[1][0] + ft * kappa * t[0],
-            n[0] * b[0][1] + n[1] * b[1][1] + ft * kappa * t[1],
-        ];
-        Some((fn_, n, kappa, df))
+        let b = self.band_block(j, j);
+        let bt = |v: [f64; 2]| {
+            [
+                b[0][0] * v[0] + b[1][0] * v[1],
+                b[0][1] * v[0] + b[1][1] * v[1],
+            ]
+        };
+        let (df, dt) = (bt(n), bt(t));
+        Some(Share {
+            force,
+            normal: n,
+            dforce: df,
+            dturn: [dt[0] / force, dt[1] / force],
+        })
     }
 
     /// The coefficient c of the rank-one part of ∂f/∂x, c G hᵀ: c = d(F/A)/dA.

@@ -160,18 +160,25 @@ impl Simulation {
         obs: &mut O,
     ) -> bool {
         let mut changed = false;
+        // Edge mode: a conforming contact's friction is decided per contact arc, below.
+        let per_node = !self.work[r].edge_mode;
         for i in 0..self.rods[r].n {
             if self.rods[r].clamped[i] {
                 continue;
             }
             changed |= match self.work[r].contact[i] {
-                Some(c) if c.law.is_some() => self.update_law_hold(ctx, r, i, c, pass, obs),
+                Some(c) if c.law.is_some() => {
+                    per_node && self.update_law_hold(ctx, r, i, c, pass, obs)
+                }
                 Some(c) => self.update_held(ctx, r, i, c, pass, obs),
                 None => {
                     self.detect_new(ctx, r, i, pass, obs)
-                        || self.update_law_free(ctx, r, i, pass, obs)
+                        || (per_node && self.update_law_free(ctx, r, i, pass, obs))
                 }
             };
+        }
+        if !per_node {
+            changed |= self.update_law_arcs(ctx, r, pass, obs);
         }
         changed |= self.update_edges(ctx, r, pass, obs);
         if !ctx.dynamic {

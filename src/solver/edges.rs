@@ -237,13 +237,25 @@ pub fn sliding(w: &RodWork, p: &crate::contact::conforming::Pressing, j: usize) 
         return None;
     }
     let c = w.compliant.iter().find(|c| c.obstacle == p.obstacle)?;
-    let x = [w.qn[2 * j], w.qn[2 * j + 1]];
-    let (fn_, n, kappa, df) = p.node_normal(j, x, c.center)?;
+    let sh = p.node_share(j)?;
     let mu = c.coulomb.mu_k;
-    let (f, k) = crate::contact::compliant::kinetic_force(mu, sl.sign, fn_, n, kappa, df);
-    // R n × f = −R μ_k s F_n.
+    // The node's part of its arc's kinetic force μ_k F_arc: its weight among the arc's
+    // sliding nodes (the arc's force and the weights held fixed in the Jacobian).
+    let g = p.regions.iter().find(|g| g.first <= j && j <= g.last)?;
+    let wsum: f64 = (g.first..=g.last)
+        .filter_map(|i| w.law_slip.get(i).copied().flatten())
+        .filter(|s| s.obstacle == p.obstacle)
+        .map(|s| s.weight)
+        .sum();
+    if wsum == 0.0 {
+        return None;
+    }
+    let force = sl.weight / wsum * g.force;
+    let (f, k) =
+        crate::contact::compliant::kinetic_force(mu, sl.sign, force, sh.normal, [0.0; 2], sh.dturn);
+    // R n × f = −R μ_k s F (the force held fixed in the Jacobian).
     let rm = c.law.r_fruit * mu * sl.sign;
-    Some((f, k, -rm * fn_, [-rm * df[0], -rm * df[1]]))
+    Some((f, k, -rm * force, [0.0; 2]))
 }
 
 /// The kinetic friction of a conforming contact's sliding nodes into the balance and the band.

@@ -20,8 +20,7 @@ impl Simulation {
         w.compliant.iter().filter(|c| c.body.is_some()).any(|c| {
             if w.edge_mode {
                 (0..rod.n.saturating_sub(1)).any(|i| {
-                    crate::contact::conforming::inside(x(i), x(i + 1), c.center, c.reach)
-                        .is_some()
+                    crate::contact::conforming::inside(x(i), x(i + 1), c.center, c.reach).is_some()
                 })
             } else {
                 (0..rod.n).any(|i| !rod.clamped[i] && c.press(x(i)).is_some())
@@ -69,16 +68,31 @@ impl Simulation {
 /// |R_t| ≤ μ_s F; past it the hold is let go and the node slides with the kinetic force
 /// −μ_k F s t inside Newton; a slide whose solved slip velocity turns round is held again.
 impl Simulation {
-    /// The friction hold of rod `r`'s node at `p` (its place at the start of the step) on
-    /// compliant obstacle `k`, with the fruit's normal there.
-    pub(super) fn law_hold_at(&self, r: usize, k: usize, p: [f64; 2]) -> Option<Constraint> {
-        let c = self.work[r].compliant.iter().find(|c| c.obstacle == k)?;
+    /// The friction hold of rod `r`'s node i at `p` (its place at the start of the step) on
+    /// compliant obstacle `k`: along the fruit's surface at the node (node mode), or along the
+    /// direction of the node's share of a conforming contact (edge mode: the part of the arc
+    /// it carries).
+    pub(super) fn law_hold_at(
+        &self,
+        r: usize,
+        i: usize,
+        k: usize,
+        p: [f64; 2],
+    ) -> Option<Constraint> {
+        let w = &self.work[r];
+        let c = w.compliant.iter().find(|c| c.obstacle == k)?;
         let d = [p[0] - c.center[0], p[1] - c.center[1]];
         let rho = d[0].hypot(d[1]);
         if rho == 0.0 || c.coulomb.mu_s == 0.0 {
             return None;
         }
-        let n = [d[0] / rho, d[1] / rho];
+        let share = w
+            .pressings
+            .iter()
+            .filter(|_| w.edge_mode)
+            .find(|p| p.obstacle == k)
+            .and_then(|p| p.node_share(i));
+        let n = share.map_or([d[0] / rho, d[1] / rho], |s| s.normal);
         let body = c.body.map(|b| BodyLink {
             body: b,
             lever: [c.law.r_fruit * n[0], c.law.r_fruit * n[1]],
@@ -93,12 +107,11 @@ impl Simulation {
     fn law_press(&self, r: usize, i: usize, k: usize) -> Option<(f64, Coulomb)> {
         let w = &self.work[r];
         let c = w.compliant.iter().find(|c| c.obstacle == k)?;
-        let x = [w.qn[2 * i], w.qn[2 * i + 1]];
         let force = if w.edge_mode {
             let p = w.pressings.iter().find(|p| p.obstacle == k)?;
-            p.node_normal(i, x, c.center)?.0
+            p.node_share(i)?.force
         } else {
-            c.press(x)?.force
+            c.press([w.qn[2 * i], w.qn[2 * i + 1]])?.force
         };
         Some((force, c.coulomb))
     }
@@ -109,14 +122,10 @@ impl Simulation {
         if !w.edge_mode {
             return w.pressed[i].map(|p| p.obstacle);
         }
-        let x = [w.qn[2 * i], w.qn[2 * i + 1]];
-        w.pressings.iter().map(|p| p.obstacle).find(|&k| {
-            w.compliant
-                .iter()
-                .find(|c| c.obstacle == k)
-                .and_then(|c| w.pressings.iter().find(|p| p.obstacle == k)?.node_normal(i, x, c.center))
-                .is_some()
-        })
+        w.pressings
+            .iter()
+            .find(|p| p.node_share(i).is_some())
+            .map(|p| p.obstacle)
     }
 
     /// A node held by friction on a compliant fruit, after a pass: let go when it left the
@@ -157,6 +166,7 @@ impl Simulation {
             obstacle: c.obstacle,
             sign,
             switches: c.switches + 1,
+            weight: 1.0,
         });
         self.law_event(ctx, pass, r, i, c.obstacle, false, force, rt, 0.0, obs);
         true
@@ -186,7 +196,7 @@ impl Simulation {
         if slip.is_none() && w.was_released(i) {
             return false;
         }
-        let Some(mut hold) = self.law_hold_at(r, k, qk) else {
+        let Some(mut hold) = self.law_hold_at(r, i, k, qk) else {
             return false;
         };
         if let Some(s) = slip {
@@ -251,5 +261,215 @@ impl Simulation {
             segment: usize::MAX,
             weight: 0.0,
         }));
+    }
+}
+
+/// Friction of a conforming contact (edge mode), decided per contact arc: an arc is one
+/// contact, the Coulomb law of its resultant. A stuck arc holds each of its nodes along the
+/// fruit's surface (the nodes' holds) while the tangential force of the holds, summed along the
+/// arc's tangent, stays within μ_s times the arc's normal force (the sum of its nodes' shares
+/// along the fruit's normal); past that every node of the arc slides, each with the kinetic
+/// force of its share, and the arc is stuck again when its slip velocity (its nodes'
+/// weighted by their shares) turns round. Per node, the stick forces would follow the rod's
+/// axial stiffness, not the pressure, and the ends of the arc would slide first and let the
+/// rest go at the kinetic coefficient: below μ_s ΣN.
+impl Simulation {
+    pub(super) fn update_law_arcs<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        r: usize,
+        pass: u32,
+        obs: &mut O,
+    ) -> bool {
+        let mut changed = self.drop_law_nodes_outside(r);
+        let arcs: Vec<(usize, usize, usize, [f64; 2])> = self.work[r]
+            .pressings
+            .iter()
+            .flat_map(|p| {
+                p.regions
+                    .iter()
+                    .map(|g| (g.obstacle, g.first, g.last, g.normal))
+            })
+            .collect();
+        for (k, first, last, normal) in arcs {
+            changed |= self.update_law_arc(ctx, r, k, first, last, normal, pass, obs);
+        }
+        changed
+    }
+
+    /// Holds and slides of nodes that no longer press into their fruit are let go.
+    fn drop_law_nodes_outside(&mut self, r: usize) -> bool {
+        let mut changed = false;
+        for i in 0..self.rods[r].n {
+            let k = match (self.work[r].contact[i], self.work[r].law_slip[i]) {
+                (Some(c), _) if c.law.is_some() => c.obstacle,
+                (_, Some(s)) => s.obstacle,
+                _ => continue,
+            };
+            if self.law_press(r, i, k).is_none() {
+                let w = &mut self.work[r];
+                if w.contact[i].is_some_and(|c| c.law.is_some()) {
+                    w.contact[i] = None;
+                    changed = true;
+                }
+                w.law_slip[i] = None;
+            }
+        }
+        changed
+    }
+
+    /// One arc (nodes first..=last on obstacle `k`, resultant along `normal`).
+    #[allow(clippy::too_many_arguments)]
+    fn update_law_arc<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        r: usize,
+        k: usize,
+        first: usize,
+        last: usize,
+        normal: [f64; 2],
+        pass: u32,
+        obs: &mut O,
+    ) -> bool {
+        let t = [-normal[1], normal[0]];
+        let nodes: Vec<(usize, f64)> = (first..=last.min(self.rods[r].n - 1))
+            .filter(|&i| !self.rods[r].clamped[i])
+            .filter(|&i| self.work[r].contact[i].is_none_or(|c| c.law.is_some()))
+            .filter_map(|i| self.law_press(r, i, k).map(|(f, _)| (i, f)))
+            .collect();
+        let Some(coulomb) = self.work[r]
+            .compliant
+            .iter()
+            .find(|c| c.obstacle == k)
+            .map(|c| c.coulomb)
+            .filter(|c| c.mu_s > 0.0)
+        else {
+            return false;
+        };
+        let w = &self.work[r];
+        let slide = nodes
+            .iter()
+            .find_map(|&(i, _)| w.law_slip[i].filter(|s| s.obstacle == k));
+        let switches = nodes
+            .iter()
+            .map(|&(i, _)| match (w.contact[i], w.law_slip[i]) {
+                (Some(c), _) => c.switches,
+                (_, Some(s)) => s.switches,
+                _ => 0,
+            })
+            .max()
+            .unwrap_or(0);
+        let n_sum: f64 = nodes.iter().map(|&(_, f)| f).sum();
+        let (grip, rt, v_t) = match slide {
+            Some(s) => {
+                // The arc's slip velocity: its nodes' by the parts of the kinetic force they
+                // carry.
+                let (mut v, mut wsum) = (0.0, 0.0);
+                for &(i, _) in &nodes {
+                    let Some(sl) = w.law_slip[i].filter(|s| s.obstacle == k) else {
+                        continue;
+                    };
+                    if let Some(h) = self.law_hold_at(r, i, k, [w.q[2 * i], w.q[2 * i + 1]]) {
+                        v += sl.weight * self.law_slip_velocity(ctx, r, i, &h);
+                        wsum += sl.weight;
+                    }
+                }
+                let v = if wsum != 0.0 { v / wsum } else { 0.0 };
+                (
+                    Grip::Slide { sign: s.sign },
+                    -coulomb.mu_k * n_sum * s.sign,
+                    v,
+                )
+            }
+            None => {
+                let mut rt = 0.0;
+                for &(i, _) in &nodes {
+                    if let Some(c) = w.contact[i] {
+                        let f = c.normal[0] * w.r[2 * i] + c.normal[1] * w.r[2 * i + 1];
+                        rt += f * (c.normal[0] * t[0] + c.normal[1] * t[1]);
+                    }
+                }
+                (Grip::Stick { anchor: [0.0; 2] }, rt, 0.0)
+            }
+        };
+        let switch = friction::decide_on(coulomb, grip, switches, n_sum, rt, v_t);
+        let stuck = match (switch, slide) {
+            (Some(Switch::ToSlide { sign }), _) => Err(sign),
+            (Some(Switch::ToStick), _) => Ok(()),
+            (None, Some(s)) => Err(s.sign),
+            (None, None) => Ok(()),
+        };
+        if let (Some(_), Some(&(i, _))) = (switch, nodes.first()) {
+            self.law_event(ctx, pass, r, i, k, stuck.is_ok(), n_sum, rt, v_t, obs);
+        }
+        let sw = switches + u8::from(switch.is_some());
+        // The kinetic force is shared as the holds shared the friction when the arc let go
+        // (a share by pressure instead would shift force along the prong in one step and
+        // move its nodes by their own elasticity, which reads as a reversed slip).
+        let w = &self.work[r];
+        let weights: Vec<f64> = nodes
+            .iter()
+            .map(|&(i, f)| match (w.contact[i], w.law_slip[i]) {
+                (Some(c), _) if c.law.is_some() && rt != 0.0 => {
+                    let fi = c.normal[0] * w.r[2 * i] + c.normal[1] * w.r[2 * i + 1];
+                    fi * (c.normal[0] * t[0] + c.normal[1] * t[1]) / rt
+                }
+                (_, Some(s)) if s.obstacle == k => s.weight,
+                _ if rt == 0.0 && n_sum > 0.0 => f / n_sum,
+                _ => 0.0,
+            })
+            .collect();
+        self.set_arc(r, k, &nodes, &weights, stuck, sw)
+    }
+
+    /// Every node of an arc held (`Ok`) or sliding in direction `Err(sign)`; returns whether
+    /// any node changed.
+    fn set_arc(
+        &mut self,
+        r: usize,
+        k: usize,
+        nodes: &[(usize, f64)],
+        weights: &[f64],
+        stuck: Result<(), f64>,
+        switches: u8,
+    ) -> bool {
+        let mut changed = false;
+        for (&(i, _), &weight) in nodes.iter().zip(weights) {
+            let w = &self.work[r];
+            let held = w.contact[i].is_some_and(|c| c.law.is_some() && c.obstacle == k);
+            match stuck {
+                Ok(()) if !held => {
+                    let qk = [w.q[2 * i], w.q[2 * i + 1]];
+                    let Some(mut h) = self.law_hold_at(r, i, k, qk) else {
+                        continue;
+                    };
+                    h.switches = switches;
+                    let w = &mut self.work[r];
+                    w.contact[i] = Some(h);
+                    w.law_slip[i] = None;
+                    changed = true;
+                }
+                Ok(()) => {
+                    if let Some(c) = self.work[r].contact[i].as_mut() {
+                        c.switches = switches;
+                    }
+                }
+                Err(sign) => {
+                    let w = &mut self.work[r];
+                    let slip = Some(LawSlip {
+                        obstacle: k,
+                        sign,
+                        switches,
+                        weight,
+                    });
+                    changed |= held || w.law_slip[i].map(|s| s.sign) != Some(sign);
+                    if held {
+                        w.contact[i] = None;
+                    }
+                    w.law_slip[i] = slip;
+                }
+            }
+        }
+        changed
     }
 }

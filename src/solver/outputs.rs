@@ -363,7 +363,14 @@ impl Simulation {
         let x = [w.q[2 * i], w.q[2 * i + 1]];
         let d = [x[0] - fruit.center[0], x[1] - fruit.center[1]];
         let rho = d[0].hypot(d[1]);
-        let n = [d[0] / rho, d[1] / rho];
+        // Edge mode: the node's share of the arc acts along its own direction.
+        let share = w
+            .pressings
+            .iter()
+            .filter(|_| w.edge_mode)
+            .find(|p| p.obstacle == k)
+            .and_then(|p| p.node_share(i));
+        let n = share.map_or([d[0] / rho, d[1] / rho], |s| s.normal);
         let surface = [fruit.law.r_fruit * n[0], fruit.law.r_fruit * n[1]];
         if let Some(c) = w.contact[i].filter(|c| c.law.is_some() && c.obstacle == k) {
             let h = c.normal;

@@ -242,7 +242,7 @@ impl Simulation {
                     if c.law.is_some() {
                         let w = &self.work[r];
                         let p = [w.q[2 * i], w.q[2 * i + 1]];
-                        self.work[r].contact[i] = self.law_hold_at(r, c.obstacle, p);
+                        self.work[r].contact[i] = self.law_hold_at(r, i, c.obstacle, p);
                         continue;
                     }
                     let w = &self.work[r];

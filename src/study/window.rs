@@ -561,14 +561,23 @@ enum Bracket {
 }
 
 fn bracket(which: Which, pts: &[&Eval]) -> Bracket {
-    let changes: Vec<usize> = (0..pts.len().saturating_sub(1))
-        .filter(|&i| which.verdict(pts[i]) != which.verdict(pts[i + 1]))
-        .collect();
+    let changes = changes(which, pts);
     match changes.len() {
         0 => Bracket::Uniform(pts.first().is_some_and(|e| which.verdict(e))),
         1 => Bracket::At(changes[0], changes[0] + 1),
+        // Not held (not bruised) at the low end, then held (bruised): the boundary is the
+        // first change, the smallest value with the outcome; what comes above it (a fruit
+        // squeezed out of the gripper, not held again) is reported, not bisected.
+        _ if !which.verdict(pts[0]) => Bracket::At(changes[0], changes[0] + 1),
         _ => Bracket::Changes(changes),
     }
+}
+
+/// Every i whose verdict differs from i + 1's, on the sorted runs.
+fn changes(which: Which, pts: &[&Eval]) -> Vec<usize> {
+    (0..pts.len().saturating_sub(1))
+        .filter(|&i| which.verdict(pts[i]) != which.verdict(pts[i + 1]))
+        .collect()
 }
 
 /// Where the next run of a boundary should go.
@@ -957,8 +966,27 @@ fn boundary(which: Which, applicable: bool, pts: &[&Eval], r: &Resolved, tau: f6
             b.other = Some(pts[no].value);
             b.at = Some(pts[yes].clone());
             let closed = (pts[j].value / pts[i].value).ln() <= tau * (1.0 + 1e-9);
+            // Changes above the boundary (the outcome lost again higher up).
+            b.changes = changes(which, pts)
+                .into_iter()
+                .filter(|&k| k > i)
+                .map(|k| (pts[k].value, pts[k + 1].value, which.verdict(pts[k + 1])))
+                .collect();
+            let above: String = b
+                .changes
+                .iter()
+                .map(|c| {
+                    format!(
+                        "; {} again at {} ({} at {}: not bisected)",
+                        word(which, c.2),
+                        r.show(c.1),
+                        word(which, !c.2),
+                        r.show(c.0)
+                    )
+                })
+                .collect();
             b.note = format!(
-                "{name} = {} ({} there, {} at {}){}{}",
+                "{name} = {} ({} there, {} at {}){}{}{above}",
                 r.show(pts[yes].value),
                 which.word(),
                 word(which, false),
@@ -1524,6 +1552,27 @@ mod tests {
             held: Some(held),
             ..eval(v, 1.0)
         };
+        // Held at the low end, dropped, held again: no smallest value that holds to find.
+        let runs = [
+            at(0.225, true),
+            at(0.64, false),
+            at(1.8, true),
+            at(14.4, true),
+        ];
+        let pts: Vec<&Eval> = runs.iter().collect();
+        let mut t = new_track(Which::Hold, 0.0);
+        assert!(t.propose(&pts, tau).is_empty());
+        let b = boundary(Which::Hold, true, &pts, &r, tau);
+        assert_eq!(b.status, Status::NotMonotone);
+        assert_eq!(b.changes, [(0.225, 0.64, false), (0.64, 1.8, true)]);
+        assert_eq!(
+            b.note,
+            "not monotone: held at 0.225 N, not held at 0.64 N, held again at 1.8 N: not bisected across"
+        );
+        assert!(b.value.is_none());
+        // Not held at the low end, held, not held again higher up (a fruit squeezed out):
+        // the smallest value that holds is the first change, bisected there alone; what comes
+        // above is reported.
         let runs = [
             at(0.225, false),
             at(0.64, true),
@@ -1533,18 +1582,20 @@ mod tests {
         ];
         let pts: Vec<&Eval> = runs.iter().collect();
         let mut t = new_track(Which::Hold, 0.0);
-        assert!(t.propose(&pts, tau).is_empty());
+        let next = t.propose(&pts, tau);
+        assert!(!next.is_empty());
+        assert!(next.iter().all(|x| *x > 0.225f64.ln() && *x < 0.64f64.ln()));
         let b = boundary(Which::Hold, true, &pts, &r, tau);
-        assert_eq!(b.status, Status::NotMonotone);
-        assert_eq!(
-            b.changes,
-            [(0.225, 0.64, true), (0.64, 1.8, false), (1.8, 5.1, true)]
+        assert_eq!(b.status, Status::Found);
+        assert_eq!(b.value, Some(0.64));
+        assert_eq!(b.changes, [(0.64, 1.8, false), (1.8, 5.1, true)]);
+        assert!(
+            b.note.ends_with(
+                "; not held again at 1.8 N (held at 0.64 N: not bisected); held again at 5.1 N (not held at 1.8 N: not bisected)"
+            ),
+            "{}",
+            b.note
         );
-        assert_eq!(
-            b.note,
-            "not monotone: not held at 0.225 N, held at 0.64 N, not held again at 1.8 N, held again at 5.1 N: not bisected across"
-        );
-        assert!(b.value.is_none());
     }
 
     #[test]

@@ -142,10 +142,8 @@ fn a_thick_prongs_face_stops_on_the_circle_at_half_its_height_plus_the_radius() 
 #[test]
 fn the_face_at_segments_is_the_default_and_bit_for_bit_the_same_as_saying_so() {
     let rect = "{ kind = \"rect\", b = 0.02, h = 0.01 }";
-    let said = drop_on_circle("face", rect, 1e-3, H / 2.0).replace(
-        "points = \"nodes\"",
-        "points = \"edges\"",
-    );
+    let said = drop_on_circle("face", rect, 1e-3, H / 2.0)
+        .replace("points = \"nodes\"", "points = \"edges\"");
     let unsaid = said.replace("[contact]\nsurface = \"face\"\npoints = \"edges\"\n", "");
     assert_ne!(said, unsaid);
     let (a, b) = (run(&said), run(&unsaid));

@@ -128,7 +128,11 @@ fn a_compliant_disc_rests_on_the_table_with_m_g_at_the_laws_indentation() {
     let last = tr.contacts.last().unwrap();
     assert_eq!(last.len(), 1);
     let c = &last[0];
-    assert!((c.indentation - delta).abs() < 1e-6 * delta, "{}", c.indentation);
+    assert!(
+        (c.indentation - delta).abs() < 1e-6 * delta,
+        "{}",
+        c.indentation
+    );
     assert!((c.peak_pressure - law.peak_pressure(m * G)).abs() < 1e-6 * c.peak_pressure);
 }
 
@@ -258,7 +262,12 @@ fn momentum_error(tr: &Trace, m: f64, j: f64, radius: f64) -> f64 {
 fn a_compliant_fruits_momentum_changes_by_its_contact_and_gravity_impulses() {
     // The jaw grasp on an apple: squeezed (compliant contacts held by friction), lifted, and
     // its own compliant contact with the table; then with friction too weak, so it slides.
-    for (mu, points) in [("0.6", "nodes"), ("0.3", "nodes"), ("0.6", "edges"), ("0.3", "edges")] {
+    for (mu, points) in [
+        ("0.6", "nodes"),
+        ("0.3", "nodes"),
+        ("0.6", "edges"),
+        ("0.3", "edges"),
+    ] {
         let sets = [
             "obstacle.1.material=apple".to_string(),
             format!("contact.points={points}"),
@@ -308,6 +317,9 @@ fn a_stiffer_fruit_approaches_the_rigid_fruit_monotonically() {
         assert!(m > last, "not monotone at E = {e:e}: {m} after {last}");
         last = m;
     }
-    assert!((last - m_rigid).abs() < 1e-3 * m_rigid, "{last} vs {m_rigid}");
+    assert!(
+        (last - m_rigid).abs() < 1e-3 * m_rigid,
+        "{last} vs {m_rigid}"
+    );
     assert!(rigid.held);
 }

@@ -394,7 +394,10 @@ fn random_valid_scenarios_stay_finite_outside_and_deterministic() {
     let result = runner.run(&case(), |c| {
         let text = c.toml();
         // The generator's obstacles and starts are built for the seed's contact model.
-        let seed = ["contact.surface=centreline".into(), "contact.points=nodes".into()];
+        let seed = [
+            "contact.surface=centreline".into(),
+            "contact.points=nodes".into(),
+        ];
         let sc = Scenario::from_str(&text, "prop.toml", &seed)
             .unwrap_or_else(|e| panic!("the generator made an invalid scenario: {e}\n{text}"));
 
