@@ -604,8 +604,11 @@ impl Track {
             return Vec::new();
         }
         let mid = 0.5 * (xl + xh);
-        if w <= 1.8 * tau {
-            // One run in the middle leaves two halves within rtol.
+        if w <= 8.0 * tau {
+            // Within 8 rtol bisection closes the bracket in at most three runs, one a round,
+            // whatever the indicator does; a secant there may creep in from one side (an
+            // indicator that jumps at the boundary, the squeeze ending on another contact
+            // state) and a straddling pair costs two runs a round.
             return vec![mid];
         }
         let inside = |x: f64| x.clamp(xl + 0.9 * tau, xh - 0.9 * tau);
@@ -667,8 +670,9 @@ impl Track {
 
     /// Where the indicator crosses its threshold: the secant through the two runs nearest the
     /// crossing (the smallest |indicator − threshold| among the bracket's ends and their
-    /// outer neighbours) when it falls inside the bracket, else regula falsi between the ends
-    /// with the stagnant end's value halved per repeat after the first (Illinois).
+    /// outer neighbours) when they lie on either side of it and it falls inside the bracket,
+    /// else regula falsi between the ends with the stagnant end's value halved per repeat
+    /// after the first (Illinois).
     fn estimate(&self, pts: &[&Eval], i: usize, j: usize) -> Guess {
         let (Some(yl), Some(yh)) = (self.which.indicator(pts[i]), self.which.indicator(pts[j]))
         else {
@@ -697,7 +701,10 @@ impl Track {
             .collect();
         near.sort_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
         if let [(x1, s1), (x2, s2), ..] = near[..] {
-            if s1 != s2 {
+            // Only through two runs on either side of the threshold: two on one side
+            // extrapolate, and where the indicator jumps at the boundary (the squeeze ending
+            // on another contact state) each estimate creeps in from that side.
+            if s1 != s2 && s1.signum() != s2.signum() {
                 let r = x1 - s1 * (x2 - x1) / (s2 - s1);
                 if r > xl && r < xh {
                     return Guess::At(r);

@@ -183,6 +183,7 @@ name = "beam-on-disc"
 mode = "static"
 gravity = [0.0, 0.0]
 [contact]
+surface = "centreline"
 points = "{points}"
 [[rod]]
 name = "beam"
