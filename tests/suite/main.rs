@@ -17,6 +17,7 @@ mod frictionless_golden;
 mod integrator;
 mod no_data_loss;
 mod pick_and_place;
+mod planar_identity;
 mod properties;
 mod rec3d;
 mod recordings;
