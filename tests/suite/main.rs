@@ -13,6 +13,7 @@ mod edge3d;
 mod faults;
 mod first_contact;
 mod friction_bodies;
+mod friction_pull;
 mod frictionless_golden;
 mod integrator;
 mod no_data_loss;
