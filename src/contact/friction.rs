@@ -92,8 +92,47 @@ pub fn decide(c: &Constraint, r: [f64; 2], v_t: f64) -> Option<Switch> {
     decide_on(c.coulomb, c.grip, c.switches, rn, rt, v_t)
 }
 
-/// The decision itself, from the normal and tangential reaction (R_n, R_t) and the slip
-/// velocity along the tangent; shared by node contacts and a body's own contacts.
+/// What the Coulomb cone decides for a contact, in either dimension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cone {
+    /// A stuck contact outside the cone: it slides, against its tangential reaction.
+    Slide,
+    /// A sliding contact whose slip turned against its direction: kinetic friction stopped it.
+    Stick,
+}
+
+/// The one Coulomb decision of planar and 3D contacts (nodes, edges and a body's own
+/// contacts), from the normal reaction `rn` (N, > 0 pressing), the size of the tangential
+/// reaction `rt_abs` (N) and, for a sliding contact, its slip velocity along its slip
+/// direction `slip_along` (m/s; < 0: turned round).
+///
+/// A stuck contact slides when |R_t| > μ_s max(R_n, 0) (and R_t ≠ 0): with R_n ≤ 0 any
+/// tangential hold is outside the cone, so a stuck contact whose normal reaction pulls slides
+/// before it may be released (holding the tangential velocity can itself make the normal
+/// reaction adhesive: a node stopped dead on a curved or moving surface). A sliding contact
+/// sticks when its slip turns round. Nothing switches without static friction or after
+/// [`MAX_SWITCHES`] switches in the step.
+#[inline]
+pub fn decide_cone(
+    coulomb: Coulomb,
+    stuck: bool,
+    switches: u8,
+    rn: f64,
+    rt_abs: f64,
+    slip_along: f64,
+) -> Option<Cone> {
+    if coulomb.mu_s == 0.0 || switches >= MAX_SWITCHES {
+        return None;
+    }
+    if stuck {
+        (rt_abs != 0.0 && rt_abs > coulomb.mu_s * rn.max(0.0)).then_some(Cone::Slide)
+    } else {
+        (slip_along < 0.0).then_some(Cone::Stick)
+    }
+}
+
+/// The planar decision ([`decide_cone`]) from the normal and tangential reaction (R_n, R_t)
+/// and the slip velocity along the tangent; shared by node contacts and a body's own contacts.
 pub fn decide_on(
     coulomb: Coulomb,
     grip: Grip,
@@ -102,32 +141,19 @@ pub fn decide_on(
     rt: f64,
     v_t: f64,
 ) -> Option<Switch> {
-    if coulomb.mu_s == 0.0 || switches >= MAX_SWITCHES {
-        return None;
-    }
-    match grip {
-        Grip::Stick { .. } => {
-            // Outside the cone; with R_n ≤ 0 any tangential hold is. A stuck contact whose
-            // normal reaction pulls is let slide before it may be released: holding the
-            // tangential velocity can itself make the normal reaction adhesive (a node
-            // stopped dead on a curved or moving surface).
-            if rt != 0.0 && rt.abs() > coulomb.mu_s * rn.max(0.0) {
-                // The surface holds the node with R_t; released, it slides the other way.
-                Some(Switch::ToSlide {
-                    sign: if rt > 0.0 { -1.0 } else { 1.0 },
-                })
-            } else {
-                None
-            }
-        }
-        Grip::Slide { sign } => {
-            if sign * v_t < 0.0 {
-                Some(Switch::ToStick)
-            } else {
-                None
-            }
-        }
-    }
+    let (stuck, slip_along) = match grip {
+        Grip::Stick { .. } => (true, 0.0),
+        Grip::Slide { sign } => (false, sign * v_t),
+    };
+    Some(
+        match decide_cone(coulomb, stuck, switches, rn, rt.abs(), slip_along)? {
+            // The surface holds the node with R_t; released, it slides the other way.
+            Cone::Slide => Switch::ToSlide {
+                sign: if rt > 0.0 { -1.0 } else { 1.0 },
+            },
+            Cone::Stick => Switch::ToStick,
+        },
+    )
 }
 
 /// Friction utilisation |R_t| / (μ_s R_n) of a contact (0 when frictionless or not pressed).
@@ -191,6 +217,46 @@ mod tests {
         assert_eq!(decide(&s, [0.0, 1.0], 0.1), None);
         assert_eq!(decide(&s, [0.0, 1.0], -1e-9), Some(Switch::ToStick));
         assert!((s.kinetic() - 0.4).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_cone_is_one_decision_for_every_contact() {
+        let mu = Coulomb {
+            mu_s: 0.5,
+            mu_k: 0.4,
+        };
+        // Stuck: inside the cone nothing changes, outside it slides; pulling, any tangential
+        // hold is outside (slide first), none is nothing to slide.
+        assert_eq!(decide_cone(mu, true, 0, 1.0, 0.5, 0.0), None);
+        assert_eq!(decide_cone(mu, true, 0, 1.0, 0.51, 0.0), Some(Cone::Slide));
+        assert_eq!(
+            decide_cone(mu, true, 0, -0.02, 1e-12, 0.0),
+            Some(Cone::Slide)
+        );
+        assert_eq!(decide_cone(mu, true, 0, -0.02, 0.0, 0.0), None);
+        // Sliding: sticks when the slip turns round, whatever the reaction.
+        assert_eq!(decide_cone(mu, false, 0, 1.0, 9.0, 0.1), None);
+        assert_eq!(
+            decide_cone(mu, false, 0, 1.0, 9.0, -1e-12),
+            Some(Cone::Stick)
+        );
+        // No static friction, or the step's switches spent: no change.
+        assert_eq!(
+            decide_cone(Coulomb::FRICTIONLESS, true, 0, 1.0, 1.0, 0.0),
+            None
+        );
+        assert_eq!(decide_cone(mu, true, MAX_SWITCHES, -1.0, 1.0, 0.0), None);
+        // The planar decision is the cone's: the slip sign is against R_t.
+        let stuck = Grip::Stick { anchor: [0.0; 2] };
+        assert_eq!(
+            decide_on(mu, stuck, 0, -0.02, -0.3, 0.0),
+            Some(Switch::ToSlide { sign: 1.0 })
+        );
+        let sliding = Grip::Slide { sign: -1.0 };
+        assert_eq!(
+            decide_on(mu, sliding, 0, 1.0, 0.4, 0.2),
+            Some(Switch::ToStick)
+        );
     }
 
     #[test]

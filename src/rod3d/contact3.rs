@@ -5,18 +5,22 @@
 //! Its filter is S = I − nnᵀ while it slides (the normal coordinate prescribed: n·x equals a
 //! target, plus a·ΔX on a moving body with a = (n, r × n)) and S = 0 while it sticks (the whole
 //! node follows an anchor point, plus G ΔX on a body). The reaction on the node is the residual
-//! of its equations at the converged step; its normal part n·R must be ≥ 0 (else the contact is
-//! released as adhesive), and with Coulomb friction its tangential part must lie within the
-//! cone |R_t| ≤ μ_s n·R while stuck. A sliding node carries the kinetic force −μ_k (n·R) s along
-//! its slip direction s (the row t₁·R + μ_k n·R = 0 with t₁ = s), and sticks again when its slip
-//! velocity turns against s. Each change re-solves the step.
+//! of its equations at the converged step; with Coulomb friction its tangential part must lie
+//! within the cone |R_t| ≤ μ_s n·R while stuck. A sliding node carries the kinetic force
+//! −μ_k (n·R) s along its slip direction s (the row t₁·R + μ_k n·R = 0 with t₁ = s), and sticks
+//! again when its slip velocity turns against s. The decision is the planar one
+//! ([`decide_cone`]). A contact whose normal reaction pulls (n·R < 0) carries no friction: a
+//! stuck one slides first (any tangential hold is then outside the cone), one that still pulls
+//! is released as adhesive; a node released so and caught again in the same step is held
+//! frictionless (sliding without a direction, `locked`) for the rest of the step, and starts
+//! the next step as a new contact does. Each change re-solves the step.
 //!
 //! The thickness offset: with `face` contact the centreline is held `offset` off the surface,
 //! the support of the cross-section towards the obstacle, (h/2)|m₁·n| + (b/2)|m₂·n| for a
 //! rectangle (h/2 for a flat prong facing the obstacle, as the planar `surface = "face"`),
 //! or the radius of a round section, taken at the start of the step.
 
-use crate::contact::friction::{Coulomb, MAX_SWITCHES};
+use crate::contact::friction::{decide_cone, Cone, Coulomb};
 use crate::obstacle3::V3;
 use nalgebra::Matrix3;
 
@@ -103,30 +107,50 @@ impl Contact3 {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Change3 {
     Release,
-    ToSlide { dir: V3 },
+    /// Slide along `dir` (zero: frictionless, a held contact that pulls).
+    ToSlide {
+        dir: V3,
+    },
     ToStick,
 }
 
 /// Decide a node contact from its reaction `r` (world) and its slip velocity relative to the
 /// surface `v_rel` (world, tangential part used).
 pub fn decide(c: &Contact3, r: &V3, v_rel: &V3) -> Option<Change3> {
-    let n = c.normal;
-    let rn = n.dot(r);
-    if rn < 0.0 && !c.locked {
-        return Some(Change3::Release);
-    }
-    if c.coulomb.mu_s == 0.0 || c.switches >= MAX_SWITCHES {
-        return None;
-    }
-    let rt = r - n * rn;
-    match c.grip {
-        Grip3::Stick { .. } if rn > 0.0 && rt.norm() > c.coulomb.mu_s * rn => {
-            Some(Change3::ToSlide {
+    let rn = c.normal.dot(r);
+    decide_split(c, rn, &(r - c.normal * rn), v_rel)
+}
+
+/// [`decide`] from the normal reaction `rn` and the tangential reaction `rt` (world), by the
+/// planar rules ([`decide_cone`]): inside the cone nothing changes; a stuck contact outside
+/// it slides against R_t; a sliding one whose slip turned round sticks. A contact whose normal
+/// reaction pulls (R_n < 0) carries no friction: stuck, it slides first (any R_t ≠ 0 is
+/// outside the cone); otherwise it is released, or, when it was already released in this
+/// step and caught again (`locked`), it is held frictionless (sliding without a direction) for
+/// the rest of the step. Only that last change ignores [`MAX_SWITCHES`](
+/// crate::contact::friction::MAX_SWITCHES): it is final within the step.
+pub fn decide_split(c: &Contact3, rn: f64, rt: &V3, v_rel: &V3) -> Option<Change3> {
+    let (stuck, slip_along) = match c.grip {
+        Grip3::Stick { .. } => (true, 0.0),
+        Grip3::Slide { dir } if dir.norm() > 0.5 => (false, dir.dot(v_rel)),
+        Grip3::Slide { .. } => (false, 0.0),
+    };
+    let cone = decide_cone(c.coulomb, stuck, c.switches, rn, rt.norm(), slip_along);
+    if rn < 0.0 {
+        return match cone {
+            Some(Cone::Slide) => Some(Change3::ToSlide {
                 dir: -rt / rt.norm(),
-            })
-        }
-        Grip3::Slide { dir } if dir.norm() > 0.5 && dir.dot(v_rel) < 0.0 => Some(Change3::ToStick),
-        _ => None,
+            }),
+            _ if !c.locked => Some(Change3::Release),
+            _ if stuck || c.kinetic() != 0.0 => Some(Change3::ToSlide { dir: V3::zeros() }),
+            _ => None,
+        };
+    }
+    match cone? {
+        Cone::Slide => Some(Change3::ToSlide {
+            dir: -rt / rt.norm(),
+        }),
+        Cone::Stick => Some(Change3::ToStick),
     }
 }
 
@@ -162,6 +186,7 @@ pub struct BodyContact3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::contact::friction::MAX_SWITCHES;
 
     fn contact(grip: Grip3) -> Contact3 {
         Contact3 {
@@ -205,5 +230,45 @@ mod tests {
         let b = sliding.basis();
         assert!((b * b.transpose() - Matrix3::identity()).abs().max() < 1e-15);
         assert_eq!(b.row(1).transpose(), dir);
+    }
+
+    #[test]
+    fn a_contact_whose_normal_reaction_pulls_carries_no_friction() {
+        let v = V3::zeros();
+        let pull = V3::new(0.49, 0.0, -0.02);
+        // Stuck: it slides first (against R_t), released only if it still pulls.
+        let stuck = contact(Grip3::Stick {
+            anchor: V3::zeros(),
+        });
+        assert_eq!(
+            decide(&stuck, &pull, &v),
+            Some(Change3::ToSlide {
+                dir: V3::new(-1.0, 0.0, 0.0)
+            })
+        );
+        let sliding = contact(Grip3::Slide {
+            dir: V3::new(-1.0, 0.0, 0.0),
+        });
+        assert_eq!(decide(&sliding, &pull, &v), Some(Change3::Release));
+        // With its switches spent, a stuck contact that pulls is released.
+        let spent = Contact3 {
+            switches: MAX_SWITCHES,
+            ..stuck
+        };
+        assert_eq!(decide(&spent, &pull, &v), Some(Change3::Release));
+        // Caught again in the step it was released in (locked): held without friction.
+        let frictionless = Change3::ToSlide { dir: V3::zeros() };
+        for c in [spent, sliding] {
+            let locked = Contact3 { locked: true, ..c };
+            assert_eq!(decide(&locked, &pull, &v), Some(frictionless));
+        }
+        let held = contact(Grip3::Slide { dir: V3::zeros() });
+        let held = Contact3 {
+            locked: true,
+            switches: MAX_SWITCHES,
+            ..held
+        };
+        assert_eq!(decide(&held, &pull, &v), None);
+        assert_eq!(decide(&held, &V3::new(0.0, 0.0, 1.0), &V3::x()), None);
     }
 }

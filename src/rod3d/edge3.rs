@@ -14,16 +14,18 @@
 //! The multipliers join the small dense system the 3D Newton already solves for the bodies
 //! (src/rod3d/world/edges3.rs). The predictor/corrector logic is the nodes': a segment whose
 //! deepest point ended inside a surface (deeper than its offset, away from its nodes) gets a
-//! contact; a contact whose multiplier pulls is released (once per step); one whose segment
-//! turned so its deepest point moved is re-linearised there.
+//! contact; a contact whose multiplier pulls is released (once per step: caught again in that
+//! step it is held frictionless for the rest of it); one whose segment turned so its deepest
+//! point moved is re-linearised there.
 //!
 //! Coulomb friction as on a node ([`super::contact3`]), with the same μ_s, μ_k and rules: a
 //! stuck edge contact holds the whole point at an anchor on the tangent plane (three equations
 //! and multipliers: the force F = λ_n n + λ₁ t₁ + λ₂ t₂ on the segment, in the contact basis
 //! (n, t₁, t₂)); a sliding one holds the normal only and carries the kinetic force,
 //! F = λ (n − μ_k d) with d its slip direction (one multiplier; the column differs from the
-//! row). It slides when |F_t| > μ_s F_n, sticks again when its point's slip velocity turns
-//! against d, at most `MAX_SWITCHES` times a step ([`super::contact3::decide`]).
+//! row). It slides when |F_t| > μ_s max(F_n, 0) (a stuck contact that pulls slides before it
+//! is released), sticks again when its point's slip velocity turns against d, at most
+//! `MAX_SWITCHES` times a step ([`super::contact3::decide_split`]).
 
 use super::body3::lever_map;
 use super::contact3::{Contact3, Grip3, Surface3};

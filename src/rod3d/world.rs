@@ -10,7 +10,7 @@
 //! opposite of the force on the body and momentum is exchanged exactly.
 
 use super::body3::{lever_map, Body3, G3};
-use super::contact3::{decide, BodyContact3, Change3, Contact3, Grip3, Surface3};
+use super::contact3::{decide, decide_split, BodyContact3, Change3, Contact3, Grip3, Surface3};
 use super::edge3::EdgeContact3;
 use super::energy::material_frame;
 use super::rod::{angle, pos};
@@ -68,6 +68,8 @@ struct Work3 {
     released: Vec<bool>,
     /// (segment, surface) pairs whose edge contact was released in this step.
     edge_released: Vec<(usize, Surface3)>,
+    /// The pairs among them released because their normal force pulled.
+    edge_pulled: Vec<(usize, Surface3)>,
 }
 
 pub struct World3 {
@@ -178,6 +180,7 @@ impl World3 {
             kinetic_pool: Vec::new(),
             released: vec![false; n],
             edge_released: Vec::new(),
+            edge_pulled: Vec::new(),
         });
         self.rods.push(sim);
         self.rod_names.push(name.to_string());
@@ -323,12 +326,13 @@ impl World3 {
                 };
                 if let Grip3::Slide { dir } = c.grip {
                     let t = dir - c.normal * c.normal.dot(&dir);
-                    let dir = if t.norm() > 1e-3 {
-                        t.normalize()
+                    if t.norm() > 1e-3 {
+                        c.grip = Grip3::Slide { dir: t.normalize() };
                     } else {
-                        V3::zeros()
-                    };
-                    c.grip = Grip3::Slide { dir };
+                        // No slip direction (held frictionless after a pull, or turned along
+                        // the normal): it starts the step as a new contact does.
+                        c.initial_grip(&x);
+                    }
                 }
                 self.contacts[r][i] = Some(c);
             }

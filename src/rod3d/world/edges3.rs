@@ -156,6 +156,7 @@ impl World3 {
     pub(super) fn relinearise_edges(&mut self) {
         for r in 0..self.rods.len() {
             self.work[r].edge_released.clear();
+            self.work[r].edge_pulled.clear();
             let old = std::mem::take(&mut self.edges[r]);
             let mut out = Vec::with_capacity(old.len());
             for e in old {
@@ -165,8 +166,14 @@ impl World3 {
                 }
                 let (w, prox, _) = self.deepest(r, i, e.surface, &self.rods[r].q);
                 if interior(w) {
-                    let ne = self.edge_at(r, i, w, e.surface, &prox);
-                    let mut ne = Self::carry(&e, ne, &self.rods[r].q);
+                    let fresh = self.edge_at(r, i, w, e.surface, &prox);
+                    let mut ne = Self::carry(&e, fresh, &self.rods[r].q);
+                    if matches!(ne.grip, Grip3::Slide { dir } if dir == V3::zeros()) {
+                        // No slip direction (held frictionless after a pull, or turned along
+                        // the normal): it starts the step as a new contact does.
+                        ne.grip = fresh.grip;
+                        ne.friction = V3::zeros();
+                    }
                     ne.switches = 0;
                     out.push(ne);
                 }
@@ -193,16 +200,20 @@ impl World3 {
         let mut pulled = Vec::new();
         for mut e in old {
             let i = e.segment;
-            if e.force < 0.0 && !e.locked {
-                pulled.push((i, e.surface));
-                self.work[r].edge_released.push((i, e.surface));
-                report.released += 1;
-                changed += 1;
-                continue;
-            }
-            if self.edge_friction(r, &mut e, dt) {
-                report.switches += 1;
-                changed += 1;
+            match self.edge_friction(r, &mut e, dt) {
+                Some(Change3::Release) => {
+                    pulled.push((i, e.surface));
+                    self.work[r].edge_released.push((i, e.surface));
+                    self.work[r].edge_pulled.push((i, e.surface));
+                    report.released += 1;
+                    changed += 1;
+                    continue;
+                }
+                Some(_) => {
+                    report.switches += 1;
+                    changed += 1;
+                }
+                None => {}
             }
             if !self.segment_open(r, i) || self.nodes_follow(r, i, e.surface, &e.normal) {
                 self.work[r].edge_released.push((i, e.surface));
@@ -233,10 +244,15 @@ impl World3 {
         let fresh = self.edge_candidates(r, &out, &pulled);
         for (i, s, w, prox) in fresh {
             let locked = self.work[r].edge_released.contains(&(i, s));
-            out.push(EdgeContact3 {
+            let mut e = EdgeContact3 {
                 locked,
                 ..self.edge_at(r, i, w, s, &prox)
-            });
+            };
+            if self.work[r].edge_pulled.contains(&(i, s)) {
+                // Released for pulling in this step: held frictionless for the rest of it.
+                e.grip = Grip3::Slide { dir: V3::zeros() };
+            }
+            out.push(e);
             report.added += 1;
             changed += 1;
         }
@@ -315,28 +331,36 @@ impl World3 {
         out
     }
 
-    /// Stick/slip of an edge contact from the converged pass, by the node contacts' rules
-    /// ([`decide`]) on its force and its held point's slip velocity. Returns whether it
-    /// switched.
-    fn edge_friction(&self, r: usize, e: &mut EdgeContact3, dt: f64) -> bool {
+    /// Release and stick/slip of an edge contact from the converged pass, by the node
+    /// contacts' rules ([`decide_split`]) on its force and its held point's slip velocity:
+    /// the change, made here unless it is a release (the caller drops the contact).
+    fn edge_friction(&self, r: usize, e: &mut EdgeContact3, dt: f64) -> Option<Change3> {
         let (q0, qn) = (&self.rods[r].q, &self.work[r].qn);
         let moved = lever_map(&e.lever) * self.body_dx(e.surface);
         let v = (e.held_point(qn) - e.held_point(q0) - moved) / dt;
         let v = v - e.normal * e.normal.dot(&v);
-        match decide(&e.as_node(), &e.total_force(), &v) {
-            Some(Change3::ToSlide { dir }) => {
+        let f = e.total_force();
+        // Pulling is the multiplier's sign (n·F can differ from it in the last bit).
+        let rn = if e.force < 0.0 {
+            e.force
+        } else {
+            e.normal.dot(&f).max(0.0)
+        };
+        let change = decide_split(&e.as_node(), rn, &(f - e.normal * e.normal.dot(&f)), &v)?;
+        match change {
+            Change3::Release => return Some(change),
+            Change3::ToSlide { dir } => {
                 e.grip = Grip3::Slide { dir };
                 e.slide_friction();
             }
-            Some(Change3::ToStick) => {
+            Change3::ToStick => {
                 e.grip = Grip3::Stick {
                     anchor: e.anchor_at(q0),
                 }
             }
-            _ => return false,
         }
         e.switches += 1;
-        true
+        Some(change)
     }
 
     /// Rod r's edge rows of the Newton system (after its node contacts are eliminated): the

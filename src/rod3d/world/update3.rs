@@ -2,6 +2,7 @@
 //! for the bodies' own contacts with fixed obstacles.
 
 use super::*;
+use crate::contact::friction::{decide_cone, Cone};
 
 impl World3 {
     /// Decide the contact sets from the converged pass. Returns how many changed.
@@ -93,14 +94,21 @@ impl World3 {
         let Some((_, s, prox)) = best else { return 0 };
         let mut c = self.contact_at(r, i, s, &prox);
         c.locked = self.work[r].released[i];
-        c.initial_grip(&Self::node(&self.rods[r].q, i));
+        if c.locked {
+            // Released for pulling in this step: caught again, it is held frictionless for
+            // the rest of the step (a contact that pulls carries no friction).
+            c.grip = Grip3::Slide { dir: V3::zeros() };
+        } else {
+            c.initial_grip(&Self::node(&self.rods[r].q, i));
+        }
         self.contacts[r][i] = Some(c);
         report.added += 1;
         1
     }
 
-    /// Bodies on fixed obstacles: release pulling contacts, stick/slip, add support points that
-    /// went below a fixed obstacle.
+    /// Bodies on fixed obstacles: stick/slip by [`decide_cone`] (a stuck contact that pulls
+    /// slides first), release pulling contacts, add support points that went below a fixed
+    /// obstacle.
     fn update_body_contacts(&mut self, dt: f64, report: &mut StepReport3) -> u32 {
         let mut changed = 0;
         // Kept in place (no new list each step).
@@ -108,28 +116,29 @@ impl World3 {
         all.retain_mut(|bc| {
             let n = bc.normal;
             let fn_ = n.dot(&bc.force);
-            if fn_ < 0.0 {
+            let ft = bc.force - n * fn_;
+            let slip = lever_map(&bc.lever) * self.bodies[bc.body].dx / dt;
+            let (stuck, slip_along) = match bc.stuck {
+                Some(_) => (true, 0.0),
+                None => (false, bc.dir.dot(&slip)),
+            };
+            let cone = decide_cone(bc.coulomb, stuck, bc.switches, fn_, ft.norm(), slip_along);
+            if fn_ < 0.0 && cone != Some(Cone::Slide) {
                 report.released += 1;
                 changed += 1;
                 return false;
             }
-            let ft = bc.force - n * fn_;
-            let mu = bc.coulomb;
-            if bc.switches < crate::contact::friction::MAX_SWITCHES && mu.mu_s > 0.0 {
-                let slip = lever_map(&bc.lever) * self.bodies[bc.body].dx / dt;
-                if bc.stuck.is_some() && ft.norm() > mu.mu_s * fn_ {
+            match cone {
+                Some(Cone::Slide) => {
                     bc.stuck = None;
                     bc.dir = -ft / ft.norm();
-                    bc.switches += 1;
-                    changed += 1;
-                    report.switches += 1;
-                } else if bc.stuck.is_none() && bc.dir.dot(&slip) < 0.0 {
-                    bc.stuck = Some(n * bc.gap);
-                    bc.switches += 1;
-                    changed += 1;
-                    report.switches += 1;
                 }
+                Some(Cone::Stick) => bc.stuck = Some(n * bc.gap),
+                None => return true,
             }
+            bc.switches += 1;
+            changed += 1;
+            report.switches += 1;
             true
         });
         self.body_contacts = all;
