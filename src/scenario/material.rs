@@ -82,17 +82,32 @@ pub fn parse(
             ))
         }
     };
-    if !matches!(shape, Obstacle::Circle(_)) {
-        return Err(r.err_hint(
-            "material",
-            Some(v),
-            format!(
-                "a compliant material is implemented for circles only (this is a {}{})",
-                if free { "free " } else { "" },
-                shape.kind()
-            ),
-            "give the fruit as a circle, or remove `material` (rigid)",
-        ));
+    match shape {
+        Obstacle::Circle(_) => {}
+        Obstacle::Plane(_) | Obstacle::Sine(_) => {
+            return Err(r.err_hint(
+                "material",
+                Some(v),
+                format!(
+                    "a {} is an open surface, not a fruit: it cannot carry a material",
+                    shape.kind()
+                ),
+                "put the material on the fruit (a circle); a table stays rigid",
+            ))
+        }
+        _ => {
+            return Err(r.err_hint(
+                "material",
+                Some(v),
+                format!(
+                    "a compliant material is implemented for circles only (this is a {}{}): \
+                     the line-contact law needs the fruit's radius",
+                    if free { "free " } else { "" },
+                    shape.kind()
+                ),
+                "give the fruit as a circle, or remove `material` (rigid)",
+            ))
+        }
     }
     Ok(Some(m))
 }

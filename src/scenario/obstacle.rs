@@ -198,11 +198,11 @@ fn parse_shape(r: &TableReader) -> Result<Obstacle, ScenarioError> {
                 let mut e = r.err(
                     k,
                     r.table.get(k),
-                    format!("unknown key for a {kind} obstacle"),
+                    format!("unknown key for {} {kind} obstacle", article(kind)),
                 );
                 e.hint = Some(match did_you_mean(k, allowed) {
                     Some(m) => format!("did you mean `{m}`?"),
-                    None => format!("a {kind} takes: {}", allowed.join(", ")),
+                    None => format!("{} {kind} takes: {}", article(kind), allowed.join(", ")),
                 });
                 return Err(e);
             }
@@ -290,4 +290,13 @@ fn parse_shape(r: &TableReader) -> Result<Obstacle, ScenarioError> {
         }
     };
     Ok(o)
+}
+
+/// "an" before a vowel ("an ellipse"), "a" otherwise.
+fn article(word: &str) -> &'static str {
+    if word.starts_with(['a', 'e', 'i', 'o', 'u']) {
+        "an"
+    } else {
+        "a"
+    }
 }

@@ -323,3 +323,52 @@ fn a_stiffer_fruit_approaches_the_rigid_fruit_monotonically() {
     );
     assert!(rigid.held);
 }
+
+#[test]
+fn a_material_on_a_shape_that_cannot_carry_one_is_a_located_error() {
+    let bin = env!("CARGO_BIN_EXE_gripsim");
+    let d = tempfile::tempdir().unwrap();
+    let table = "[[obstacle]]\nname = \"table\"\nkind = \"plane\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n";
+    let cases = [
+        (
+            format!("{table}material = \"apple\"\n"),
+            vec![
+                "obstacle.0.material",
+                "\"apple\"",
+                "plane",
+                "cannot carry a material",
+            ],
+        ),
+        (
+            format!(
+                "{table}[[obstacle]]\nname = \"pear\"\nkind = \"ellipse\"\ncenter = [0.0, 0.05]\n\
+                 a = 0.03\nb = 0.04\nfree = true\nmass = 0.2\nmaterial = \"apple\"\n"
+            ),
+            vec![
+                "obstacle.1.material",
+                "free ellipse",
+                "circles only",
+                "radius",
+            ],
+        ),
+    ];
+    for (i, (body, words)) in cases.iter().enumerate() {
+        let path = d.path().join(format!("s{i}.toml"));
+        std::fs::write(
+            &path,
+            format!("name = \"m\"\n[solve]\nmode = \"dynamic\"\nt_end = 0.01\ndt = 1e-4\n{body}"),
+        )
+        .unwrap();
+        let out = std::process::Command::new(bin)
+            .arg("validate")
+            .arg(&path)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("s{i}.toml")), "{err}");
+        for w in words {
+            assert!(err.contains(w), "{w:?} in {err}");
+        }
+    }
+}

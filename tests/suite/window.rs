@@ -147,7 +147,10 @@ fn the_shipped_apple_has_a_grip_window_whose_boundaries_hold_up() {
     assert_eq!(bruise["status"], "found");
     let (gh, gb) = (num(&hold["value"]), num(&bruise["value"]));
     let runs = w["runs"].as_array().unwrap().len();
-    println!("g_hold {gh} N, g_bruise {gb} N, ratio {}, {runs} runs", gb / gh);
+    println!(
+        "g_hold {gh} N, g_bruise {gb} N, ratio {}, {runs} runs",
+        gb / gh
+    );
     assert!(runs <= 14, "{runs} runs");
     assert!(gb / gh > 1.0, "a safe window: {gh} .. {gb}");
     assert!((num(&w["window_ratio"]) - gb / gh).abs() < 1e-12);
@@ -156,7 +159,10 @@ fn the_shipped_apple_has_a_grip_window_whose_boundaries_hold_up() {
     // during the lift, which the margin at its start does not see).
     let needed = num(&w["margin_needed"]);
     let m = num(&hold["at"]["safety_margin_at_lift"]);
-    assert!((m / needed - 1.0).abs() < 0.03, "margin {m} at g_hold against {needed}");
+    assert!(
+        (m / needed - 1.0).abs() < 0.03,
+        "margin {m} at g_hold against {needed}"
+    );
     // Single runs 2 % either side of each boundary flip as the search says.
     let up = run_at(dir.path(), APPLE, gh * 1.02, "hold-up");
     let down = run_at(dir.path(), APPLE, gh * 0.98, "hold-down");
