@@ -3,7 +3,8 @@
 //!
 //! Every array on the path must exist; a missing table is created (`--set
 //! contact.surface=face` on a scenario without `[contact]`) and the last key may be new (the
-//! scenario reader then checks that they are known keys). The value is read as a TOML value, or as a string when
+//! scenario reader then checks that they are known keys). `*` in place of an index sets the key
+//! in every entry of the array: `rod.*.E=2e7` changes every prong. The value is read as a TOML value, or as a string when
 //! it is not one (so `solve.mode=static` needs no quotes).
 
 use toml::{Table, Value};
@@ -57,7 +58,7 @@ pub fn apply(root: &mut Table, assignment: &str) -> Result<(), OverrideError> {
     let value = parse_value(raw);
     let parts: Vec<&str> = path.split('.').collect();
     let mut wrapped = Value::Table(std::mem::take(root));
-    let result = set_path(&mut wrapped, &parts, value, raw);
+    let result = set_path(&mut wrapped, &parts, value, raw, "");
     if let Value::Table(t) = wrapped {
         *root = t;
     }
@@ -69,10 +70,11 @@ fn set_path(
     parts: &[&str],
     value: Value,
     raw: &str,
+    prefix: &str,
 ) -> Result<(), OverrideError> {
     let mut value = Some(value);
     let mut cur: &mut Value = root;
-    let mut walked = String::new();
+    let mut walked = prefix.to_string();
     for (i, part) in parts.iter().enumerate() {
         let last = i + 1 == parts.len();
         let here = if walked.is_empty() {
@@ -81,6 +83,14 @@ fn set_path(
             format!("{walked}.{part}")
         };
         match cur {
+            Value::Table(_) if *part == "*" => {
+                return Err((
+                    here,
+                    raw.into(),
+                    format!("`{walked}` is a table, not an array: `*` stands for every entry of an array"),
+                    None,
+                ));
+            }
             Value::Table(t) => {
                 if last {
                     t.insert(part.to_string(), value.take().unwrap());
@@ -114,13 +124,16 @@ fn set_path(
                 }
                 cur = t.get_mut(*part).unwrap();
             }
+            Value::Array(a) if *part == "*" => {
+                return set_every(a, &parts[i + 1..], value.take().unwrap(), raw, &walked)
+            }
             Value::Array(a) => {
                 let Ok(idx) = part.parse::<usize>() else {
                     return Err((
                         here,
                         raw.into(),
                         format!(
-                            "`{walked}` is an array: expected an index 0..{}",
+                            "`{walked}` is an array: expected an index 0..{} or `*` (every entry)",
                             a.len().saturating_sub(1)
                         ),
                         None,
@@ -152,4 +165,67 @@ fn set_path(
         walked = here;
     }
     Ok(())
+}
+
+/// `KEY.*.REST=VALUE`: set `REST` in every entry of the array at `KEY` (`walked`).
+fn set_every(
+    a: &mut [Value],
+    rest: &[&str],
+    value: Value,
+    raw: &str,
+    walked: &str,
+) -> Result<(), OverrideError> {
+    let here = format!("{walked}.*");
+    if rest.is_empty() {
+        return Err((
+            here,
+            raw.into(),
+            "`*` stands for every entry of an array and must be followed by a key".into(),
+            Some(format!("e.g. --set {walked}.*.E=2e7")),
+        ));
+    }
+    if a.is_empty() {
+        return Err((here, raw.into(), format!("`{walked}` has no entries"), None));
+    }
+    for (k, entry) in a.iter_mut().enumerate() {
+        set_path(entry, rest, value.clone(), raw, &format!("{walked}.{k}"))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn doc() -> Table {
+        "[[rod]]\nE = 1.0\n[[rod]]\nE = 1.0\nname = \"b\"\n[solve]\ndt = 1e-4\n"
+            .parse()
+            .unwrap()
+    }
+
+    #[test]
+    fn a_star_sets_the_key_in_every_entry() {
+        let mut t = doc();
+        apply(&mut t, "rod.*.E=2e7").unwrap();
+        for r in t["rod"].as_array().unwrap() {
+            assert_eq!(r["E"].as_float(), Some(2e7));
+        }
+        apply(&mut t, "rod.*.section.kind=rect").unwrap();
+        assert_eq!(t["rod"][1]["section"]["kind"].as_str(), Some("rect"));
+    }
+
+    #[test]
+    fn a_star_out_of_place_is_an_error_naming_the_path() {
+        let mut t = doc();
+        let e = apply(&mut t, "rod.*=1").unwrap_err();
+        assert_eq!(e.0, "rod.*");
+        let e = apply(&mut t, "solve.*.dt=1").unwrap_err();
+        assert_eq!(e.0, "solve.*", "{e:?}");
+        // An error inside one entry names that entry.
+        let e = apply(&mut t, "rod.*.E.x=1").unwrap_err();
+        assert_eq!(e.0, "rod.0.E.x", "{e:?}");
+        let mut empty: Table = "rod = []".parse().unwrap();
+        let e = apply(&mut empty, "rod.*.E=1").unwrap_err();
+        assert!(e.2.contains("no entries"), "{e:?}");
+    }
 }

@@ -573,6 +573,17 @@ fn bracket(which: Which, pts: &[&Eval]) -> Bracket {
     }
 }
 
+/// The runs a boundary is searched on (sorted). The bruise boundary that closes the window is
+/// the least knob at which a fruit that can be held bruises: runs below the least held one (a
+/// fruit that slips or drops and bruises as it lands on the table) cannot narrow a window they
+/// lie outside of; `boundary` reports them.
+fn scope<'a>(which: Which, pts: &[&'a Eval]) -> Vec<&'a Eval> {
+    match pts.iter().position(|e| e.held == Some(true)) {
+        Some(k) if which == Which::Bruise => pts[k..].to_vec(),
+        _ => pts.to_vec(),
+    }
+}
+
 /// Every i whose verdict differs from i + 1's, on the sorted runs.
 fn changes(which: Which, pts: &[&Eval]) -> Vec<usize> {
     (0..pts.len().saturating_sub(1))
@@ -595,6 +606,7 @@ enum Guess {
 impl Track {
     /// The next knob values (ln) to run for this boundary; empty when it is done.
     fn propose(&mut self, pts: &[&Eval], tau: f64) -> Vec<f64> {
+        let pts = &scope(self.which, pts)[..];
         let Bracket::At(i, j) = bracket(self.which, pts) else {
             return Vec::new();
         };
@@ -732,6 +744,7 @@ impl Track {
 
     /// Record which end of the bracket the last round moved.
     fn update(&mut self, pts: &[&Eval]) {
+        let pts = &scope(self.which, pts)[..];
         let now = match bracket(self.which, pts) {
             Bracket::At(i, j) => Some((pts[i].value, pts[j].value)),
             _ => None,
@@ -917,6 +930,23 @@ fn boundary(which: Which, applicable: bool, pts: &[&Eval], r: &Resolved, tau: f6
         Which::Hold => "g_hold",
         Which::Bruise => "g_bruise",
     };
+    let all = pts;
+    let pts = &scope(which, pts)[..];
+    let below: Vec<f64> = all[..all.len() - pts.len()]
+        .iter()
+        .filter(|e| which.verdict(e))
+        .map(|e| e.value)
+        .collect();
+    let below =
+        match (below.first(), below.last()) {
+            (Some(a), Some(z)) => format!(
+            "; bruised where not held, at {}{} (a fruit that slips or drops bruises as it lands: \
+             outside the window)",
+            r.show(*a),
+            if a < z { format!("–{}", r.show(*z)) } else { String::new() }
+        ),
+            _ => String::new(),
+        };
     if !applicable {
         b.note = match which {
             Which::Hold => {
@@ -1010,6 +1040,9 @@ fn boundary(which: Which, applicable: bool, pts: &[&Eval], r: &Resolved, tau: f6
                 }
             );
         }
+    }
+    if b.status != Status::NotApplicable {
+        b.note.push_str(&below);
     }
     b
 }
@@ -1616,5 +1649,53 @@ mod tests {
             let (n, _) = count_runs(root, 1.067);
             assert!(n <= 12, "root {root}, threshold off: {n} runs");
         }
+    }
+
+    #[test]
+    fn a_bruise_where_the_fruit_is_not_held_does_not_close_the_window() {
+        // Soft prongs: the fruit slips at low grips and bruises as it lands; from 7 N it is
+        // held unbruised, from 16 N squeezed to a bruise. The window is 7–16 N, not "none".
+        let r = resolved(1.25, 80.0);
+        let tau = (1.0 + r.rtol).ln();
+        let at = |v: f64, held: bool, bruised: bool| Eval {
+            held: Some(held),
+            bruised: Some(bruised),
+            bruise_ratio: Some(if bruised { 1.1 } else { 0.9 }),
+            ..eval(v, 7.0)
+        };
+        let runs = [
+            at(1.25, false, false),
+            at(3.5, false, false),
+            at(6.5, false, true),
+            at(7.0, true, false),
+            at(10.0, true, false),
+            at(16.0, true, true),
+            at(28.0, true, true),
+        ];
+        let pts: Vec<&Eval> = runs.iter().collect();
+        let b = boundary(Which::Bruise, true, &pts, &r, tau);
+        assert_eq!(b.status, Status::Found);
+        assert_eq!((b.value, b.other), (Some(16.0), Some(10.0)));
+        assert!(
+            b.note.contains("bruised where not held, at 6.5 N"),
+            "{}",
+            b.note
+        );
+        let mut t = new_track(Which::Bruise, 0.0);
+        let next = t.propose(&pts, tau);
+        assert!(!next.is_empty() && next.iter().all(|x| *x > 10f64.ln() && *x < 16f64.ln()));
+        // Never held: the bruise boundary is searched over every run.
+        let never: Vec<Eval> = runs
+            .iter()
+            .map(|e| Eval {
+                held: Some(false),
+                ..e.clone()
+            })
+            .collect();
+        let pts: Vec<&Eval> = never.iter().collect();
+        assert_eq!(
+            boundary(Which::Bruise, true, &pts, &r, tau).value,
+            Some(6.5)
+        );
     }
 }
