@@ -100,7 +100,13 @@ pub fn fmt_g(v: f64) -> String {
     }
     let a = v.abs();
     if !(1e-3..1e5).contains(&a) {
-        return format!("{v:.3e}");
+        let s = format!("{v:.3e}");
+        return match s.split_once('e') {
+            Some((m, e)) if m.contains('.') => {
+                format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.'))
+            }
+            _ => s,
+        };
     }
     let digits = (3 - a.log10().floor() as i32).max(0) as usize;
     let s = format!("{v:.digits$}");
@@ -1507,6 +1513,9 @@ mod tests {
         assert_eq!(fmt_g(14.4), "14.4");
         assert_eq!(fmt_g(1.37246), "1.372");
         assert_eq!(fmt_g(123456.0), "1.235e5");
+        assert_eq!(fmt_g(1.5e7), "1.5e7");
+        assert_eq!(fmt_g(1e8), "1e8");
+        assert_eq!(fmt_g(-2.5e-4), "-2.5e-4");
         assert_eq!(round_sig(1.234_567_89, 0.01), 1.234_57);
     }
 

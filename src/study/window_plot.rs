@@ -198,6 +198,7 @@ where
     builder
         .caption(caption.as_str(), ("sans-serif", 15))
         .margin(16)
+        .margin_right(40)
         .x_label_area_size(48)
         .y_label_area_size(80);
     let y = || {
@@ -206,8 +207,14 @@ where
             .with_key_points(one_two_five(w.lo, w.hi))
     };
     if log_x {
+        // A log axis labels the designs themselves (a few), else round 1-2-5 values.
+        let ticks: Vec<f64> = if designs.len() <= 8 {
+            designs.iter().map(|d| d.0).collect()
+        } else {
+            one_two_five(x0, x1)
+        };
         body!(builder
-            .build_cartesian_2d((x0..x1).log_scale(), y())
+            .build_cartesian_2d((x0..x1).log_scale().with_key_points(ticks), y())
             .map_err(e)?);
     } else {
         body!(builder.build_cartesian_2d(x0..x1, y()).map_err(e)?);
