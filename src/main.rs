@@ -948,6 +948,61 @@ fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
     );
 }
 
+/// The printed summary of a 3D run, laid out as a planar run's (`print_summary`).
+fn print_summary3(s: &gripsim::rod3d::run3::Summary3, wall: f64) {
+    use gripsim::scenario::expect::GraspOutcome;
+    // Below the printed precision a coordinate is 0 (not "-0.000000").
+    let z = |x: f64| if x.abs() < 5e-7 { 0.0 } else { x };
+    let v3 = |p: [f64; 3]| format!("({:.6}, {:.6}, {:.6})", z(p[0]), z(p[1]), z(p[2]));
+    println!("scenario        {} (3D)", s.name);
+    println!(
+        "steps           {} ({} Newton iterations, {} contact passes)",
+        s.steps, s.newton_iterations, s.contact_passes
+    );
+    println!("simulated       {:.6} s", s.t_end);
+    println!("wall time       {wall:.3} s");
+    if let Some(g) = &s.grasp {
+        let verdict = match g.verdict {
+            None => "no lift".to_string(),
+            Some(GraspOutcome::Held) => "HELD".to_string(),
+            Some(GraspOutcome::Dropped) => "DROPPED".to_string(),
+            Some(GraspOutcome::Slipped) => {
+                format!("SLIPPED beyond {:.3e} m", g.hold_tolerance_m)
+            }
+        };
+        println!(
+            "fruit           {:?} ({:.4} kg): {verdict}",
+            g.fruit, g.fruit_mass_kg
+        );
+        let opt = |x: Option<f64>| x.map_or("-".to_string(), |m| format!("{m:.4}"));
+        println!(
+            "safety margin   {} at lift, {} min during the lift (mu_s * sum N / m g)",
+            opt(g.safety_margin_at_lift),
+            opt(g.min_safety_margin)
+        );
+        println!(
+            "slip            {:.3e} m max relative to the gripper during the lift",
+            g.max_slip_m
+        );
+    }
+    let forces: Vec<String> = s.finger_forces.iter().map(|f| format!("{f:.4}")).collect();
+    println!(
+        "grip force      {} N per finger at the end, {:.4} N peak (mean of the fingers)",
+        forces.join(", "),
+        s.max_grip_force
+    );
+    if let (Some(a), Some(b)) = (s.fruit_start, s.fruit_end) {
+        println!("fruit moved     from {} to {} m", v3(a), v3(b));
+    }
+    if s.worst_penetration.is_finite() {
+        println!(
+            "penetration     {:.3e} m max after the corrector",
+            s.worst_penetration.max(0.0)
+        );
+    }
+    println!("twist           {:.3e} rad max", s.max_twist);
+}
+
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary, `.rrd`
 /// and `.mcap` (src/record/rerun3.rs, mcap3.rs), with `--set` overrides.
 fn run3(
@@ -1080,19 +1135,7 @@ fn run3(
         return ExitCode::from(2);
     }
     if !quiet {
-        println!(
-            "{} (3D): {} steps to t = {:.4} s in {:.2} s; {} Newton iterations, {} contact passes",
-            s.name,
-            s.steps,
-            s.t_end,
-            start.elapsed().as_secs_f64(),
-            s.newton_iterations,
-            s.contact_passes
-        );
-        println!(
-            "finger forces {:?} N (max grip {:.4} N); fruit {:?} -> {:?}; max twist {:.3e} rad; worst penetration {:.2e} m",
-            s.finger_forces, s.max_grip_force, s.fruit_start, s.fruit_end, s.max_twist, s.worst_penetration
-        );
+        print_summary3(&s, start.elapsed().as_secs_f64());
         for (format, p, how) in [
             ("rerun", &out.rrd, "open: rerun FILE"),
             ("mcap", &out.mcap, "open in Foxglove: 3D panel on /scene"),

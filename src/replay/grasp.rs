@@ -41,6 +41,7 @@ pub struct GraspRule {
     dropped: bool,
     expect: GraspOutcome,
     last: (u64, f64, f64),
+    max_slip: f64,
     pub flags: Vec<GraspFlag>,
 }
 
@@ -74,6 +75,7 @@ impl GraspRule {
             dropped: false,
             expect: sc.expect.grasp,
             last: (0, 0.0, 0.0),
+            max_slip: 0.0,
             flags: Vec::new(),
         })
     }
@@ -105,6 +107,7 @@ impl GraspRule {
             dropped: false,
             expect,
             last: (0, 0.0, 0.0),
+            max_slip: 0.0,
             flags: Vec::new(),
         }
     }
@@ -145,6 +148,30 @@ impl GraspRule {
     /// centre, whether a prong touches it.
     pub fn step3(&mut self, step: u64, t: f64, x: &[&[f64]], fruit: [f64; 3], touching: bool) {
         self.step_in(step, t, x, fruit, touching);
+    }
+
+    /// Whether the lift has begun (the gripper rose by a quarter of the hold tolerance above
+    /// where it was at the first touch).
+    pub fn lifted(&self) -> bool {
+        self.reference.is_some()
+    }
+
+    /// The fruit's largest displacement relative to the gripper during the lift so far (m).
+    pub fn max_slip(&self) -> f64 {
+        self.max_slip
+    }
+
+    /// The grasp outcome of the lift: `held` (in place within the tolerance, touching a
+    /// prong), `slipped` (moved more than the tolerance, still touched), `dropped` (touching
+    /// no prong); None without a lift.
+    pub fn outcome(&self) -> Option<GraspOutcome> {
+        self.lifted().then_some(if self.dropped {
+            GraspOutcome::Dropped
+        } else if self.slipped {
+            GraspOutcome::Slipped
+        } else {
+            GraspOutcome::Held
+        })
     }
 
     fn step_in(&mut self, step: u64, t: f64, q: &[&[f64]], fruit: [f64; 3], touching: bool) {
@@ -192,6 +219,7 @@ impl GraspRule {
             (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
         };
         self.last = (step, t, slip);
+        self.max_slip = self.max_slip.max(slip);
         let flag = |kind| GraspFlag {
             kind,
             step,

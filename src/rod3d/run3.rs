@@ -3,11 +3,14 @@
 //! edge it starts, its contact and reaction) and of the fruit's pose, and a summary.
 
 use super::body3::Body3;
+use super::contact3::Surface3;
 use super::events::{Emit3, NullObserver3, Observer3};
 use super::gripper::{radial, Gripper3};
 use super::rod::{angle, pos};
 use super::world::World3;
 use crate::obstacle3::{Obstacle3, Pose3, V3};
+use crate::replay::grasp::GraspRule;
+use crate::scenario::expect::GraspOutcome;
 use crate::scenario::three::Scenario3;
 use std::io::Write as _;
 
@@ -34,6 +37,124 @@ pub struct Summary3 {
     pub worst_penetration: f64,
     /// Largest twist angle of any edge (rad).
     pub max_twist: f64,
+    /// Did the hand hold the fruit through its lift? (A free fruit only; the planar rule and
+    /// key names, `record::grasp`.)
+    pub grasp: Option<Grasp3>,
+}
+
+/// The grasp of a free fruit in a 3D run: the rule of `replay check` ([`GraspRule`]) run live,
+/// with the friction margin at the lift.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Grasp3 {
+    pub fruit: String,
+    pub fruit_mass_kg: f64,
+    /// `held`, `slipped` or `dropped`; null without a lift.
+    pub verdict: Option<GraspOutcome>,
+    pub held: bool,
+    pub dropped: bool,
+    pub hold_tolerance_m: f64,
+    pub lift_start_time_s: Option<f64>,
+    /// μ_s ΣN / (m g) over the fingers' contacts on the fruit when the lift began, and its
+    /// minimum over the lift (frictionless edge contacts count no friction).
+    pub safety_margin_at_lift: Option<f64>,
+    pub min_safety_margin: Option<f64>,
+    /// Largest displacement of the fruit relative to the gripper during the lift (m).
+    pub max_slip_m: f64,
+    /// Largest total normal force of one finger on the fruit (N).
+    pub peak_grip_force_n: f64,
+}
+
+/// The live grasp: the rule and the margins.
+struct GraspLive {
+    rule: GraspRule,
+    out: Grasp3,
+    weight: f64,
+    x: Vec<Vec<f64>>,
+    /// Lift over (the hand came down): margins are no longer taken.
+    done: bool,
+}
+
+impl GraspLive {
+    fn new(sc: &Scenario3, w: &World3) -> Option<GraspLive> {
+        let f = sc.fruit.as_ref().filter(|f| f.free)?;
+        let b = w.bodies.first()?;
+        let clamped = w
+            .rods
+            .iter()
+            .map(|s| (0..s.rod.n).filter(|&i| s.fixed[pos(i)]).collect())
+            .collect();
+        Some(GraspLive {
+            rule: GraspRule::of3(clamped, sc.gravity, f.hold_tolerance, sc.expect.grasp),
+            weight: b.mass * w.gravity.norm(),
+            x: w.rods.iter().map(|s| vec![0.0; 3 * s.rod.n]).collect(),
+            done: false,
+            out: Grasp3 {
+                fruit: f.name.clone(),
+                fruit_mass_kg: b.mass,
+                verdict: None,
+                held: false,
+                dropped: false,
+                hold_tolerance_m: f.hold_tolerance,
+                lift_start_time_s: None,
+                safety_margin_at_lift: None,
+                min_safety_margin: None,
+                max_slip_m: 0.0,
+                peak_grip_force_n: 0.0,
+            },
+        })
+    }
+
+    fn step(&mut self, w: &World3, step: u64) {
+        let on = |s: Surface3| s == Surface3::Body(0);
+        let (mut mu_n, mut touching) = (0.0, false);
+        for r in 0..w.rods.len() {
+            let mut finger = 0.0;
+            for (c, re) in w.contacts[r].iter().zip(&w.reactions[r]) {
+                if let Some(c) = c.filter(|c| on(c.surface)) {
+                    let n = c.normal.dot(re).max(0.0);
+                    finger += n;
+                    mu_n += c.coulomb.mu_s * n;
+                    touching = true;
+                }
+            }
+            for e in w.edges[r].iter().filter(|e| on(e.surface)) {
+                finger += e.force.max(0.0);
+                touching = true;
+            }
+            self.out.peak_grip_force_n = self.out.peak_grip_force_n.max(finger);
+            let q = &w.rods[r].q;
+            for (i, x) in self.x[r].chunks_exact_mut(3).enumerate() {
+                x.copy_from_slice(&q[pos(i)..pos(i) + 3]);
+            }
+        }
+        let c = w.bodies[0].centre();
+        let xs: Vec<&[f64]> = self.x.iter().map(Vec::as_slice).collect();
+        let was = self.rule.lifted();
+        self.rule
+            .step3(step, w.time, &xs, [c.x, c.y, c.z], touching);
+        let margin = if self.weight > 0.0 {
+            mu_n / self.weight
+        } else {
+            f64::INFINITY
+        };
+        if !was && self.rule.lifted() {
+            self.out.lift_start_time_s = Some(w.time);
+            self.out.safety_margin_at_lift = Some(margin);
+        }
+        self.done |= self.rule.outcome() == Some(GraspOutcome::Dropped);
+        if self.rule.lifted() && !self.done {
+            let m = self.out.min_safety_margin.map_or(margin, |m| m.min(margin));
+            self.out.min_safety_margin = Some(m);
+        }
+    }
+
+    fn finish(mut self) -> Grasp3 {
+        self.out.verdict = self.rule.outcome();
+        self.out.held = self.out.verdict == Some(GraspOutcome::Held);
+        self.out.dropped = self.out.verdict == Some(GraspOutcome::Dropped);
+        self.out.max_slip_m = self.rule.max_slip();
+        self.out
+    }
 }
 
 /// The world and the gripper of a scenario, at t = 0.
@@ -251,7 +372,9 @@ fn run_loop(
         fruit_end: None,
         worst_penetration: f64::NEG_INFINITY,
         max_twist: 0.0,
+        grasp: None,
     };
+    let mut grasp = GraspLive::new(sc, w);
     if let Some(f) = csv.as_deref_mut() {
         csv_rows(f, w, 0).map_err(|e| e.to_string())?;
     }
@@ -280,10 +403,14 @@ fn run_loop(
                     .max((sim.q[angle(e)] - sim.rod.q0[angle(e)]).abs());
             }
         }
+        if let Some(g) = grasp.as_mut() {
+            g.step(w, s.steps);
+        }
         if let Some(f) = csv.as_deref_mut() {
             csv_rows(f, w, s.steps).map_err(|e| e.to_string())?;
         }
     }
+    s.grasp = grasp.map(GraspLive::finish);
     w.end_observed(obs);
     s.t_end = w.time;
     s.finger_forces = g.finger_forces(w);
