@@ -45,6 +45,8 @@ pub fn line_area(rho0: f64, delta: f64) -> (f64, f64) {
     let d = rho0 - dl;
     let c = (dl * (2.0 * rho0 - dl)).sqrt();
     let u = c / d;
+    // asinh(c/d) = ln((c + ρ₀)/d), as c² + d² = ρ₀²: one log, no hypot.
+    let ash = ((dl + c) / d).ln_1p();
     let a = if u < 0.1 {
         // A / d² = 2 ∫₀ᵘ t² (1 + t²)^(−1/2) dt.
         let u2 = u * u;
@@ -57,9 +59,9 @@ pub fn line_area(rho0: f64, delta: f64) -> (f64, f64) {
                     - u2 * (3.0 / 56.0
                         - u2 * (5.0 / 144.0 - u2 * (35.0 / 1408.0 - u2 * 63.0 / 3328.0)))))
     } else {
-        rho0 * c - d * d * u.asinh()
+        rho0 * c - d * d * ash
     };
-    (a, 2.0 * d * u.asinh())
+    (a, 2.0 * d * ash)
 }
 
 /// The chord 2 √(2 ρ₀ δ − δ²): the length of a straight face at depth δ inside the circle.
