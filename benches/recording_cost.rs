@@ -370,7 +370,7 @@ fn main() {
         );
     }
     // The recorded rows keep both cores busy: on a machine whose cores share a clock budget
-    // (this VM, docs/performance.md, thirteenth pass) the simulation in them runs at the
+    // (this VM, docs/performance.md, "Recording cost") the simulation in them runs at the
     // clock of the busy row, not at the one a single busy core gets.
     let median_of = |name: &str| medians.iter().find(|m| m.0 == name).map(|m| m.1);
     if let (Some(alone), Some(busy), Some(both)) = (
@@ -387,7 +387,7 @@ fn main() {
     }
     // The no-sink reference runs on one core, the recorded rows on all: on a machine whose
     // cores differ in speed (a shared VM's vCPUs), the ratios depend on which core the
-    // reference got (docs/performance.md, tenth pass).
+    // reference got (docs/performance.md, "Recording cost").
     let by_cpu: Vec<String> = reference_cpus
         .iter_mut()
         .map(|(cpu, ts)| {

@@ -30,7 +30,7 @@ const QUEUED: usize = 16;
 /// its time slice ends instead of being switched out at every hand-over. Threads the calling
 /// thread starts afterwards (the Rerun SDK's, when the `.rrd` sink is made here) inherit it.
 /// Two-prong grasp, both files at step detail, 22 alternated rounds: wall time −6 to −8 %,
-/// CPU time −5 % (docs/performance.md, eleventh pass). Elsewhere, and if the call fails
+/// CPU time −5 % (docs/performance.md, "Recording cost"). Elsewhere, and if the call fails
 /// (a policy the system refuses), the thread runs as it was.
 pub fn as_writer_thread() {
     #[cfg(target_os = "linux")]

@@ -61,8 +61,8 @@ use std::path::Path;
 pub const FORMAT_VERSION: u32 = 4;
 
 /// The zstd level of the MCAP's chunks: −1, the fastest level's one-step acceleration, with
-/// [`ZSTD_MIN_MATCH`] and [`ZSTD_HASH_LOG`] (docs/performance.md, fifth pass: level 1 against
-/// 3; eleventh pass: these three against level 1, the same bytes in 7 % fewer instructions).
+/// [`ZSTD_MIN_MATCH`] and [`ZSTD_HASH_LOG`]: the bytes of level 1 in 7 % fewer instructions
+/// (docs/performance.md, "Recording cost").
 pub const ZSTD_LEVEL: i32 = -1;
 /// zstd's shortest match in the MCAP's chunks: 4 bytes (the level's 6–7 miss the repeats of
 /// protobuf field tags and `float`s; two-prong grasp: 2.7 % fewer bytes at level 1).

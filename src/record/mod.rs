@@ -263,8 +263,8 @@ enum Target {
 /// for them (Linux: `sync_file_range` with `SYNC_FILE_RANGE_WRITE`; elsewhere nothing), so
 /// that the `fsync` at the end ([`OutputFile::settle`]) finds only the last flush's pages
 /// left: 0.3 ms instead of 2-4 ms per file of the two-prong grasp on this machine's disk,
-/// time in which the cores stood idle (docs/performance.md, eleventh pass). Durability is
-/// the `fsync`'s, as before; this only moves the writing earlier, beside the run.
+/// time in which the cores stood idle (docs/performance.md, "Recording cost"). Durability
+/// is the `fsync`'s; this only moves the writing earlier, beside the run.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Writeback {
     /// The file's descriptor (regular files only: a device or FIFO is written through).

@@ -265,7 +265,7 @@ fn auto_files_are_smaller_and_read_by_the_independent_readers() {
         let len = |f: &Path| std::fs::metadata(f).unwrap().len() as f64;
         size.insert(detail, (len(&rrd), len(&mcap)));
     }
-    // Measured (docs/performance.md): .mcap 7.2x, .rrd 4.9x, both 5.8x smaller at auto
+    // Measured (docs/performance.md): .mcap 6.8x, .rrd 4.4x, both 5.2x smaller at auto
     // (750 of 6 001 steps, 166 of them with their iterations).
     let (a, s) = (size["auto"], size["step"]);
     assert!(s.1 / a.1 > 4.0, "mcap {s:?} / {a:?}");
