@@ -275,6 +275,19 @@ impl Simulation {
 
     /// Slip velocity of a contact along its tangent, relative to the surface (m/s).
     fn slip_velocity(&self, ctx: &StepCtx, r: usize, i: usize, c: &Constraint) -> f64 {
+        self.velocity_along(ctx, r, i, c, c.tangent())
+    }
+
+    /// Node i's velocity along `t` relative to the surface of its contact `c` (its body's
+    /// motion taken out; m/s; 0 in a static solve).
+    pub(super) fn velocity_along(
+        &self,
+        ctx: &StepCtx,
+        r: usize,
+        i: usize,
+        c: &Constraint,
+        t: [f64; 2],
+    ) -> f64 {
         if !ctx.dynamic {
             return 0.0;
         }
@@ -286,7 +299,6 @@ impl Simulation {
                 d[a] -= g[0][a] * x[0] + g[1][a] * x[1] + g[2][a] * x[2];
             }
         }
-        let t = c.tangent();
         (t[0] * d[0] + t[1] * d[1]) / ctx.dt
     }
 

@@ -210,6 +210,23 @@ impl Coupled<'_> {
             }
         }
         press_bodies(self.bodies, self.scratch, nb);
+        let (body_converged, body_res, body_worst) = self.body_residuals(opt, iterations)?;
+        converged &= body_converged;
+        if body_res > res_max {
+            (res_max, worst) = (body_res, body_worst);
+        }
+        Ok((converged, res_max, worst))
+    }
+
+    /// The bodies' residuals (their contacts' reactions taken off) and whether each body's
+    /// contacts hold their equations: (converged, largest residual, (usize::MAX, body)).
+    fn body_residuals(
+        &self,
+        opt: &NewtonOptions,
+        iterations: u32,
+    ) -> Result<(bool, f64, (usize, usize)), CoupledFailure> {
+        let mut converged = true;
+        let (mut res_max, mut worst) = (0.0f64, (usize::MAX, 0usize));
         for (bi, b) in self.bodies.iter().enumerate() {
             let mut g = [
                 self.scratch.g[3 * bi],

@@ -218,19 +218,7 @@ impl Simulation {
     /// The node's slip velocity along the fruit's tangent relative to the fruit's surface
     /// (the hold's direction; its body's motion taken out).
     fn law_slip_velocity(&self, ctx: &StepCtx, r: usize, i: usize, hold: &Constraint) -> f64 {
-        if !ctx.dynamic {
-            return 0.0;
-        }
-        let w = &self.work[r];
-        let mut d = [w.dq[2 * i], w.dq[2 * i + 1]];
-        if let Some((b, g)) = hold.body_columns() {
-            let x = self.bodies[b].dx;
-            for a in 0..2 {
-                d[a] -= g[0][a] * x[0] + g[1][a] * x[1] + g[2][a] * x[2];
-            }
-        }
-        let t = hold.normal;
-        (t[0] * d[0] + t[1] * d[1]) / ctx.dt
+        self.velocity_along(ctx, r, i, hold, hold.normal)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -360,12 +348,44 @@ impl Simulation {
             .max()
             .unwrap_or(0);
         let n_sum: f64 = nodes.iter().map(|&(_, f)| f).sum();
-        let (grip, rt, v_t) = match slide {
+        let (grip, rt, v_t) = self.arc_tangent(ctx, r, k, &nodes, t, coulomb, slide, n_sum);
+        let switch = friction::decide_on(coulomb, grip, switches, n_sum, rt, v_t);
+        let stuck = match (switch, slide) {
+            (Some(Switch::ToSlide { sign }), _) => Err(sign),
+            (Some(Switch::ToStick), _) => Ok(()),
+            (None, Some(s)) => Err(s.sign),
+            (None, None) => Ok(()),
+        };
+        if let (Some(_), Some(&(i, _))) = (switch, nodes.first()) {
+            self.law_event(ctx, pass, r, i, k, stuck.is_ok(), n_sum, rt, v_t, obs);
+        }
+        let sw = switches + u8::from(switch.is_some());
+        let weights = self.arc_weights(r, k, &nodes, t, rt, n_sum);
+        self.set_arc(r, k, &nodes, &weights, stuck, sw)
+    }
+
+    /// An arc's grip, tangential resultant R_t along `t` and slip velocity: when it slides,
+    /// μ_k ΣN against its slip and its nodes' slip velocity weighted by the kinetic force each
+    /// carries; when it sticks, the holds' tangential reactions summed.
+    #[allow(clippy::too_many_arguments)]
+    fn arc_tangent(
+        &self,
+        ctx: &StepCtx,
+        r: usize,
+        k: usize,
+        nodes: &[(usize, f64)],
+        t: [f64; 2],
+        coulomb: friction::Coulomb,
+        slide: Option<LawSlip>,
+        n_sum: f64,
+    ) -> (Grip, f64, f64) {
+        let w = &self.work[r];
+        match slide {
             Some(s) => {
                 // The arc's slip velocity: its nodes' by the parts of the kinetic force they
                 // carry.
                 let (mut v, mut wsum) = (0.0, 0.0);
-                for &(i, _) in &nodes {
+                for &(i, _) in nodes {
                     let Some(sl) = w.law_slip[i].filter(|s| s.obstacle == k) else {
                         continue;
                     };
@@ -383,7 +403,7 @@ impl Simulation {
             }
             None => {
                 let mut rt = 0.0;
-                for &(i, _) in &nodes {
+                for &(i, _) in nodes {
                     if let Some(c) = w.contact[i] {
                         let f = c.normal[0] * w.r[2 * i] + c.normal[1] * w.r[2 * i + 1];
                         rt += f * (c.normal[0] * t[0] + c.normal[1] * t[1]);
@@ -391,23 +411,23 @@ impl Simulation {
                 }
                 (Grip::Stick { anchor: [0.0; 2] }, rt, 0.0)
             }
-        };
-        let switch = friction::decide_on(coulomb, grip, switches, n_sum, rt, v_t);
-        let stuck = match (switch, slide) {
-            (Some(Switch::ToSlide { sign }), _) => Err(sign),
-            (Some(Switch::ToStick), _) => Ok(()),
-            (None, Some(s)) => Err(s.sign),
-            (None, None) => Ok(()),
-        };
-        if let (Some(_), Some(&(i, _))) = (switch, nodes.first()) {
-            self.law_event(ctx, pass, r, i, k, stuck.is_ok(), n_sum, rt, v_t, obs);
         }
-        let sw = switches + u8::from(switch.is_some());
-        // The kinetic force is shared as the holds shared the friction when the arc let go
-        // (a share by pressure instead would shift force along the prong in one step and
-        // move its nodes by their own elasticity, which reads as a reversed slip).
+    }
+
+    /// How an arc's kinetic force is shared among its nodes: as the holds shared the friction
+    /// when the arc let go (a share by pressure instead would shift force along the prong in
+    /// one step and move its nodes by their own elasticity, which reads as a reversed slip).
+    fn arc_weights(
+        &self,
+        r: usize,
+        k: usize,
+        nodes: &[(usize, f64)],
+        t: [f64; 2],
+        rt: f64,
+        n_sum: f64,
+    ) -> Vec<f64> {
         let w = &self.work[r];
-        let weights: Vec<f64> = nodes
+        nodes
             .iter()
             .map(|&(i, f)| match (w.contact[i], w.law_slip[i]) {
                 (Some(c), _) if c.law.is_some() && rt != 0.0 => {
@@ -418,8 +438,7 @@ impl Simulation {
                 _ if rt == 0.0 && n_sum > 0.0 => f / n_sum,
                 _ => 0.0,
             })
-            .collect();
-        self.set_arc(r, k, &nodes, &weights, stuck, sw)
+            .collect()
     }
 
     /// Every node of an arc held (`Ok`) or sliding in direction `Err(sign)`; returns whether
