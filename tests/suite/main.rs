@@ -18,6 +18,7 @@ mod friction_pull;
 mod frictionless_golden;
 mod fruit;
 mod integrator;
+mod joints;
 mod no_data_loss;
 mod pick_and_place;
 mod planar_identity;
