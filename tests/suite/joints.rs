@@ -310,3 +310,40 @@ fn energy_and_momentum_balances_close_with_joints() {
         assert!(closure.abs() < 1e-8, "{kind}: closure {closure:e}");
     }
 }
+
+/// The joints' force and moment reach every step's end and the run's summary.
+#[test]
+fn joint_force_and_moment_reach_the_step_end_and_the_summary() {
+    use gripsim::events::{Event, Observer};
+    use gripsim::record::summary::SummaryCollector;
+    struct Both(SummaryCollector, Vec<gripsim::events::JointView>);
+    impl Observer for Both {
+        fn on_event(&mut self, e: &Event<'_>) {
+            self.0.on_event(e);
+            if let Event::StepEnd { joints, .. } = e {
+                self.1 = joints.to_vec();
+            }
+        }
+    }
+    let p = 1e-6 * EI / (L * L);
+    let sc = Scenario::from_str(
+        &l_frame(30, [0.0, -p], "rigid", "mode = \"static\""),
+        "t.toml",
+        &[],
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let mut sim = Simulation::new(&sc);
+    let mut obs = Both(SummaryCollector::new(), Vec::new());
+    sim.run(&mut obs).unwrap_or_else(|e| panic!("{e}"));
+    let s = obs.0.finish(&sim.stats, 0.0);
+    let last = obs.1[0];
+    assert_eq!((last.rods, last.nodes), ([0, 1], [29, 0]));
+    assert!((last.force[1] / p - 1.0).abs() < 1e-4, "{last:?}");
+    assert!((last.moment.abs() / (p * L) - 1.0).abs() < 1e-3, "{last:?}");
+    let js = &s.joints[0];
+    println!("summary joint: {js:?}");
+    assert_eq!(js.rods, ["column".to_string(), "beam".to_string()]);
+    assert_eq!(js.final_force_n, last.force);
+    assert!((js.peak_force_n / p - 1.0).abs() < 1e-4);
+    assert!((js.peak_moment_nm / (p * L) - 1.0).abs() < 1e-3);
+}
