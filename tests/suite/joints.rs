@@ -347,3 +347,94 @@ fn joint_force_and_moment_reach_the_step_end_and_the_summary() {
     assert!((js.peak_force_n / p - 1.0).abs() < 1e-4);
     assert!((js.peak_moment_nm / (p * L) - 1.0).abs() < 1e-3);
 }
+
+/// A Fin Ray finger built by hand: front flank from (0, 0) up to the tip (0, H), back flank
+/// from (W, 0) to the tip, `ribs` horizontal ribs between them at equal spacing, joined
+/// `kind` at both ends, the flanks rigidly joined at the tip, both clamped at the base
+/// (nodes 0, 1). With `ribs = 0` and no back flank: the front flank alone, a single prong.
+/// A static load `p` (N, +x: pressing into the finger) at the front flank's mid node.
+fn fin_ray(ribs: usize, kind: &str, p: f64, single: bool) -> String {
+    fin_ray_with(ribs, kind, p, single, 0.04, 0.002)
+}
+
+/// [`fin_ray`] with base width `w` (m) and rib thickness `rib_h` (m).
+fn fin_ray_with(ribs: usize, kind: &str, p: f64, single: bool, w: f64, rib_h: f64) -> String {
+    const H: f64 = 0.1;
+    let per = 6; // front-flank edges between ribs
+    let nf = (ribs + 1) * per + 1;
+    let mid = (nf - 1) / 2;
+    let rod = |name: &str, n: usize, a: [f64; 2], b: [f64; 2], extra: &str| {
+        let h = if name.starts_with("rib") {
+            rib_h
+        } else {
+            0.002
+        };
+        format!(
+            "[[rod]]\nname = \"{name}\"\nnodes = {n}\nshape = {{ kind = \"straight\", start = [{:e}, {:e}], end = [{:e}, {:e}] }}\n\
+             E = 1e6\nsection = {{ kind = \"rect\", b = 0.02, h = {h:e} }}\ndensity = 1000.0\n{extra}\n\n",
+            a[0], a[1], b[0], b[1]
+        )
+    };
+    let mut t = String::from(
+        "name = \"fin-ray\"\n[solve]\nmode = \"static\"\ngravity = [0.0, 0.0]\nforce_tol = 1e-12\n\n",
+    );
+    let load = format!("clamped = [0, 1]\nloads = [{{ node = {mid}, force = [{p:e}, 0.0] }}]");
+    t += &rod("front", nf, [0.0, 0.0], [0.0, H], &load);
+    if single {
+        return t;
+    }
+    t += &rod("back", nf, [w, 0.0], [0.0, H], "clamped = [0, 1]");
+    t += &format!(
+        "[[joint]]\nrods = [\"front\", \"back\"]\nnodes = [{}, {}]\nkind = \"rigid\"\n\n",
+        nf - 1,
+        nf - 1
+    );
+    for k in 1..=ribs {
+        let i = k * per;
+        let y = H * i as f64 / (nf - 1) as f64;
+        let xb = w * (1.0 - y / H);
+        // The back flank's node i at height y: its straight shape puts node i at w (1 − i/(nf−1)).
+        t += &rod(&format!("rib{k}"), 7, [0.0, y], [xb, y], "");
+        t += &format!(
+            "[[joint]]\nrods = [\"front\", \"rib{k}\"]\nnodes = [{i}, 0]\nkind = \"{kind}\"\n\n"
+        );
+        t += &format!(
+            "[[joint]]\nrods = [\"back\", \"rib{k}\"]\nnodes = [{i}, 6]\nkind = \"{kind}\"\n\n"
+        );
+    }
+    t
+}
+
+/// The Fin Ray effect of a hand-built finger (front flank, back flank, ribs; W = 0.04 m,
+/// H = 0.1 m, flanks and ribs 2 mm thick): pushed at the front flank's mid node, a small push
+/// leaves the tip nearly still (it follows the push by ~1 % of a single prong's tip motion);
+/// a large push (P = 0.2 N, the front flank pushed in by a third of its length) with pinned
+/// ribs turns the tip toward the load (−x), where the front flank alone swings away (+x).
+#[test]
+fn fin_ray_finger_with_pinned_ribs_wraps_toward_a_large_mid_flank_push() {
+    let tip = |text: &str| {
+        let sim = run(text);
+        let n = sim.rods[0].n;
+        (node(&sim, 0, n - 1)[0], node(&sim, 0, (n - 1) / 2)[0])
+    };
+    let (small_single, _) = tip(&fin_ray(0, "pin", 1e-3, true));
+    let (small, small_mid) = tip(&fin_ray(5, "pin", 1e-3, false));
+    println!(
+        "P = 1e-3 N: single prong tip dx {small_single:.4e} m; fin ray (5 pinned ribs) tip dx \
+         {small:.4e} m, mid dx {small_mid:.4e} m"
+    );
+    assert!(small_single > 0.0 && small_mid > 0.0);
+    assert!(
+        small.abs() < 0.01 * small_single,
+        "{small} against {small_single}"
+    );
+    let (single, single_mid) = tip(&fin_ray(0, "pin", 0.2, true));
+    println!("P = 0.2 N: single prong tip dx {single:.4e} m, mid dx {single_mid:.4e} m");
+    assert!(single > 0.05, "the single prong swings away: {single}");
+    for ribs in [4usize, 5] {
+        let (t, m) = tip(&fin_ray(ribs, "pin", 0.2, false));
+        println!("P = 0.2 N: fin ray ({ribs} pinned ribs) tip dx {t:.4e} m, mid dx {m:.4e} m");
+        assert!(m > 0.03, "the flank is pushed in: {m}");
+        assert!(t < -2e-3, "{ribs} ribs: the tip turns toward the load: {t}");
+    }
+}
