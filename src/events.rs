@@ -202,6 +202,19 @@ fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Erro
     }
 }
 
+/// A joint (`[[joint]]`) at the end of a step: what member a passes to member b there.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct JointView {
+    /// The members (rod indices) and their joined nodes.
+    pub rods: [usize; 2],
+    pub nodes: [usize; 2],
+    /// The force member a exerts on member b (N).
+    pub force: [f64; 2],
+    /// The bending moment a rigid joint carries (N·m; 0 for a pin), positive when member b
+    /// is turned counter-clockwise from its rest angle to member a.
+    pub moment: f64,
+}
+
 /// A free body at the end of a step.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct BodyView<'a> {
@@ -312,6 +325,8 @@ pub enum Event<'a> {
         bodies: &'a [BodyView<'a>],
         /// Every active contact, with its forces and friction state.
         contacts: &'a [ContactView],
+        /// Every joint's force and moment (empty without `[[joint]]`s).
+        joints: &'a [JointView],
     },
     /// The run ended; `error` is set when it stopped on a failure.
     RunEnd {
@@ -474,6 +489,7 @@ pub struct OwnedStepEnd {
     pub rods: Vec<OwnedRodStep>,
     pub bodies: Vec<OwnedBody>,
     pub contacts: Vec<ContactView>,
+    pub joints: Vec<JointView>,
 }
 
 impl OwnedStepEnd {
@@ -488,6 +504,7 @@ impl OwnedStepEnd {
             rods,
             bodies,
             contacts,
+            joints,
         } = *ev
         else {
             return false;
@@ -503,6 +520,7 @@ impl OwnedStepEnd {
             d.set(b);
         }
         copy_into(&mut self.contacts, contacts);
+        copy_into(&mut self.joints, joints);
         true
     }
 

@@ -385,6 +385,7 @@ impl HeldStep {
             rods: &rods,
             bodies: &bodies,
             contacts: &e.contacts,
+            joints: &e.joints,
         });
     }
 }
@@ -710,6 +711,7 @@ mod tests {
                 rods: &[rod],
                 bodies: &[],
                 contacts: &[],
+                joints: &[],
             });
         }
         layer.on_event(&Event::RunEnd {

@@ -2395,6 +2395,7 @@ impl Observer for RerunSink {
                 rods,
                 bodies,
                 contacts,
+                joints: _,
             } => {
                 self.step_end(step, t, dt, newton_iterations, passes, rods);
                 self.draw_pressure(step, t, rods, contacts);

@@ -90,6 +90,26 @@ pub struct Summary {
     /// with a compliant fruit happened).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact_pressure: Option<PressureSummary>,
+    /// Per `[[joint]]`: the largest force and moment it carried and the last (absent without
+    /// joints).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub joints: Vec<JointSummary>,
+}
+
+/// What one joint carried over the run.
+#[derive(Debug, Clone, Serialize, PartialEq, Default)]
+pub struct JointSummary {
+    /// The members (rod names) and their joined nodes.
+    pub rods: [String; 2],
+    pub nodes: [usize; 2],
+    /// Largest |force| member a exerted on member b (N), and when (s).
+    pub peak_force_n: f64,
+    pub peak_force_time_s: f64,
+    /// Largest |moment| of a rigid joint (N·m).
+    pub peak_moment_nm: f64,
+    /// At the last step: force (N) and moment (N·m).
+    pub final_force_n: [f64; 2],
+    pub final_moment_nm: f64,
 }
 
 /// What a compliant fruit felt over the run (Hertz line contact, docs/model.md): the solved
@@ -208,9 +228,36 @@ pub struct SummaryCollector {
     pressure: Option<PressureSummary>,
     /// The obstacles' names (a body's own contact is named by the obstacle it presses).
     obstacles: Vec<String>,
+    joints: Vec<JointSummary>,
 }
 
 impl SummaryCollector {
+    /// The joints' peaks and last values.
+    fn joint_peaks(&mut self, t: f64, joints: &[crate::events::JointView]) {
+        if self.joints.len() != joints.len() {
+            self.joints = joints
+                .iter()
+                .map(|j| JointSummary {
+                    rods: j
+                        .rods
+                        .map(|r| self.names.get(r).cloned().unwrap_or_default()),
+                    nodes: j.nodes,
+                    ..JointSummary::default()
+                })
+                .collect();
+        }
+        for (s, j) in self.joints.iter_mut().zip(joints) {
+            let f = j.force[0].hypot(j.force[1]);
+            if f > s.peak_force_n {
+                s.peak_force_n = f;
+                s.peak_force_time_s = t;
+            }
+            s.peak_moment_nm = s.peak_moment_nm.max(j.moment.abs());
+            s.final_force_n = j.force;
+            s.final_moment_nm = j.moment;
+        }
+    }
+
     /// With the default impulse-consistent force window of 1 ms.
     pub fn new() -> Self {
         Self::with_force_window(1e-3)
@@ -262,6 +309,7 @@ impl SummaryCollector {
             min_eigenvalue: stats.min_eigenvalue,
             unstable_equilibrium: stats.unstable_equilibrium,
             contact_pressure: self.pressure.clone(),
+            joints: self.joints.clone(),
         }
     }
 
@@ -376,11 +424,13 @@ impl Observer for SummaryCollector {
                 dt,
                 rods,
                 contacts,
+                joints,
                 ..
             } => {
                 self.steps = *step;
                 self.t = *t;
                 self.pressures(*t, contacts);
+                self.joint_peaks(*t, joints);
                 for (ri, v) in rods.iter().enumerate() {
                     let s = &mut self.rods[ri];
                     let mut drive = [0.0; 2];

@@ -186,6 +186,7 @@ fn drive(
                     rods: &views,
                     bodies: &[],
                     contacts: &[],
+                    joints: &[],
                 });
                 if style.is_none() {
                     style = k.style().cloned();

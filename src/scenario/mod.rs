@@ -9,6 +9,7 @@ pub mod expect;
 pub mod friction;
 pub mod geometry;
 pub mod input;
+pub mod joint;
 pub mod material;
 pub mod obstacle;
 pub mod overrides;
@@ -303,6 +304,8 @@ pub struct Scenario {
     pub flush_every: u64,
     /// `[output] precision` of the MCAP's per-node numbers.
     pub precision: Precision,
+    /// `[[joint]]`s: nodes of two rods held together (pin or rigid).
+    pub joints: Vec<joint::JointSpec>,
     /// The scenario as TOML text, with overrides applied (stored in recordings).
     #[serde(skip)]
     pub text: String,
@@ -323,6 +326,7 @@ const TOP_KEYS: &[&str] = &[
     "actuator",
     "expect",
     "contact",
+    "joint",
 ];
 const SOLVE_KEYS: &[&str] = &[
     "mode",
@@ -546,6 +550,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         }
     };
     let actuators = actuation::parse_actuators(&top)?;
+    let joined = joint::mentioned(root);
     let mut rods: Vec<RodSpec> = Vec::new();
     let tables = rods_v
         .iter()
@@ -563,7 +568,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             (parse_particle(&r, solve.mode)?, r)
         } else {
             let r = top.table_value(&path, v, ROD_KEYS)?;
-            (parse_rod(&r, solve.mode, &actuators)?, r)
+            (parse_rod(&r, solve.mode, &actuators, &joined)?, r)
         };
         if let Some(j) = rods.iter().position(|o: &RodSpec| o.name == rod.name) {
             return Err(r.err_hint(
@@ -639,6 +644,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "use mode = \"dynamic\", or remove [friction]",
         ));
     }
+    let joints = joint::parse(&top, &rods, solve.mode)?;
     let expect = expect::parse(&top)?;
     let contact = contact::parse(&top)?;
     let mut flush_every = 100;
@@ -679,6 +685,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
         materials,
         flush_every,
         precision,
+        joints,
         text: String::new(),
         file: file.into(),
     })
@@ -954,6 +961,7 @@ fn parse_rod(
     r: &TableReader,
     mode: Mode,
     actuators: &[ActuatorSpec],
+    joined: &[String],
 ) -> Result<RodSpec, ScenarioError> {
     let name = r.str("name")?.to_string();
     if name.trim().is_empty() {
@@ -1121,7 +1129,8 @@ fn parse_rod(
             "every node is clamped: nothing is left to simulate",
         ));
     }
-    if mode == Mode::Static && clamped.len() < 2 {
+    // A joined rod may lean on its joints (its set of joined rods is checked as a whole).
+    if mode == Mode::Static && clamped.len() < 2 && !joined.contains(&name) {
         return Err(r.err_hint(
             "clamped",
             r.get("clamped"),

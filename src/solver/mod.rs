@@ -9,6 +9,7 @@ mod edge_sets;
 mod edges;
 mod edges_coupled;
 mod fruit;
+pub mod joints;
 pub mod newton;
 mod outputs;
 mod release;
@@ -234,6 +235,8 @@ pub struct Simulation {
     /// Static mode: per edge contact (rod, segment, obstacle) its last re-linearisation in
     /// this load increment (weight, closest weight − weight), for the secant step.
     edge_history: Vec<(usize, usize, usize, f64, f64)>,
+    /// `[[joint]]`s and the networks of rods they join (solved together).
+    pub joints: joints::Joints,
 }
 
 /// Step-end outputs of one body.
@@ -248,6 +251,7 @@ impl Simulation {
         let rods: Vec<Rod> = scenario.rods.iter().map(Rod::new).collect();
         let g = scenario.solve.gravity;
         let work = rod_works(scenario, &rods);
+        let joints = joints::Joints::new(&scenario.joints, &rods, &work);
         let out = rods.iter().map(|r| RodOut::new(r.n)).collect();
         let infos = rods.iter().map(|r| r.info()).collect();
         let bodies: Vec<Body> = scenario.bodies.iter().map(|b| Body::new(b, g)).collect();
@@ -317,6 +321,7 @@ impl Simulation {
             contact_out: Vec::new(),
             stage_start: Default::default(),
             edge_history: Vec::new(),
+            joints,
         };
         sim.place_bodies(true);
         sim.start_balance();

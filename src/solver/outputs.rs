@@ -114,6 +114,17 @@ impl Simulation {
                 mass: b.spec.mass,
             })
             .collect();
+        let joints: Vec<crate::events::JointView> = self
+            .joints
+            .joints
+            .iter()
+            .map(|j| crate::events::JointView {
+                rods: j.rods,
+                nodes: j.nodes,
+                force: j.force,
+                moment: j.moment,
+            })
+            .collect();
         obs.on_event(&Event::StepEnd {
             step: self.step,
             t: self.t,
@@ -123,6 +134,7 @@ impl Simulation {
             rods: &views,
             bodies: &bodies,
             contacts: &self.contact_out,
+            joints: &joints,
         });
     }
 

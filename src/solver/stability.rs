@@ -2,7 +2,8 @@
 //! rod's free-DOF Hessian ∇²E (dead loads have none of their own) by inverse iteration on the
 //! banded factor. A negative one means the equilibrium found is a saddle of the potential
 //! energy — it exists, but the slightest imperfection leaves it ("unstable equilibrium").
-//! Rods with fewer than two driven nodes (rigid-body modes) or any contact are not checked.
+//! Rods with fewer than two driven nodes (rigid-body modes), any contact, or a joint (the
+//! Hessian of a network is not one rod's) are not checked.
 
 use super::newton::{assemble, RodWork};
 use super::Simulation;
@@ -17,9 +18,14 @@ impl Simulation {
     /// The smallest Hessian eigenvalue over the checked rods (N/m), None when none is checked.
     pub(super) fn check_stability(&mut self) {
         let mut min: Option<f64> = None;
-        for (rod, w) in self.rods.iter().zip(&mut self.work) {
+        for (r, (rod, w)) in self.rods.iter().zip(&mut self.work).enumerate() {
             let driven = rod.clamped.iter().filter(|c| **c).count();
-            if rod.n < 3 || driven < 2 || w.nfree == 0 || w.contact.iter().any(|c| c.is_some()) {
+            if rod.n < 3
+                || driven < 2
+                || w.nfree == 0
+                || w.contact.iter().any(|c| c.is_some())
+                || self.joints.network_of[r] != usize::MAX
+            {
                 continue;
             }
             let (lam, v) = smallest_eigenvalue(rod, w);

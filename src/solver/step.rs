@@ -286,10 +286,15 @@ impl Simulation {
         let mut iterations = 0u32;
         self.update_members();
         for r in 0..self.rods.len() {
-            if !self.dirty[r] || self.is_member[r] {
+            if !self.dirty[r] || self.is_member[r] || self.joints.network_of[r] != usize::MAX {
                 continue;
             }
             iterations += self.solve_rod(ctx, r, phase, pass, obs)?;
+        }
+        for id in 0..self.joints.networks.len() {
+            if self.joints.networks[id].rods.iter().any(|&r| self.dirty[r]) {
+                iterations += self.solve_network(ctx, id, phase, pass, obs)?;
+            }
         }
         if !self.bodies.is_empty() && self.group_dirty {
             iterations += self.solve_group(ctx, phase, pass, obs)?;
@@ -332,6 +337,71 @@ impl Simulation {
         res.map_err(|fail| {
             self.rollback();
             StepError::Newton { rod: r, fail }
+        })
+    }
+
+    /// A network of joined rods, solved together (src/solver/joints.rs).
+    fn solve_network<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        id: usize,
+        phase: Phase,
+        pass: u32,
+        obs: &mut O,
+    ) -> Result<u32, StepError> {
+        let members = &self.joints.networks[id].rods;
+        if let Some(&r) = members
+            .iter()
+            .find(|&&r| self.is_member[r] || !self.work[r].edges.is_empty())
+        {
+            self.rollback();
+            return Err(StepError::Newton {
+                rod: r,
+                fail: NewtonFailure {
+                    node: 0,
+                    residual: 0.0,
+                    reason: "joined rods touching a free body or held by edge contacts are not \
+                             solved (yet): use node contacts on fixed obstacles",
+                    iterations: 0,
+                },
+            });
+        }
+        let res = if ctx.wants_iter {
+            let (t, step) = (self.t, ctx.step);
+            let mut cb = |r: usize, it: IterationReport<'_>| {
+                obs.on_event(&Event::Iteration {
+                    step,
+                    t,
+                    phase,
+                    pass,
+                    iteration: it.iteration,
+                    rod: r,
+                    residual: it.residual,
+                    update: it.update,
+                    q: it.q,
+                });
+            };
+            super::joints::solve_network(
+                &mut self.joints,
+                id,
+                &self.rods,
+                &mut self.work,
+                &ctx.opt,
+                Some(&mut cb),
+            )
+        } else {
+            super::joints::solve_network(
+                &mut self.joints,
+                id,
+                &self.rods,
+                &mut self.work,
+                &ctx.opt,
+                None,
+            )
+        };
+        res.map_err(|(rod, fail)| {
+            self.rollback();
+            StepError::Newton { rod, fail }
         })
     }
 
@@ -558,6 +628,11 @@ impl Simulation {
                     t.gravity -= w.fext[k] * dq;
                     if w.contact[i].is_some() || w.edge_nodes[i] {
                         t.contact += w.r[k] * dq;
+                    }
+                    // A joint's force on a free node: what a clamp puts in through the
+                    // joint (between two free nodes the two sides cancel).
+                    if let Some(f) = self.joints.force.get(r) {
+                        t.drive += f[k] * dq;
                     }
                 }
             }

@@ -2201,3 +2201,106 @@ fn planar_recording_options_are_refused_for_a_3d_scenario() {
     );
     assert_eq!(listing(case.dir.path()), ["case.toml", "s.json"]);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Joints (`[[joint]]`, issue 36).
+
+/// BASE with a rib from the prong's tip up, rigidly joined there, and `joint` as the joint's
+/// body (the valid one when None).
+fn with_joint(joint: Option<&str>) -> String {
+    let body = joint.unwrap_or("rods = [\"prong\", \"rib\"]\nnodes = [4, 0]\nkind = \"rigid\"");
+    format!(
+        "{BASE}\n[[rod]]\nname = \"rib\"\nnodes = 4\nE = 1e6\ndensity = 1000.0\n\
+         shape = {{ kind = \"straight\", start = [0.1, 0.0], end = [0.1, 0.05] }}\n\
+         section = {{ kind = \"rect\", b = 0.02, h = 0.01 }}\n\n[[joint]]\n{body}\n"
+    )
+}
+
+#[test]
+fn a_valid_joint_validates() {
+    let case = Case::new(with_joint(None).as_bytes());
+    let out = case.run("validate", &[], &[]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    case.assert_untouched();
+}
+
+#[test]
+fn joint_naming_a_missing_rod_or_node() {
+    let err = reject(&with_joint(Some(
+        "rods = [\"prong\", \"ribb\"]\nnodes = [4, 0]",
+    )));
+    has(
+        &err,
+        &[
+            &kv("joint.0.rods", "\"ribb\""),
+            "no rod is named \"ribb\"",
+            "\"rib\"",
+        ],
+    );
+    let err = reject(&with_joint(Some(
+        "rods = [\"prong\", \"rib\"]\nnodes = [5, 0]",
+    )));
+    has(
+        &err,
+        &[
+            &kv("joint.0.nodes", "5"),
+            "rod \"prong\" has no node 5",
+            "0 to 4",
+        ],
+    );
+    let err = reject(&with_joint(Some("rods = [\"prong\"]\nnodes = [4, 0]")));
+    has(&err, &[&kv("joint.0.rods", "[\"prong\"]"), "two entries"]);
+}
+
+#[test]
+fn joint_joining_a_node_twice_to_the_same_rod() {
+    let twice = "rods = [\"prong\", \"rib\"]\nnodes = [4, 0]\n\n[[joint]]\nrods = [\"rib\", \"prong\"]\nnodes = [0, 4]\nkind = \"pin\"";
+    let err = reject(&with_joint(Some(twice)));
+    has(
+        &err,
+        &[
+            &kv("joint.1.nodes", "[0, 4]"),
+            "\"rib\" node 0 is joined to rod \"prong\" twice",
+            "joint.0",
+        ],
+    );
+}
+
+#[test]
+fn joint_members_that_start_apart() {
+    let err = reject(&with_joint(Some(
+        "rods = [\"prong\", \"rib\"]\nnodes = [3, 0]",
+    )));
+    has(
+        &err,
+        &[
+            &kv("joint.0.nodes", "[3, 0]"),
+            "the members start apart",
+            "2.500e-2 m apart",
+        ],
+    );
+}
+
+#[test]
+fn joint_of_an_unknown_kind() {
+    let err = reject(&with_joint(Some(
+        "rods = [\"prong\", \"rib\"]\nnodes = [4, 0]\nkind = \"welded\"",
+    )));
+    has(
+        &err,
+        &[
+            &kv("joint.0.kind", "\"welded\""),
+            "unknown joint kind",
+            "\"rigid\" or \"pin\"",
+        ],
+    );
+    let err = reject(&with_joint(Some(
+        "rods = [\"prong\", \"rib\"]\nnodes = [4, 0]\nstiff = true",
+    )));
+    has(&err, &[&kv("joint.0.stiff", "true"), "unknown key"]);
+}

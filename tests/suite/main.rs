@@ -19,6 +19,7 @@ mod frictionless_golden;
 mod fruit;
 mod grasp3d;
 mod integrator;
+mod joints;
 mod no_data_loss;
 mod pick_and_place;
 mod planar_identity;

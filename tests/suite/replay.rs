@@ -269,6 +269,7 @@ fn synthetic(path: &Path, inject: Inject) {
             rods: &views,
             bodies: &[],
             contacts: &[],
+            joints: &[],
         });
     }
     sink.on_event(&Event::RunEnd {
