@@ -331,6 +331,8 @@ mod tests {
             bruise_half_width: 0.0,
             segment: usize::MAX,
             weight: 0.0,
+            first: usize::MAX,
+            last: usize::MAX,
         }
     }
 

@@ -2,7 +2,9 @@
 //! the fruit's prong contacts and on its own contact with the table, the MCAP and CSV carrying
 //! those contacts' pressure and indentation, and the sweep's bruise columns.
 
-use crate::common::{gripsim, scenario, text};
+use crate::common::{gripsim, message_json, scenario, text};
+use gripsim::events::{ContactView, Event, Observer};
+use gripsim::{Scenario, Simulation};
 use serde_json::Value;
 use std::path::Path;
 
@@ -180,4 +182,242 @@ fn replay_check_reports_the_squeezed_apples_expected_bruise_and_a_missing_one() 
     assert_eq!(rep["bruise_missing"], true);
     assert_eq!(rep["counts"]["bruise"], 1);
     assert!(out.contains("bruise    missing"), "{out}");
+}
+
+/// Every step's contact views of a run, by step.
+#[derive(Default)]
+struct Contacts(std::collections::BTreeMap<u64, Vec<ContactView>>);
+
+impl Observer for Contacts {
+    fn on_event(&mut self, e: &Event<'_>) {
+        if let Event::StepEnd { step, contacts, .. } = e {
+            self.0.insert(*step, contacts.to_vec());
+        }
+    }
+}
+
+fn index(k: usize) -> Value {
+    if k == usize::MAX {
+        Value::Null
+    } else {
+        k.into()
+    }
+}
+
+/// The most pressed compliant contact of rod `r` covering node `i` (its node, or a node of
+/// its arc): what the node's CSV row carries.
+fn covering(cs: &[ContactView], r: usize, i: usize) -> Option<&ContactView> {
+    cs.iter()
+        .filter(|c| c.rod == r && c.peak_pressure > 0.0)
+        .filter(|c| {
+            if c.first == usize::MAX {
+                c.node == i
+            } else {
+                (c.first..=c.last).contains(&i)
+            }
+        })
+        .max_by(|a, b| a.peak_pressure.total_cmp(&b.peak_pressure))
+}
+
+/// The first 0.35 s of apple-squeeze-bruise (the close, the squeeze to 50 N, the start of the
+/// lift: the apple leaves the table at 0.314 s), recorded at every step in f64: every step's
+/// contacts in `/sim/step` are the run's contact views number for number — the prongs' arcs
+/// on the free apple (body 0, their first and last node) and the apple's own contact with the
+/// table (no rod, node = the body) with their pressure and indentation — and the Python
+/// protobuf reader agrees; the CSV carries an arc's numbers on each of its nodes and the
+/// table contact on a row of its own (`rod` empty, `obstacle` "table").
+#[test]
+fn the_free_fruits_contacts_reach_the_mcap_and_the_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = scenario("apple-squeeze-bruise");
+    let sets = vec!["solve.t_end=0.35".to_string()];
+    let sc = Scenario::load(&file, &sets).unwrap();
+    let mut run = Contacts::default();
+    Simulation::new(&sc).run(&mut run).unwrap();
+    let (mcap, csv) = (dir.path().join("a.mcap"), dir.path().join("a.csv"));
+    let out = gripsim()
+        .arg("run")
+        .arg(&file)
+        .args([
+            "-q",
+            "--detail",
+            "step",
+            "--precision",
+            "f64",
+            "--set",
+            &sets[0],
+        ])
+        .arg("--mcap")
+        .arg(&mcap)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    // The MCAP, as gripsim's decoder reads it.
+    let bytes = std::fs::read(&mcap).unwrap();
+    let mut steps = std::collections::BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic == "/sim/step" {
+            let j = message_json(&m);
+            steps.insert(j["step"].as_u64().unwrap(), j);
+        }
+    }
+    assert_eq!(steps.len(), run.0.len());
+    let (mut table, mut arcs, mut spread) = (0, 0, 0);
+    for (step, cs) in &run.0 {
+        let rec = steps[step]["contacts"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
+        assert_eq!(rec.len(), cs.len(), "contacts at step {step}");
+        for (c, j) in cs.iter().zip(&rec) {
+            let ctx = format!("step {step}: {j}");
+            assert_eq!(j["rod"], index(c.rod), "{ctx}");
+            assert_eq!(j["body"], index(c.body), "{ctx}");
+            assert_eq!(j["first"], index(c.first), "{ctx}");
+            assert_eq!(j["last"], index(c.last), "{ctx}");
+            assert_eq!(
+                (j["node"].as_u64(), j["obstacle"].as_u64()),
+                (Some(c.node as u64), Some(c.obstacle as u64)),
+                "{ctx}"
+            );
+            let f = |k: &str| j[k].as_f64().unwrap();
+            let xy = |k: &str| [j[k][0].as_f64().unwrap(), j[k][1].as_f64().unwrap()];
+            assert_eq!((xy("point"), xy("normal")), (c.point, c.normal), "{ctx}");
+            assert_eq!(
+                (f("normal_force"), f("friction_force")),
+                (c.normal_force, c.friction_force),
+                "{ctx}"
+            );
+            assert_eq!(
+                [
+                    f("indentation"),
+                    f("half_width"),
+                    f("peak_pressure"),
+                    f("bruise_pressure"),
+                    f("bruise_half_width")
+                ],
+                [
+                    c.indentation,
+                    c.half_width,
+                    c.peak_pressure,
+                    c.bruise_pressure,
+                    c.bruise_half_width
+                ],
+                "{ctx}"
+            );
+            if c.rod == usize::MAX && c.peak_pressure > 0.0 {
+                // The apple (body 0) on the table (obstacle 0).
+                assert_eq!((c.node, c.obstacle), (0, 0), "{ctx}");
+                table += 1;
+            }
+            if c.rod != usize::MAX && c.peak_pressure > 0.0 {
+                assert_eq!((c.body, c.obstacle), (0, 1), "the free apple: {ctx}");
+                assert!(
+                    c.first < c.last && (c.first..=c.last).contains(&c.node),
+                    "{ctx}"
+                );
+                arcs += 1;
+            }
+        }
+    }
+    println!("{table} table contacts, {arcs} arcs recorded");
+    assert!(
+        table > 1000 && arcs > 1000,
+        "{table} table contacts, {arcs} arcs"
+    );
+    // The Python protobuf library reads the same contacts (−1 for no index).
+    let py = crate::recordings::read_mcap_py(&mcap);
+    assert_eq!(py["error"], Value::Null, "{py}");
+    for s in py["step_samples"].as_array().unwrap() {
+        let cs = &run.0[&s["step"].as_u64().unwrap()];
+        let theirs = s["contacts"].as_array().unwrap();
+        assert_eq!(theirs.len(), cs.len());
+        for (c, j) in cs.iter().zip(theirs) {
+            let i = |k: usize| if k == usize::MAX { -1 } else { k as i64 };
+            assert_eq!(
+                [
+                    &j["rod"],
+                    &j["node"],
+                    &j["obstacle"],
+                    &j["body"],
+                    &j["first"],
+                    &j["last"]
+                ]
+                .map(|v| v.as_i64().unwrap()),
+                [
+                    i(c.rod),
+                    i(c.node),
+                    i(c.obstacle),
+                    i(c.body),
+                    i(c.first),
+                    i(c.last)
+                ],
+                "{j}"
+            );
+            assert_eq!(j["peak_pressure"].as_f64().unwrap(), c.peak_pressure);
+            assert_eq!(j["indentation"].as_f64().unwrap(), c.indentation);
+        }
+    }
+    // The CSV: exact doubles.
+    let mut rdr = csv::Reader::from_path(&csv).unwrap();
+    let h: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    let col = |k: &str| h.iter().position(|x| x == k).unwrap();
+    let mut table_rows = 0;
+    for row in rdr.records() {
+        let row = row.unwrap();
+        let num = |k: &str| -> f64 { row[col(k)].parse().unwrap() };
+        let step: u64 = row[col("step")].parse().unwrap();
+        let node: usize = row[col("node")].parse().unwrap();
+        let cs = &run.0[&step];
+        let pressure = |c: Option<&ContactView>| {
+            c.map_or([0.0; 4], |c| {
+                [
+                    c.indentation,
+                    c.half_width,
+                    c.peak_pressure,
+                    c.bruise_half_width,
+                ]
+            })
+        };
+        let got = [
+            num("indentation"),
+            num("half_width"),
+            num("peak_pressure"),
+            num("bruise_half_width"),
+        ];
+        if row[col("rod")].is_empty() {
+            let c = cs
+                .iter()
+                .find(|c| c.rod == usize::MAX && c.node == node)
+                .expect("the body's contact");
+            assert_eq!(got, pressure(Some(c)), "step {step}");
+            assert_eq!(
+                [num("x"), num("y"), num("nx"), num("ny")],
+                [c.point[0], c.point[1], c.normal[0], c.normal[1]]
+            );
+            assert_eq!(num("reaction"), c.normal_force.hypot(c.friction_force));
+            assert_eq!(&row[col("obstacle")], "table");
+            table_rows += 1;
+            continue;
+        }
+        let r = usize::from(&row[col("rod")] == "left");
+        let c = covering(cs, r, node);
+        assert_eq!(got, pressure(c), "step {step} rod {r} node {node}");
+        if let Some(c) = c {
+            assert_eq!(&row[col("obstacle")], "apple");
+            spread += usize::from(c.node != node);
+        }
+    }
+    let own = run
+        .0
+        .values()
+        .flatten()
+        .filter(|c| c.rod == usize::MAX)
+        .count();
+    println!("{table_rows} table rows, {spread} arc rows off the force's node");
+    assert_eq!(table_rows, own, "a row per table contact");
+    assert!(spread > 1000, "{spread}");
 }
