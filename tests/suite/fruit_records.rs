@@ -421,3 +421,112 @@ fn the_free_fruits_contacts_reach_the_mcap_and_the_csv() {
     assert_eq!(table_rows, own, "a row per table contact");
     assert!(spread > 1000, "{spread}");
 }
+
+/// A sweep's summary.csv as rows of (column, value).
+fn sweep(
+    scenario: &Path,
+    args: &[&str],
+    out: &Path,
+) -> Vec<std::collections::HashMap<String, String>> {
+    let o = gripsim()
+        .arg("sweep")
+        .arg(scenario)
+        .args(args)
+        .args(["--no-plots", "-q", "-j", "2", "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let mut rdr = csv::Reader::from_path(out.join("summary.csv")).unwrap();
+    let h: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
+    rdr.records()
+        .map(|r| {
+            h.iter()
+                .cloned()
+                .zip(r.unwrap().iter().map(String::from))
+                .collect()
+        })
+        .collect()
+}
+
+/// The sweep's bruise columns for a free compliant fruit: apple-pick-and-place squeezed to
+/// 10 N and 50 N (0.61x and 1.13x the apple's 0.1 MPa at the prongs: not bruised, bruised, and
+/// the 50 N case's two stretches flagged since this scenario does not expect them), and the
+/// drop of the compliant disc from 1 cm and 10 cm (the table's pressure: 0.88x, 1.65x).
+#[test]
+fn sweeps_fill_the_bruise_columns_for_a_free_fruit_at_the_prongs_and_on_the_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let rows = sweep(
+        &scenario("apple-pick-and-place"),
+        &["--vary", "actuator.0.phase.0.end.grip_force=10,50"],
+        &dir.path().join("grip"),
+    );
+    let col = |r: &std::collections::HashMap<String, String>, k: &str| r[k].clone();
+    let num =
+        |r: &std::collections::HashMap<String, String>, k: &str| -> f64 { r[k].parse().unwrap() };
+    assert_eq!(rows.len(), 2);
+    for r in &rows {
+        println!(
+            "grip {}: bruised {}, ratio {}, max {} Pa, width {} m, flagged {}",
+            col(r, "actuator.0.phase.0.end.grip_force"),
+            col(r, "bruised"),
+            col(r, "bruise_ratio"),
+            col(r, "max_pressure_pa"),
+            col(r, "max_bruise_width_m"),
+            col(r, "bruise")
+        );
+    }
+    let (soft, hard) = (&rows[0], &rows[1]);
+    assert_eq!(col(soft, "actuator.0.phase.0.end.grip_force"), "10");
+    assert_eq!(
+        (col(soft, "bruised").as_str(), col(soft, "bruise").as_str()),
+        ("false", "0")
+    );
+    assert_eq!(
+        (col(hard, "bruised").as_str(), col(hard, "bruise").as_str()),
+        ("true", "2")
+    );
+    assert!((num(soft, "bruise_ratio") - 0.6051).abs() < 1e-3);
+    assert!((num(hard, "bruise_ratio") - 1.1322).abs() < 1e-3);
+    assert_eq!(num(soft, "max_bruise_width_m"), 0.0);
+    assert!(num(hard, "max_bruise_width_m") > 4e-3);
+    assert!(num(hard, "max_indentation_m") > num(soft, "max_indentation_m"));
+    // The table's contact: the drop.
+    let file = dir.path().join("drop.toml");
+    std::fs::write(&file, DROP).unwrap();
+    let rows = sweep(
+        &file,
+        &[
+            "--set",
+            "solve.t_end=0.16",
+            "--vary",
+            "obstacle.1.center=[0.0,0.05],[0.0,0.14]",
+        ],
+        &dir.path().join("drop"),
+    );
+    assert_eq!(rows.len(), 2);
+    for r in &rows {
+        println!(
+            "drop: bruised {}, ratio {}, flagged {}",
+            col(r, "bruised"),
+            col(r, "bruise_ratio"),
+            col(r, "bruise")
+        );
+    }
+    assert_eq!(
+        (
+            col(&rows[0], "bruised").as_str(),
+            col(&rows[0], "bruise").as_str()
+        ),
+        ("false", "0")
+    );
+    assert_eq!(
+        (
+            col(&rows[1], "bruised").as_str(),
+            col(&rows[1], "bruise").as_str()
+        ),
+        ("true", "1")
+    );
+    assert!((num(&rows[0], "bruise_ratio") - 0.882).abs() < 2e-3);
+    assert!((num(&rows[1], "bruise_ratio") - 1.6466).abs() < 1e-3);
+}
