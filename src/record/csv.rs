@@ -99,7 +99,7 @@ fn covers(c: &ContactView, r: usize, i: usize) -> bool {
 }
 
 /// The compliant contact a node's row carries: the most pressed one covering it.
-fn pressed_at<'c>(contacts: &'c [ContactView], r: usize, i: usize) -> Option<&'c ContactView> {
+fn pressed_at(contacts: &[ContactView], r: usize, i: usize) -> Option<&ContactView> {
     contacts
         .iter()
         .filter(|c| c.peak_pressure > 0.0 && covers(c, r, i))

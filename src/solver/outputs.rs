@@ -485,7 +485,6 @@ impl Simulation {
             weight: g.weight,
             first: g.first,
             last: g.last.min(self.rods[r].n - 1),
-            ..RIGID
         }
     }
 
