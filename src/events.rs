@@ -192,6 +192,12 @@ pub struct ContactView {
     #[serde(serialize_with = "index_or_null")]
     pub segment: usize,
     pub weight: f64,
+    /// A conforming contact arc (edge mode, a compliant fruit): the first and last node of the
+    /// arc's segments, every node of which shares its load. Null for any other contact.
+    #[serde(serialize_with = "index_or_null")]
+    pub first: usize,
+    #[serde(serialize_with = "index_or_null")]
+    pub last: usize,
 }
 
 fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Error> {

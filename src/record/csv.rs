@@ -1,12 +1,14 @@
 //! The CSV sink: the run in tidy long format, one row per (step, rod, node).
 //!
 //! Columns: `step, t, rod, node, x, y, vx, vy, rx, ry, reaction, impulse, in_contact,
-//! bending_stress, nx, ny, gap, dt, passes` (see docs/recording-format.md). Floats are
-//! printed as the shortest text that reads back to the same f64, so the file holds the exact
-//! numbers of the run.
+//! bending_stress, nx, ny, gap, dt, passes, indentation, half_width, peak_pressure,
+//! bruise_half_width, obstacle` (see docs/recording-format.md). After a step's node rows, one
+//! row per free body's own contact with a fixed obstacle (a fruit on the table): `rod` empty,
+//! `node` the body. Floats are printed as the shortest text that reads back to the same f64,
+//! so the file holds the exact numbers of the run.
 
 use super::{node_norm, Finished, OutputFile, RecordError, RecordOptions, Recording};
-use crate::events::{Event, Observer};
+use crate::events::{ContactView, Event, Observer};
 use std::io::Write as _;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -82,6 +84,73 @@ struct Row<'a> {
     half_width: f64,
     peak_pressure: f64,
     bruise_half_width: f64,
+    /// The obstacle the row's contact presses (empty when free).
+    obstacle: &'a str,
+}
+
+/// Whether contact `c` covers node `i` of rod `r`: its node, or a node of its arc.
+fn covers(c: &ContactView, r: usize, i: usize) -> bool {
+    c.rod == r
+        && if c.first == usize::MAX {
+            c.node == i
+        } else {
+            (c.first..=c.last).contains(&i)
+        }
+}
+
+/// The compliant contact a node's row carries: the most pressed one covering it.
+fn pressed_at(contacts: &[ContactView], r: usize, i: usize) -> Option<&ContactView> {
+    contacts
+        .iter()
+        .filter(|c| c.peak_pressure > 0.0 && covers(c, r, i))
+        .fold(None, |best: Option<&ContactView>, c| match best {
+            Some(b) if b.peak_pressure >= c.peak_pressure => Some(b),
+            _ => Some(c),
+        })
+}
+
+/// The row of a free body's own contact with a fixed obstacle: no rod, `node` the body, the
+/// contact point, the force the obstacle puts on the body (normal and friction along
+/// t = (−n_y, n_x)), the outward normal and the compliant fruit's numbers.
+fn body_row<'a>(
+    step: u64,
+    t: f64,
+    dt: f64,
+    passes: u32,
+    c: &ContactView,
+    obstacle: &'a str,
+) -> Row<'a> {
+    let n = c.normal;
+    let f = [
+        c.normal_force * n[0] - c.friction_force * n[1],
+        c.normal_force * n[1] + c.friction_force * n[0],
+    ];
+    Row {
+        step,
+        t,
+        rod: "",
+        node: c.node,
+        x: c.point[0],
+        y: c.point[1],
+        vx: 0.0,
+        vy: 0.0,
+        rx: f[0],
+        ry: f[1],
+        reaction: f[0].hypot(f[1]),
+        impulse: 0.0,
+        in_contact: 1,
+        bending_stress: 0.0,
+        nx: n[0],
+        ny: n[1],
+        gap: None,
+        dt,
+        passes,
+        indentation: c.indentation,
+        half_width: c.half_width,
+        peak_pressure: c.peak_pressure,
+        bruise_half_width: c.bruise_half_width,
+        obstacle,
+    }
 }
 
 /// Writes a CSV file.
@@ -98,6 +167,7 @@ pub struct CsvSink {
     header_written: bool,
     flush_every: u64,
     rods: Vec<String>,
+    obstacles: Vec<String>,
     completed: bool,
     error: Option<RecordError>,
     failed: Arc<AtomicBool>,
@@ -117,6 +187,7 @@ impl CsvSink {
             out,
             flush_every: opts.flush_every.max(1),
             rods: Vec::new(),
+            obstacles: Vec::new(),
             completed: false,
             error: None,
             failed: Arc::default(),
@@ -130,7 +201,7 @@ impl CsvSink {
         dt: f64,
         passes: u32,
         rods: &[crate::events::RodStepView<'_>],
-        contacts: &[crate::events::ContactView],
+        contacts: &[ContactView],
     ) {
         if self.file.is_none() {
             return;
@@ -141,16 +212,16 @@ impl CsvSink {
             .from_writer(std::mem::take(&mut self.buf));
         self.header_written = true;
         let mut result = Ok(());
-        'rods: for (r, (name, v)) in self.rods.iter().zip(rods).enumerate() {
+        let name = |k: usize| self.obstacles.get(k).map_or("", String::as_str);
+        'rods: for (r, (rod, v)) in self.rods.iter().zip(rods).enumerate() {
             for i in 0..v.in_contact.len() {
-                let c = contacts
-                    .iter()
-                    .find(|c| c.rod == r && c.node == i && c.peak_pressure > 0.0);
-                let of = |f: fn(&crate::events::ContactView) -> f64| c.map_or(0.0, f);
+                let c = pressed_at(contacts, r, i);
+                let of = |f: fn(&ContactView) -> f64| c.map_or(0.0, f);
+                let on = c.map_or(v.contact_obstacle[i], |c| c.obstacle);
                 result = w.serialize(Row {
                     step,
                     t,
-                    rod: name,
+                    rod,
                     node: i,
                     x: v.q[2 * i],
                     y: v.q[2 * i + 1],
@@ -171,11 +242,18 @@ impl CsvSink {
                     half_width: of(|c| c.half_width),
                     peak_pressure: of(|c| c.peak_pressure),
                     bruise_half_width: of(|c| c.bruise_half_width),
+                    obstacle: name(on),
                 });
                 if result.is_err() {
                     break 'rods;
                 }
             }
+        }
+        for c in contacts.iter().filter(|c| c.rod == usize::MAX) {
+            if result.is_err() {
+                break;
+            }
+            result = w.serialize(body_row(step, t, dt, passes, c, name(c.obstacle)));
         }
         if let Err(e) = result {
             return self.fail(e);
@@ -235,6 +313,7 @@ impl Observer for CsvSink {
         match event {
             Event::RunStart(info) => {
                 self.rods = info.rods.iter().map(|r| r.name.clone()).collect();
+                self.obstacles = info.obstacle_names.to_vec();
             }
             Event::StepEnd {
                 step,

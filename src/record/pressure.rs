@@ -6,20 +6,24 @@
 //! pressure is p(x) = p₀ √(1 − x²/a²) (a wrapping arc in edge mode spreads its load in
 //! proportion to the overlap, src/contact/conforming.rs: there the drawing shows the contact's
 //! p₀ and a, not the shape of its distribution). A contact is drawn on the prong's face, where the fruit's
-//! pressed surface is. The colour of a pressure is its ratio to the fruit's bruise threshold:
+//! pressed surface is; a free fruit's own contact with a fixed obstacle (a fruit on the table)
+//! at the fruit's pressed point. Both are where the fruit is at the step: a free fruit's
+//! contacts move with it. The colour of a pressure is its ratio to the fruit's bruise threshold:
 //! green (0) → yellow (½) → red (the threshold) → purple above it (bruising, the colour of
 //! `replay check`'s bruise ring). A fruit without a threshold is coloured against the contact's
 //! own peak.
 //!
 //! The zoom works in the contact's own frame, in millimetres: x along the fruit's surface
 //! tangent t = (n_y, −n_x), y along the outward normal n, the origin on the undeformed surface
-//! under the contact point. The undeformed fruit surface, the prong's face (its centre line
+//! under the contact point. The fruit's surface is drawn where the fruit is (a free fruit at
+//! its pose at the step); what presses it is a prong ([`Face::Rod`]) or, for the fruit's own
+//! contact, the fixed obstacle's surface ([`Face::Surface`], seen from the fruit by
+//! [`from_the_fruit`]). The undeformed fruit surface, the prong's face (its centre line
 //! offset by the half-thickness) and centre line, the indentation δ as an arrow from the
 //! undeformed surface to the face, the pressure profile below the face (depth ∝ p) with the
 //! bruise threshold as a line, and a scale bar are all drawn at true scale.
 
 use crate::events::ContactView;
-use crate::obstacle::Obstacle;
 
 /// Pieces a contact's pressure profile is drawn with.
 pub const SEGMENTS: usize = 16;
@@ -102,6 +106,28 @@ pub fn most_pressed(contacts: &[ContactView]) -> Option<&ContactView> {
         })
 }
 
+/// The closest point of a surface to a point (m): a fruit or an obstacle where it is.
+pub type Surface<'a> = &'a dyn Fn([f64; 2]) -> [f64; 2];
+
+/// What presses the fruit in a zoom.
+pub enum Face<'a> {
+    /// A prong: its centre line (interleaved node positions); the face is offset from it.
+    Rod(&'a [f64]),
+    /// A fixed obstacle's surface (a free fruit's own contact), and its name.
+    Surface(Surface<'a>, &'a str),
+}
+
+/// A free fruit's own contact with a fixed obstacle as the zoom reads a prong's: the normal
+/// turned to the fruit's outward one (−n) and the point moved to the obstacle's surface
+/// (`closest`: the surface's closest point to the contact's), the face that presses the fruit.
+pub fn from_the_fruit(c: &ContactView, closest: [f64; 2]) -> ContactView {
+    ContactView {
+        normal: [-c.normal[0], -c.normal[1]],
+        point: closest,
+        ..*c
+    }
+}
+
 /// The zoom of one contact, in the contact frame (mm).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Zoom {
@@ -109,9 +135,11 @@ pub struct Zoom {
     pub window: f64,
     /// The undeformed fruit surface across the window.
     pub fruit: Vec<[f64; 2]>,
-    /// The prong's face and centre line, clipped to the window.
+    /// The prong's face and centre line, clipped to the window (a fixed obstacle: its
+    /// surface, and no centre line), and the face's name.
     pub face: Vec<[f64; 2]>,
     pub centerline: Vec<[f64; 2]>,
+    pub face_name: String,
     /// From the undeformed surface (origin) to the face: (0, −δ).
     pub indentation: [f64; 2],
     /// The pressure profile below the face: pieces with their colours.
@@ -122,9 +150,9 @@ pub struct Zoom {
     pub scale: ([[f64; 2]; 2], f64),
 }
 
-/// The zoom of contact `c` of the rod at positions `q` against `obstacle` (a fixed obstacle: its surface is
-/// drawn from its closest points; `None` draws no fruit surface).
-pub fn zoom(c: &ContactView, q: &[f64], obstacle: Option<&Obstacle>) -> Zoom {
+/// The zoom of contact `c` (`n` the fruit's outward normal, `point` on the pressing face) of
+/// `face` against the fruit's surface `fruit` (drawn from its closest points; `None` draws none).
+pub fn zoom(c: &ContactView, face: Face<'_>, fruit: Option<Surface<'_>>) -> Zoom {
     let n = c.normal;
     let t = tangent(n);
     let d = c.indentation.max(0.0);
@@ -139,30 +167,23 @@ pub fn zoom(c: &ContactView, q: &[f64], obstacle: Option<&Obstacle>) -> Zoom {
     };
     let w = (2.5 * c.half_width).max(10.0 * d).max(5e-4);
     let wm = 1e3 * w;
-    let fruit = obstacle.map_or_else(Vec::new, |o| {
+    // A surface across the window, from its closest points to the tangent line through s0.
+    let across = |closest: Surface<'_>| -> Vec<[f64; 2]> {
         (0..=40)
             .map(|k| {
                 let x = -w + 2.0 * w * k as f64 / 40.0;
-                local(o.query([s0[0] + x * t[0], s0[1] + x * t[1]]).closest)
+                local(closest([s0[0] + x * t[0], s0[1] + x * t[1]]))
             })
             .collect()
-    });
-    // The face is the centre line moved by the offset between the contact's centre-line point
-    // and its face point.
-    let node = |i: usize| [q[2 * i], q[2 * i + 1]];
-    let xc = if c.segment != usize::MAX && c.segment + 1 < q.len() / 2 {
-        let (a, b) = (node(c.segment), node(c.segment + 1));
-        [
-            (1.0 - c.weight) * a[0] + c.weight * b[0],
-            (1.0 - c.weight) * a[1] + c.weight * b[1],
-        ]
-    } else {
-        node(c.node.min(q.len() / 2 - 1))
     };
-    let off = 1e3 * ((xc[0] - c.point[0]) * n[0] + (xc[1] - c.point[1]) * n[1]);
-    let line: Vec<[f64; 2]> = (0..q.len() / 2).map(|i| local(node(i))).collect();
-    let centerline = clip(&line, wm);
-    let face = centerline.iter().map(|p| [p[0], p[1] - off]).collect();
+    let fruit = fruit.map_or_else(Vec::new, across);
+    let (face, centerline, face_name) = match face {
+        Face::Rod(q) => {
+            let (face, centerline) = rod_face(c, q, &local, wm);
+            (face, centerline, "prong face".to_string())
+        }
+        Face::Surface(closest, name) => (across(closest), Vec::new(), name.to_string()),
+    };
     let (a, dm) = (1e3 * c.half_width, 1e3 * d);
     let reference = c.peak_pressure.max(c.bruise_pressure);
     let depth = 0.3 * wm / reference;
@@ -189,11 +210,39 @@ pub fn zoom(c: &ContactView, q: &[f64], obstacle: Option<&Obstacle>) -> Zoom {
         fruit,
         face,
         centerline,
+        face_name,
         indentation: [0.0, -dm],
         profile,
         threshold,
         scale: ([[-wm, y0], [-wm + len, y0]], len),
     }
+}
+
+/// A prong's face and centre line in the zoom's frame (`local`), clipped to the window: the
+/// face is the centre line moved by the offset between the contact's centre-line point and its
+/// face point.
+fn rod_face(
+    c: &ContactView,
+    q: &[f64],
+    local: &dyn Fn([f64; 2]) -> [f64; 2],
+    wm: f64,
+) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+    let n = c.normal;
+    let node = |i: usize| [q[2 * i], q[2 * i + 1]];
+    let xc = if c.segment != usize::MAX && c.segment + 1 < q.len() / 2 {
+        let (a, b) = (node(c.segment), node(c.segment + 1));
+        [
+            (1.0 - c.weight) * a[0] + c.weight * b[0],
+            (1.0 - c.weight) * a[1] + c.weight * b[1],
+        ]
+    } else {
+        node(c.node.min(q.len() / 2 - 1))
+    };
+    let off = 1e3 * ((xc[0] - c.point[0]) * n[0] + (xc[1] - c.point[1]) * n[1]);
+    let line: Vec<[f64; 2]> = (0..q.len() / 2).map(|i| local(node(i))).collect();
+    let centerline = clip(&line, wm);
+    let face = centerline.iter().map(|p| [p[0], p[1] - off]).collect();
+    (face, centerline)
 }
 
 impl Zoom {
@@ -207,7 +256,7 @@ impl Zoom {
             }
         };
         name(self.fruit.last(), "undeformed fruit");
-        name(self.face.last(), "prong face");
+        name(self.face.last(), &self.face_name);
         name(self.centerline.first(), "centre line");
         name(self.threshold.as_ref().map(|l| &l[1]), "bruise threshold");
         let top = self
@@ -284,8 +333,9 @@ pub fn pressure(p: f64) -> String {
     }
 }
 
-/// What the zoom's label says about contact `c`.
-pub fn describe(c: &ContactView, rod: &str) -> String {
+/// What the zoom's label says about contact `c`, at `place` (`rod "left" node 7`, or
+/// `"apple" on "table"`).
+pub fn describe(c: &ContactView, place: &str) -> String {
     let ratio = if c.bruise_pressure > 0.0 {
         format!(
             "\n= {:.2} × the bruise threshold {}",
@@ -296,8 +346,7 @@ pub fn describe(c: &ContactView, rod: &str) -> String {
         String::new()
     };
     format!(
-        "rod {rod:?} node {}\nF {:.4} N, p₀ {}{ratio}\n2a {}, δ {} (to scale)",
-        c.node,
+        "{place}\nF {:.4} N, p₀ {}{ratio}\n2a {}, δ {} (to scale)",
         c.normal_force,
         pressure(c.peak_pressure),
         mm(2.0 * c.half_width),
@@ -331,6 +380,8 @@ mod tests {
             bruise_half_width: 0.0,
             segment: usize::MAX,
             weight: 0.0,
+            first: usize::MAX,
+            last: usize::MAX,
         }
     }
 
@@ -368,7 +419,8 @@ mod tests {
             center: [0.0, 0.0],
             radius: 0.05,
         });
-        let z = zoom(&c, &q, Some(&o));
+        let fruit = |p: [f64; 2]| o.query(p).closest;
+        let z = zoom(&c, Face::Rod(&q), Some(&fruit));
         // Window: 2.5 a = 10 mm.
         assert!((z.window - 10.0).abs() < 1e-12);
         assert_eq!(z.indentation, [0.0, -1.0]);
@@ -396,6 +448,62 @@ mod tests {
         let th = z.threshold.unwrap();
         assert!((th[0][1] + 1.0 + 3.0).abs() < 1e-12);
         assert_eq!(z.scale.1, 5.0);
+    }
+
+    /// A free fruit's own contact with the table, where the fruit is: a 4 cm disc moved from
+    /// its initial place (0, 1) to rest 1 mm deep on the table y = 0. Seen from the fruit, the
+    /// table is the face 1 mm from the undeformed surface, which passes through the origin
+    /// (the fruit drawn at its pose, not its initial place).
+    #[test]
+    fn the_zoom_of_a_fruit_on_the_table_draws_both_where_they_are() {
+        use crate::obstacle::Plane;
+        use crate::world::body::{Placed, Pose};
+        let disc = Obstacle::Circle(Circle {
+            center: [0.0, 1.0],
+            radius: 0.04,
+        });
+        let table = Obstacle::Plane(Plane::new([0.0, 0.0], [0.0, 1.0]));
+        let placed = Placed {
+            shape: &disc,
+            c0: [0.0, 1.0],
+            pose: Pose {
+                c: [0.0, 0.039],
+                theta: 0.3,
+            },
+        };
+        let c = ContactView {
+            rod: usize::MAX,
+            node: 0,
+            obstacle: 0,
+            point: [0.0, -1e-3],
+            normal: [0.0, 1.0],
+            ..contact()
+        };
+        let surface = |p: [f64; 2]| table.query(p).closest;
+        let fruit = |p: [f64; 2]| placed.query(p).closest;
+        let v = from_the_fruit(&c, surface(c.point));
+        assert_eq!((v.normal, v.point), ([0.0, -1.0], [0.0, 0.0]));
+        let z = zoom(&v, Face::Surface(&surface, "table"), Some(&fruit));
+        let mid = z.fruit[20];
+        assert!(mid[0].abs() < 1e-9 && mid[1].abs() < 1e-9, "{mid:?}");
+        let edge = z.fruit[40];
+        let drop = 40.0 - (40.0f64.powi(2) - edge[0].powi(2)).sqrt();
+        assert!((edge[1] + drop).abs() < 1e-9, "{edge:?}");
+        assert_eq!(z.face.len(), 41);
+        assert!(
+            z.face.iter().all(|p| (p[1] + 1.0).abs() < 1e-9),
+            "{:?}",
+            z.face
+        );
+        assert!(z.centerline.is_empty());
+        assert_eq!(z.face_name, "table");
+        let labels = z.labels(describe(&c, "\"apple\" on \"table\""));
+        assert!(labels.iter().any(|l| l.1 == "table"));
+        assert!(labels
+            .last()
+            .unwrap()
+            .1
+            .starts_with("\"apple\" on \"table\"\nF 10.0000 N"));
     }
 
     #[test]

@@ -131,6 +131,12 @@ macro_rules! step_messages {
             pub bruise_pressure: $t,
             #[prost($pty, tag = "17")]
             pub bruise_half_width: $t,
+            /// A contact arc's first and last node (edge mode, a compliant fruit); −1 for
+            /// any other contact.
+            #[prost(sint64, tag = "18")]
+            pub first: i64,
+            #[prost(sint64, tag = "19")]
+            pub last: i64,
         }
 
         impl $contact {
@@ -155,6 +161,8 @@ macro_rules! step_messages {
                 self.peak_pressure = c.peak_pressure as $t;
                 self.bruise_pressure = c.bruise_pressure as $t;
                 self.bruise_half_width = c.bruise_half_width as $t;
+                self.first = index(c.first);
+                self.last = index(c.last);
             }
 
             /// The JSON form of format 1 (f64 values).
@@ -173,6 +181,7 @@ macro_rules! step_messages {
                     "peak_pressure": w(self.peak_pressure),
                     "bruise_pressure": w(self.bruise_pressure),
                     "bruise_half_width": w(self.bruise_half_width),
+                    "first": opt_index(self.first), "last": opt_index(self.last),
                 })
             }
         }
@@ -587,6 +596,8 @@ pub const MESSAGES: [(&str, &[Field]); 5] = [
             ("peak_pressure", 15, K::Float, false),
             ("bruise_pressure", 16, K::Float, false),
             ("bruise_half_width", 17, K::Float, false),
+            ("first", 18, K::Sint64, false),
+            ("last", 19, K::Sint64, false),
         ],
     ),
     (
@@ -1317,6 +1328,8 @@ pub(crate) mod tests {
             bruise_half_width: 0.0,
             segment: usize::MAX,
             weight: 0.0,
+            first: usize::MAX,
+            last: usize::MAX,
         }];
         check(&StepFields {
             step,
@@ -1412,6 +1425,8 @@ pub(crate) mod tests {
             peak_pressure: 1.0,
             bruise_pressure: 1.0,
             bruise_half_width: 1.0,
+            first: 1,
+            last: 1,
         };
         let contact64 = Contact64 {
             rod: -1,
@@ -1431,6 +1446,8 @@ pub(crate) mod tests {
             peak_pressure: 1.0,
             bruise_pressure: 1.0,
             bruise_half_width: 1.0,
+            first: 1,
+            last: 1,
         };
         let step = Step {
             step: 1,

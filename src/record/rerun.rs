@@ -78,6 +78,7 @@ pub struct RerunSink {
     view: ViewOptions,
     rods: Vec<RodEntities>,
     obstacles: Vec<Obstacle>,
+    obstacle_names: Vec<String>,
     bodies: Vec<crate::world::body::BodySpec>,
     style: Option<SceneStyle>,
     /// The `iteration` timeline's next value.
@@ -116,8 +117,10 @@ struct Bookmarks {
     first_contact: bool,
     /// (|R|, step, t, iteration, rod, node) of the largest eq. 2 reaction.
     peak: Option<(f64, u64, f64, i64, usize, usize)>,
-    /// The same for a compliant fruit's peak contact pressure (Pa).
+    /// The same for a compliant fruit's peak contact pressure (Pa), and where it was
+    /// (`rod "left" node 7`, or `"apple" on "table"`).
     peak_pressure: Option<(f64, u64, f64, i64, usize, usize)>,
+    peak_pressure_place: String,
     /// The same for the impulse-consistent force.
     peak_ic: Option<(f64, u64, f64, i64, usize, usize)>,
 }
@@ -612,6 +615,7 @@ impl RerunSink {
             view: ViewOptions::default(),
             rods: Vec::new(),
             obstacles: Vec::new(),
+            obstacle_names: Vec::new(),
             bodies: Vec::new(),
             style: None,
             iteration: 0,
@@ -684,6 +688,7 @@ impl RerunSink {
     fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
         self.obstacles = info.obstacles.to_vec();
         self.bodies = info.bodies.to_vec();
+        self.obstacle_names = info.obstacle_names.to_vec();
         for r in info.rods {
             self.rods.push(RodEntities::new(&["scene"], r.clone()));
             self.scene.push(SceneColumns::default());
@@ -1057,22 +1062,77 @@ impl RerunSink {
         self.check(r);
     }
 
+    /// The zoom of pressed contact `c` where the fruit is at the step (a free fruit at its pose
+    /// in `bodies`), and what its label says: a prong's contact, or a free fruit's own contact
+    /// with a fixed obstacle (no rod), seen from the fruit with the obstacle's surface as the
+    /// face.
+    fn pressure_zoom(
+        &self,
+        c: &ContactView,
+        rods: &[RodStepView<'_>],
+        bodies: &[BodyView<'_>],
+    ) -> (super::pressure::Zoom, String) {
+        use super::pressure as pr;
+        let own = c.rod == usize::MAX;
+        let body = if own { c.node } else { c.body };
+        let placed = bodies.get(body).map(|b| crate::world::body::Placed {
+            shape: &self.obstacles[b.obstacle],
+            c0: self
+                .bodies
+                .iter()
+                .find(|s| s.obstacle == b.obstacle)
+                .map_or(b.position, |s| s.centroid),
+            pose: crate::world::body::Pose {
+                c: b.position,
+                theta: b.angle,
+            },
+        });
+        let fixed = (!own && c.body == usize::MAX)
+            .then(|| self.obstacles.get(c.obstacle))
+            .flatten();
+        let on_body = placed.map(|p| move |x: [f64; 2]| p.query(x).closest);
+        let on_fixed = fixed.map(|o| move |x: [f64; 2]| o.query(x).closest);
+        let fruit: Option<pr::Surface<'_>> = match (&on_body, &on_fixed) {
+            (Some(f), _) => Some(f),
+            (None, Some(f)) => Some(f),
+            _ => None,
+        };
+        if !own {
+            let place = format!("rod {:?} node {}", self.rod_name(c.rod), c.node);
+            return (pr::zoom(c, pr::Face::Rod(rods[c.rod].q), fruit), place);
+        }
+        let table = &self.obstacles[c.obstacle];
+        let name = self
+            .obstacle_names
+            .get(c.obstacle)
+            .cloned()
+            .unwrap_or_default();
+        let fruit_name = self.bodies.get(body).map_or("fruit", |b| b.name.as_str());
+        let surface = |x: [f64; 2]| table.query(x).closest;
+        let v = pr::from_the_fruit(c, surface(c.point));
+        let z = pr::zoom(&v, pr::Face::Surface(&surface, &name), fruit);
+        (z, format!("{fruit_name:?} on {name:?}"))
+    }
+
     /// A compliant fruit's contacts: the pressure as a colour along each contact on the prong's
-    /// face (`scene/pressure`), and the most pressed one zoomed in its own frame, to scale, in
-    /// millimetres (`zoom/contact/…`, src/record/pressure.rs). Cleared on the first step
-    /// without one.
+    /// face, or for a free fruit's own contact with a fixed obstacle (a fruit on the table) at
+    /// the fruit's pressed point (`scene/pressure`), and the most pressed one zoomed in its own
+    /// frame, to scale, in millimetres (`zoom/contact/…`, src/record/pressure.rs), all where
+    /// the fruit is at the step. Cleared on the first step without one.
     fn draw_pressure(
         &mut self,
         step: u64,
         t: f64,
         rods: &[RodStepView<'_>],
+        bodies: &[BodyView<'_>],
         contacts: &[ContactView],
     ) {
         use super::pressure as pr;
         let Some(rec) = self.rec.clone() else {
             return;
         };
-        let Some(c) = pr::most_pressed(contacts).filter(|c| c.rod < rods.len()) else {
+        let zoomable = |c: &&ContactView| c.rod < rods.len() || c.rod == usize::MAX;
+        let Some(c) = pr::most_pressed(contacts).filter(zoomable) else {
             if std::mem::take(&mut self.pressure_shown) {
                 let r = rec
                     .log("scene/pressure", &::rerun::Clear::flat())
@@ -1087,6 +1147,10 @@ impl RerunSink {
             self.check(r);
         }
         let it = self.iteration - 1;
+        let (z, place) = self.pressure_zoom(c, rods, bodies);
+        if c.peak_pressure > self.marks.peak_pressure.map_or(0.0, |p| p.0) {
+            self.marks.peak_pressure_place = place.clone();
+        }
         note_peak(
             &mut self.marks.peak_pressure,
             c.peak_pressure,
@@ -1105,17 +1169,13 @@ impl RerunSink {
             strips.push(seg.map(f32x2).to_vec());
             colors.push(rgb(col));
         }
-        let fixed = (c.body == usize::MAX)
-            .then(|| self.obstacles.get(c.obstacle))
-            .flatten();
-        let z = pr::zoom(c, rods[c.rod].q, fixed);
         let strip = |p: &[[f64; 2]]| p.iter().copied().map(f32x2).collect::<Vec<_>>();
         let (prof, prof_colors): (Vec<_>, Vec<_>) = z
             .profile
             .iter()
             .map(|(s, col)| (strip(s), rgb(*col)))
             .unzip();
-        let label = pr::describe(c, &self.rod_name(c.rod));
+        let label = pr::describe(c, &place);
         let scale_label = format!("{} mm", z.scale.1);
         let threshold = z.threshold.map(|l| vec![strip(&l)]).unwrap_or_default();
         let ui = Radius::new_ui_points;
@@ -1257,14 +1317,14 @@ impl RerunSink {
 
     /// The bookmarks known only at the end: the peak forces, at their own time points.
     fn end_bookmarks(&mut self) {
-        if let Some((p, step, t, it, r, i)) = self.marks.peak_pressure {
-            let rod = self.rod_name(r);
+        if let Some((p, step, t, it, _, _)) = self.marks.peak_pressure {
+            let place = std::mem::take(&mut self.marks.peak_pressure_place);
             self.bookmark(
                 step,
                 t,
                 it,
                 format!(
-                    "peak contact pressure {}: rod {rod:?} node {i} (t = {t:.6} s, step {step}, iteration {it})",
+                    "peak contact pressure {}: {place} (t = {t:.6} s, step {step}, iteration {it})",
                     super::pressure::pressure(p)
                 ),
             );
@@ -2398,7 +2458,7 @@ impl Observer for RerunSink {
                 joints: _,
             } => {
                 self.step_end(step, t, dt, newton_iterations, passes, rods);
-                self.draw_pressure(step, t, rods, contacts);
+                self.draw_pressure(step, t, rods, bodies, contacts);
                 if !bodies.is_empty() {
                     self.draw_bodies(bodies, contacts);
                 }

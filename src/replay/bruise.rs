@@ -2,16 +2,20 @@
 //! fruit whose Hertz peak pressure p₀ exceeds the fruit's bruise threshold (issue 11; the
 //! contact law and the thresholds' sources are in docs/model.md). One episode per node and
 //! contiguous stretch of steps above the threshold, with the largest pressure, when, and the
-//! widest part of the contact above the threshold. A rigid fruit has no pressure and is never
-//! flagged.
+//! widest part of the contact above the threshold. A free fruit's own contact with a fixed
+//! obstacle (a fruit dropped on the table: no rod, `node` is the body) is a place of its own,
+//! named "<fruit> on <obstacle>". A rigid fruit has no pressure and is never flagged.
 
 use serde::Serialize;
 
 /// One contact of one step, as the rule reads it (a live contact view or a recorded one).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PressureSample {
+    /// The rod, or `usize::MAX` for a free body's own contact (then `node` is the body).
     pub rod: usize,
     pub node: usize,
+    /// The obstacle pressed: the fruit for a prong's contact, the table for the fruit's own.
+    pub obstacle: usize,
     /// Hertz peak pressure p₀ (Pa); 0 at a rigid obstacle.
     pub peak_pressure: f64,
     /// The fruit's bruise threshold (Pa); 0 when it has none.
@@ -26,12 +30,51 @@ impl PressureSample {
     }
 }
 
+/// The names a flag's place is given by: the rods', the obstacles' and the free bodies'
+/// (in scenario order).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Places<'a> {
+    pub rods: &'a [String],
+    pub obstacles: &'a [String],
+    pub bodies: &'a [String],
+}
+
+impl Places<'_> {
+    /// A rod's name, or for a free body's own contact "<body> on <obstacle>".
+    pub fn name(&self, s: &PressureSample) -> String {
+        if s.rod == usize::MAX {
+            let body = self.bodies.get(s.node).map_or("fruit", String::as_str);
+            let on = self
+                .obstacles
+                .get(s.obstacle)
+                .map_or("an obstacle", String::as_str);
+            format!("{body} on {on}")
+        } else {
+            self.rods.get(s.rod).cloned().unwrap_or_default()
+        }
+    }
+}
+
+fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Error> {
+    if *i == usize::MAX {
+        s.serialize_none()
+    } else {
+        s.serialize_u64(*i as u64)
+    }
+}
+
 /// One stretch of a node's contact above the bruise threshold.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BruiseFlag {
+    /// The rod (null for a free fruit's own contact with a fixed obstacle: then `node` is the
+    /// body and `rod_name` says "<fruit> on <obstacle>").
+    #[serde(serialize_with = "index_or_null")]
     pub rod: usize,
     pub rod_name: String,
     pub node: usize,
+    /// The obstacle pressed: the fruit for a prong's contact, the fixed obstacle for the
+    /// fruit's own.
+    pub obstacle: usize,
     /// First and last step above the threshold, and their times (s).
     pub step: u64,
     pub t: f64,
@@ -47,6 +90,17 @@ pub struct BruiseFlag {
     pub max_bruise_width_m: f64,
 }
 
+impl BruiseFlag {
+    /// Where, for a report: `rod left node 7`, or `apple on table` for a fruit's own contact.
+    pub fn place(&self) -> String {
+        if self.rod == usize::MAX {
+            self.rod_name.clone()
+        } else {
+            format!("rod {} node {}", self.rod_name, self.node)
+        }
+    }
+}
+
 /// The rule's state: the open stretches, and the closed ones.
 #[derive(Debug, Clone, Default)]
 pub struct BruiseRule {
@@ -56,19 +110,20 @@ pub struct BruiseRule {
 
 impl BruiseRule {
     /// The compliant contacts of one accepted step.
-    pub fn step(&mut self, step: u64, t: f64, samples: &[PressureSample], names: &[String]) {
+    pub fn step(&mut self, step: u64, t: f64, samples: &[PressureSample], names: &Places<'_>) {
         for s in samples.iter().filter(|s| s.over()) {
             let at = self
                 .open
                 .iter()
-                .position(|f| (f.rod, f.node) == (s.rod, s.node));
+                .position(|f| (f.rod, f.node, f.obstacle) == (s.rod, s.node, s.obstacle));
             let f = match at {
                 Some(k) => &mut self.open[k],
                 None => {
                     self.open.push(BruiseFlag {
                         rod: s.rod,
-                        rod_name: names.get(s.rod).cloned().unwrap_or_default(),
+                        rod_name: names.name(s),
                         node: s.node,
+                        obstacle: s.obstacle,
                         step,
                         t,
                         last_step: step,
@@ -122,6 +177,7 @@ mod tests {
         PressureSample {
             rod: 0,
             node,
+            obstacle: 1,
             peak_pressure: p,
             bruise_pressure: 1e5,
             bruise_half_width: if p > 1e5 { 1e-4 } else { 0.0 },
@@ -130,7 +186,11 @@ mod tests {
 
     #[test]
     fn a_stretch_above_the_threshold_is_one_flag_with_its_peak() {
-        let names = vec!["prong".to_string()];
+        let rods = vec!["prong".to_string()];
+        let names = Places {
+            rods: &rods,
+            ..Places::default()
+        };
         let mut r = BruiseRule::default();
         r.step(1, 0.1, &[s(3, 0.9e5)], &names);
         r.step(2, 0.2, &[s(3, 1.2e5), s(4, 1.1e5)], &names);
@@ -159,7 +219,37 @@ mod tests {
             bruise_pressure: 0.0,
             ..s(1, 1e9)
         };
-        r.step(1, 0.1, &[rigid, s(2, 0.0)], &[]);
+        r.step(1, 0.1, &[rigid, s(2, 0.0)], &Places::default());
         assert!(r.finish().is_empty());
+    }
+
+    #[test]
+    fn a_fruits_own_contact_is_named_by_the_fruit_and_the_obstacle() {
+        let (rods, obstacles, bodies) = (
+            vec!["prong".to_string()],
+            vec!["table".to_string(), "apple".to_string()],
+            vec!["apple".to_string()],
+        );
+        let names = Places {
+            rods: &rods,
+            obstacles: &obstacles,
+            bodies: &bodies,
+        };
+        let table = PressureSample {
+            rod: usize::MAX,
+            obstacle: 0,
+            ..s(0, 1.2e5)
+        };
+        let mut r = BruiseRule::default();
+        // The prong's node 0 and the fruit (body 0) on the table are two places.
+        r.step(1, 0.1, &[table, s(0, 1.1e5)], &names);
+        let f = r.finish();
+        assert_eq!(f.len(), 2);
+        assert_eq!(f[0].rod_name, "prong");
+        assert_eq!(f[1].rod_name, "apple on table");
+        assert_eq!((f[1].node, f[1].obstacle), (0, 0));
+        let j = serde_json::to_value(&f[1]).unwrap();
+        assert_eq!(j["rod"], serde_json::Value::Null);
+        assert_eq!(j["rod_name"], "apple on table");
     }
 }

@@ -564,6 +564,9 @@ pub struct Detector {
     pub th: Effective,
     rods: Vec<Rod>,
     names: Vec<String>,
+    /// The obstacles' and the free bodies' names (a fruit's own contact is named by both).
+    obstacle_names: Vec<String>,
+    body_names: Vec<String>,
     gravity: [f64; 2],
     dynamic: bool,
     /// Velocities of the previous step, per rod.
@@ -635,6 +638,8 @@ impl Detector {
             scales,
             th: Effective::for_scene(th, &scales),
             names: sc.rods.iter().map(|r| r.name.clone()).collect(),
+            obstacle_names: sc.obstacle_names.clone(),
+            body_names: sc.bodies.iter().map(|b| b.name.clone()).collect(),
             prev_u: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
             prev_q: rods.iter().map(|r| vec![0.0; 2 * r.n]).collect(),
             prev_contact: rods.iter().map(|r| vec![false; r.n]).collect(),
@@ -680,7 +685,12 @@ impl Detector {
 
     /// The compliant contacts of an accepted step (after [`Detector::step`]).
     pub fn pressure(&mut self, step: u64, t: f64, samples: &[super::bruise::PressureSample]) {
-        self.bruise.step(step, t, samples, &self.names);
+        let places = super::bruise::Places {
+            rods: &self.names,
+            obstacles: &self.obstacle_names,
+            bodies: &self.body_names,
+        };
+        self.bruise.step(step, t, samples, &places);
     }
 
     /// The grasp rules for one step (after [`Detector::step`]): the rods' positions, the first
@@ -1127,10 +1137,11 @@ impl Observer for DetectObserver {
                 self.detector.step(*step, *t, *dt, &samples);
                 let pressures: Vec<PressureSample> = contacts
                     .iter()
-                    .filter(|c| c.rod != usize::MAX && c.peak_pressure > 0.0)
+                    .filter(|c| c.peak_pressure > 0.0)
                     .map(|c| PressureSample {
                         rod: c.rod,
                         node: c.node,
+                        obstacle: c.obstacle,
                         peak_pressure: c.peak_pressure,
                         bruise_pressure: c.bruise_pressure,
                         bruise_half_width: c.bruise_half_width,

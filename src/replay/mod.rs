@@ -407,8 +407,8 @@ pub fn format_check(rep: &CheckReport) -> String {
         for f in rep.bruise.iter().take(MAX_ROWS) {
             let _ = writeln!(
                 s,
-                "  rod {} node {} steps {}-{} (t = {:.6}-{:.6} s): peak pressure {:.4e} Pa at t = {:.6} s, {:.2}x the threshold {:.4e} Pa, up to {:.3e} m wide above it",
-                f.rod_name, f.node, f.step, f.last_step, f.t, f.last_t, f.max_pressure_pa,
+                "  {} steps {}-{} (t = {:.6}-{:.6} s): peak pressure {:.4e} Pa at t = {:.6} s, {:.2}x the threshold {:.4e} Pa, up to {:.3e} m wide above it",
+                f.place(), f.step, f.last_step, f.t, f.last_t, f.max_pressure_pa,
                 f.max_pressure_t, f.ratio, f.bruise_pressure_pa, f.max_bruise_width_m
             );
         }
@@ -427,11 +427,10 @@ pub fn format_check(rep: &CheckReport) -> String {
             .expect("not empty");
         let _ = writeln!(
             s,
-            "expected  bruised as the scenario expects ([expect] bruised = true): {} stretch(es) above the bruise pressure, the highest {:.2}x at rod {} node {} (t = {:.6} s)",
+            "expected  bruised as the scenario expects ([expect] bruised = true): {} stretch(es) above the bruise pressure, the highest {:.2}x at {} (t = {:.6} s)",
             rep.bruise_expected.len(),
             f.ratio,
-            f.rod_name,
-            f.node,
+            f.place(),
             f.max_pressure_t
         );
     }

@@ -456,6 +456,26 @@ fn node_at(run: &Run, r: usize, i: usize, step: u64) -> [f64; 2] {
     [q[2 * i], q[2 * i + 1]]
 }
 
+/// Where a bruise is marked: its node, or for a free fruit's own contact (no rod: `node` is
+/// the body) that contact's point at the recorded step nearest the peak (the body's centroid
+/// if the step has it not).
+fn bruise_at(run: &Run, f: &super::bruise::BruiseFlag) -> [f64; 2] {
+    if f.rod != usize::MAX {
+        return node_at(run, f.rod, f.node, f.step);
+    }
+    let k = run
+        .steps
+        .partition_point(|s| s.t < f.max_pressure_t)
+        .min(run.steps.len() - 1);
+    let s = &run.steps[k];
+    s.contacts
+        .iter()
+        .find(|c| c.rod.is_none() && c.node == f.node && c.obstacle == f.obstacle)
+        .map(|c| c.point)
+        .or_else(|| s.bodies.get(f.node).map(|b| b.position))
+        .unwrap_or_default()
+}
+
 fn marks(run: &Run, f: &Findings, b: bool) -> Vec<Mark> {
     let (root, tag, width): (&[&str], _, _) = if b {
         (&["scene", "flags", "run_b"], "B: ", 1.0)
@@ -505,12 +525,16 @@ fn marks(run: &Run, f: &Findings, b: bool) -> Vec<Mark> {
         out.push(Mark {
             t: s.max_pressure_t,
             rod: s.rod,
-            at: node_at(run, s.rod, s.node, s.step),
+            at: bruise_at(run, s),
             entity: entity("bruise", &s.rod_name, s.node),
             label: String::new(),
             text: format!(
-                "{tag}bruise at rod {:?} node {}: peak pressure {:.3e} Pa, {:.2}x the threshold, steps {}-{}",
-                s.rod_name, s.node, s.max_pressure_pa, s.ratio, s.step, s.last_step
+                "{tag}bruise at {}: peak pressure {:.3e} Pa, {:.2}x the threshold, steps {}-{}",
+                s.place(),
+                s.max_pressure_pa,
+                s.ratio,
+                s.step,
+                s.last_step
             ),
             color: BRUISE_COLOR,
             scale: if b { 3.0 } else { 3.3 },

@@ -140,6 +140,9 @@ pub struct ContactState {
     pub bruise_pressure: f64,
     #[serde(default)]
     pub bruise_half_width: f64,
+    /// The contact point (m; on the fruit's surface for its own contact).
+    #[serde(default)]
+    pub point: [f64; 2],
 }
 
 impl Step {
@@ -160,15 +163,15 @@ impl Step {
         let samples: Vec<super::bruise::PressureSample> = self
             .contacts
             .iter()
-            .filter_map(|c| {
-                let rod = c.rod?;
-                (c.peak_pressure > 0.0).then_some(super::bruise::PressureSample {
-                    rod,
-                    node: c.node,
-                    peak_pressure: c.peak_pressure,
-                    bruise_pressure: c.bruise_pressure,
-                    bruise_half_width: c.bruise_half_width,
-                })
+            .filter(|c| c.peak_pressure > 0.0)
+            // A free fruit's own contact (no rod) is a place of its own: node = the body.
+            .map(|c| super::bruise::PressureSample {
+                rod: c.rod.unwrap_or(usize::MAX),
+                node: c.node,
+                obstacle: c.obstacle,
+                peak_pressure: c.peak_pressure,
+                bruise_pressure: c.bruise_pressure,
+                bruise_half_width: c.bruise_half_width,
             })
             .collect();
         if !samples.is_empty() {
@@ -402,6 +405,7 @@ impl From<&proto::Contact> for ContactState {
             peak_pressure: c.peak_pressure.into(),
             bruise_pressure: c.bruise_pressure.into(),
             bruise_half_width: c.bruise_half_width.into(),
+            point: point(&c.point),
         }
     }
 }
@@ -415,8 +419,15 @@ impl From<&proto::Contact64> for ContactState {
             peak_pressure: c.peak_pressure,
             bruise_pressure: c.bruise_pressure,
             bruise_half_width: c.bruise_half_width,
+            point: point(&c.point),
         }
     }
+}
+
+/// A recorded point (0 where the message has none).
+fn point<T: Copy + Into<f64>>(p: &[T]) -> [f64; 2] {
+    let at = |k: usize| p.get(k).map_or(0.0, |&x| x.into());
+    [at(0), at(1)]
 }
 
 /// A step from its decoded parts (step, t, dt, Newton iterations, passes).

@@ -495,7 +495,8 @@ impl Simulation {
             bruise_half_width: above,
             segment: g.segment,
             weight: g.weight,
-            ..RIGID
+            first: g.first,
+            last: g.last.min(self.rods[r].n - 1),
         }
     }
 
@@ -585,6 +586,8 @@ const RIGID: ContactView = ContactView {
     bruise_half_width: 0.0,
     segment: usize::MAX,
     weight: 0.0,
+    first: usize::MAX,
+    last: usize::MAX,
 };
 
 /// A free node's contact force at the end of a step: its eq. 2 reaction `r` when a constraint

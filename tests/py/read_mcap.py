@@ -20,7 +20,8 @@ of format 2) with Google's `protobuf` library from the FileDescriptorSet the fil
                 by the protobuf library (protobuf)
   step_samples  the first /sim/step messages and every 250th after, as the protobuf (or
                 JSON) library decoded them: step, t, dt and per rod q, reaction_norm,
-                in_contact, gap (null for no obstacle); contacts: node, normal force and the
+                in_contact, gap (null for no obstacle); contacts: rod, node, obstacle, body,
+                first and last node of an arc (-1 for none), normal force and the
                 compliant contact's indentation, half-width, peak pressure, bruise threshold
                 and bruise half-width
   scene_samples the first /scene messages and every 250th after (format 3: protobuf
@@ -81,10 +82,11 @@ def step_sample(msg):
         )
     # A file written before a field existed has no such field: None.
     field = (lambda m, k: m.get(k)) if isinstance(msg, dict) else (lambda m, k: getattr(m, k, None))
-    contacts = [
-        {k: (int(field(c, k)) if k == "node" else field(c, k)) for k in CONTACT_FIELDS}
-        for c in (field(msg, "contacts") or [])
-    ]
+    def value(c, k):
+        v = field(c, k)
+        return int(v) if k in INDEX_FIELDS and v is not None else v
+
+    contacts = [{k: value(c, k) for k in CONTACT_FIELDS} for c in (field(msg, "contacts") or [])]
     return {
         "step": int(get(msg, "step")),
         "t": get(msg, "t"),
@@ -181,8 +183,16 @@ def step3_sample(msg):
 
 
 # What the report shows of each active contact of a sampled step.
+# The contact's indices (protobuf integers; -1 for none, as in the file).
+INDEX_FIELDS = {"rod", "node", "obstacle", "body", "first", "last"}
+
 CONTACT_FIELDS = [
+    "rod",
     "node",
+    "obstacle",
+    "body",
+    "first",
+    "last",
     "normal_force",
     "indentation",
     "half_width",

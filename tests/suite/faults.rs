@@ -825,9 +825,9 @@ fn item8_a_killed_run_leaves_whole_csv_rows() {
             &text[text.len() - 80..]
         );
         let header = text.lines().next().unwrap().split(',').count();
-        // 19 columns, and 4 of a compliant contact (indentation, half-width, peak pressure,
-        // bruise half-width).
-        assert_eq!(header, 23);
+        // 19 columns, 4 of a compliant contact (indentation, half-width, peak pressure,
+        // bruise half-width) and the obstacle of the row's contact.
+        assert_eq!(header, 24);
         // Whole rows, each with every column; steps in order with one row per node (10
         // nodes), the last step possibly incomplete (the kill may come between two rows).
         assert!(text.lines().all(|l| l.split(',').count() == header));

@@ -17,6 +17,7 @@ mod friction_bodies;
 mod friction_pull;
 mod frictionless_golden;
 mod fruit;
+mod fruit_records;
 mod grasp3d;
 mod integrator;
 mod joints;

@@ -32,7 +32,7 @@ fn assert_rrd_verifies(path: &Path) {
 }
 
 /// The report of tests/py/read_mcap.py (the `mcap` Python package, CRCs validated).
-fn read_mcap_py(path: &Path) -> Value {
+pub(crate) fn read_mcap_py(path: &Path) -> Value {
     let out = Command::new(venv().join("bin/python"))
         .arg(Path::new(ROOT).join("tests/py/read_mcap.py"))
         .arg(path)
@@ -430,7 +430,8 @@ fn seed_grasp_recordings_agree_with_the_summary() {
             "indentation",
             "half_width",
             "peak_pressure",
-            "bruise_half_width"
+            "bruise_half_width",
+            "obstacle"
         ]
     );
     let mut csv_peak = vec![0.0f64; peak.len()];
