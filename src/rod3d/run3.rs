@@ -411,6 +411,13 @@ fn run_loop(
         }
     }
     s.grasp = grasp.map(GraspLive::finish);
+    if sc.t_end.is_none() && !g.done() {
+        return Err(format!(
+            "the hand's moves did not end within {limit} steps (t = {:e} s): give solve.t_end, \
+             or check the moves (a squeeze whose force is never reached)",
+            w.time
+        ));
+    }
     w.end_observed(obs);
     s.t_end = w.time;
     s.finger_forces = g.finger_forces(w);

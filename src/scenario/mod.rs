@@ -719,24 +719,8 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         Mode::Dynamic => s.positive("dt")?,
         Mode::Static => s.opt_positive("dt")?.unwrap_or(1.0),
     };
-    if mode == Mode::Dynamic && dt > t_end {
-        return Err(s.err_hint(
-            "dt",
-            s.get("dt"),
-            format!("is larger than t_end = {t_end}"),
-            "make dt smaller than t_end",
-        ));
-    }
-    if mode == Mode::Dynamic && t_end / dt > MAX_STEPS {
-        return Err(s.err_hint(
-            "dt",
-            s.get("dt"),
-            format!(
-                "is too small: t_end / dt = {:.3e} steps (at most {MAX_STEPS:e})",
-                t_end / dt
-            ),
-            "use a larger dt or a shorter t_end",
-        ));
+    if mode == Mode::Dynamic {
+        check_steps(s, dt, t_end)?;
     }
     let stepping = match s.opt_str("stepping")?.unwrap_or("fixed") {
         "fixed" => Stepping::Fixed,
@@ -855,7 +839,7 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         }
     };
     let gravity = s.opt_vec2("gravity")?.unwrap_or([0.0, -9.81]);
-    check_magnitude(s, "gravity", gravity, MAX_ACCELERATION, "m/s²")?;
+    check_magnitude(s, "gravity", &gravity, MAX_ACCELERATION, "m/s²")?;
     let force_tol = s.opt_positive("force_tol")?.unwrap_or(1e-9);
     let step_tol = s.opt_positive("step_tol")?.unwrap_or(1e-12);
     let max_newton_iterations = positive_int(s, "max_newton_iterations", 50)?;
@@ -917,14 +901,40 @@ pub const MAX_ACCELERATION: f64 = 1e6;
 /// Largest accepted |force| of a load or a particle: 1e9 N.
 pub const MAX_FORCE: f64 = 1e9;
 
-fn check_magnitude(
+/// A dynamic run's step and end, in both dimensions: dt ≤ t_end and at most
+/// [`MAX_STEPS`] steps.
+pub(crate) fn check_steps(s: &TableReader, dt: f64, t_end: f64) -> Result<(), ScenarioError> {
+    if dt > t_end {
+        return Err(s.err_hint(
+            "dt",
+            s.get("dt"),
+            format!("is larger than t_end = {t_end}"),
+            "make dt smaller than t_end",
+        ));
+    }
+    if t_end / dt > MAX_STEPS {
+        return Err(s.err_hint(
+            "dt",
+            s.get("dt"),
+            format!(
+                "is too small: t_end / dt = {:.3e} steps (at most {MAX_STEPS:e})",
+                t_end / dt
+            ),
+            "use a larger dt or a shorter t_end",
+        ));
+    }
+    Ok(())
+}
+
+/// |v| (2 or 3 components) at most `cap`, in both dimensions.
+pub(crate) fn check_magnitude(
     r: &TableReader,
     key: &str,
-    v: [f64; 2],
+    v: &[f64],
     cap: f64,
     unit: &str,
 ) -> Result<(), ScenarioError> {
-    let m = v[0].hypot(v[1]);
+    let m = v.iter().fold(0.0f64, |a, x| a.hypot(*x));
     if m > cap {
         return Err(r.err_hint(
             key,
@@ -936,7 +946,11 @@ fn check_magnitude(
     Ok(())
 }
 
-fn positive_int(s: &TableReader, key: &'static str, default: u32) -> Result<u32, ScenarioError> {
+pub(crate) fn positive_int(
+    s: &TableReader,
+    key: &'static str,
+    default: u32,
+) -> Result<u32, ScenarioError> {
     match s.opt_usize(key)? {
         None => Ok(default),
         Some(0) => Err(s.err(key, s.get(key), "must be at least 1")),
@@ -1149,7 +1163,7 @@ fn parse_rod(
                 "constant_acceleration" => Drive::ConstantAcceleration {
                     acceleration: {
                         let a = d.vec2("acceleration")?;
-                        check_magnitude(&d, "acceleration", a, MAX_ACCELERATION, "m/s²")?;
+                        check_magnitude(&d, "acceleration", &a, MAX_ACCELERATION, "m/s²")?;
                         a
                     },
                     stop_time: d.opt_positive("stop_time")?,
@@ -1214,7 +1228,7 @@ fn parse_rod(
                 ));
             }
             let force = l.vec2("force")?;
-            check_magnitude(&l, "force", force, MAX_FORCE, "N")?;
+            check_magnitude(&l, "force", &force, MAX_FORCE, "N")?;
             l.finish()?;
             loads.push(Load { node, force });
         }
@@ -1281,7 +1295,7 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
     let velocity = r.opt_vec2("velocity")?.unwrap_or([0.0; 2]);
     let mass = r.positive("mass")?;
     let force = r.opt_vec2("force")?.unwrap_or([0.0; 2]);
-    check_magnitude(r, "force", force, MAX_FORCE, "N")?;
+    check_magnitude(r, "force", &force, MAX_FORCE, "N")?;
     r.finish()?;
     Ok(RodSpec {
         name,

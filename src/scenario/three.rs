@@ -272,12 +272,17 @@ impl Scenario3 {
         }
         let description = top.opt_str("description")?.unwrap_or("").to_string();
         let solve = top.table("solve", SOLVE)?;
+        // The planar solve limits (src/scenario/mod.rs).
         let dt = solve.positive("dt")?;
         let t_end = solve.opt_positive("t_end")?;
+        if let Some(t) = t_end {
+            super::check_steps(&solve, dt, t)?;
+        }
         let gravity = opt_vec3(&solve, "gravity", [0.0, 0.0, -9.81])?;
+        super::check_magnitude(&solve, "gravity", &gravity, super::MAX_ACCELERATION, "m/s²")?;
         let force_tol = solve.opt_positive("force_tol")?.unwrap_or(1e-9);
         let step_tol = solve.opt_positive("step_tol")?.unwrap_or(1e-12);
-        let max_newton_iterations = solve.opt_usize("max_newton_iterations")?.unwrap_or(40) as u32;
+        let max_newton_iterations = super::positive_int(&solve, "max_newton_iterations", 40)?;
         solve.finish()?;
         let (prong, clamped_edges, damping_time) = parse_prong(&top.table("prong", PRONG)?)?;
         let (fingers, radius, centre, sensor_tau) = parse_gripper(&top)?;

@@ -59,3 +59,48 @@ fn a_3d_lift_says_held_or_slipped_with_its_margin() {
     assert!((end + 0.06).abs() < 1e-3, "on the table: {end}");
     assert!(text.contains("SLIPPED beyond 5.000e-3 m"), "{text}");
 }
+
+/// The planar solve limits hold in 3D: each refused, located, exit 2.
+#[test]
+fn a_3d_scenario_gets_the_planar_solve_limits() {
+    let bin = env!("CARGO_BIN_EXE_gripsim");
+    for (set, words) in [
+        (
+            "solve.dt=1e-12",
+            vec!["solve.dt", "is too small", "2.000e10 steps"],
+        ),
+        ("solve.t_end=1e300", vec!["solve.dt", "is too small"]),
+        (
+            "solve.gravity=[0,0,-1e308]",
+            vec!["solve.gravity", "1.000e308 m/s²", "at most 1e6"],
+        ),
+        ("solve.dt=1.0", vec!["solve.dt", "larger than t_end"]),
+        (
+            "solve.max_newton_iterations=4294967296",
+            vec!["max_newton_iterations", "at most 100000"],
+        ),
+        (
+            "solve.max_newton_iterations=0",
+            vec!["max_newton_iterations", "at least 1"],
+        ),
+    ] {
+        let out = std::process::Command::new(bin)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args([
+                "validate",
+                "scenarios/3d-lift.toml",
+                "--set",
+                "solve.t_end=0.02",
+                "--set",
+                set,
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{set}: {err}");
+        assert!(err.contains("scenarios/3d-lift.toml"), "{err}");
+        for w in words {
+            assert!(err.contains(w), "{set}: {w:?} in {err}");
+        }
+    }
+}
