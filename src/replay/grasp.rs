@@ -156,6 +156,11 @@ impl GraspRule {
         self.reference.is_some()
     }
 
+    /// Whether the lift is over: the gripper came down again, or the fruit was dropped.
+    pub fn lift_over(&self) -> bool {
+        self.over
+    }
+
     /// The fruit's largest displacement relative to the gripper during the lift so far (m).
     pub fn max_slip(&self) -> f64 {
         self.max_slip

@@ -70,8 +70,6 @@ struct GraspLive {
     out: Grasp3,
     weight: f64,
     x: Vec<Vec<f64>>,
-    /// Lift over (the hand came down): margins are no longer taken.
-    done: bool,
 }
 
 impl GraspLive {
@@ -87,7 +85,6 @@ impl GraspLive {
             rule: GraspRule::of3(clamped, sc.gravity, f.hold_tolerance, sc.expect.grasp),
             weight: b.mass * w.gravity.norm(),
             x: w.rods.iter().map(|s| vec![0.0; 3 * s.rod.n]).collect(),
-            done: false,
             out: Grasp3 {
                 fruit: f.name.clone(),
                 fruit_mass_kg: b.mass,
@@ -141,8 +138,9 @@ impl GraspLive {
             self.out.lift_start_time_s = Some(w.time);
             self.out.safety_margin_at_lift = Some(margin);
         }
-        self.done |= self.rule.outcome() == Some(GraspOutcome::Dropped);
-        if self.rule.lifted() && !self.done {
+        // Over the lift, as the planar summary's: a dropped fruit's margin counts (0).
+        let dropped = self.rule.outcome() == Some(GraspOutcome::Dropped);
+        if self.rule.lifted() && (!self.rule.lift_over() || dropped) {
             let m = self.out.min_safety_margin.map_or(margin, |m| m.min(margin));
             self.out.min_safety_margin = Some(m);
         }
