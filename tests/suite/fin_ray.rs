@@ -230,3 +230,24 @@ fn bad_fin_ray_input_is_located_with_exit_2() {
         assert_eq!(left.len(), 1, "nothing written beside the scenario");
     }
 }
+
+/// scenarios/fin-ray-push.toml: the figures its comment block states (tip x of the front
+/// flank −3.0 mm; welded ribs +1.4 mm; ribs at 20°, −8.9 mm).
+#[test]
+fn the_shipped_fin_ray_push_turns_its_tip_toward_the_load() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/fin-ray-push.toml");
+    for (set, want) in [
+        (None, -3.0e-3),
+        (Some("rod.0.shape.rib_joint=\"rigid\""), 1.4e-3),
+        (Some("rod.0.shape.rib_angle=20"), -8.9e-3),
+    ] {
+        let sets: Vec<String> = set.into_iter().map(str::to_string).collect();
+        let sc = Scenario::load(&path, &sets).unwrap_or_else(|e| panic!("{e}"));
+        let mut sim = Simulation::new(&sc);
+        sim.run(&mut NullObserver).unwrap_or_else(|e| panic!("{e}"));
+        let n = sim.rods[0].n;
+        let tip = node(&sim, 0, n - 1)[0];
+        println!("fin-ray-push {set:?}: tip x {tip:.4e} m");
+        assert!((tip - want).abs() < 0.05e-3, "{set:?}: {tip}");
+    }
+}
