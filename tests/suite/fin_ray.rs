@@ -209,6 +209,32 @@ fn bad_fin_ray_input_is_located_with_exit_2() {
             "[0, 1]",
         ),
     ];
+    let twice =
+        "[[joint]]\nrods = [\"finger.front\", \"finger.rib1\"]\nnodes = [9, 0]\nkind = \"pin\"\n";
+    let same_name = "[[rod]]\nname = \"finger.back\"\nnodes = 3\n\
+                     shape = { kind = \"straight\", start = [0.2, 0.0], end = [0.3, 0.0] }\n\
+                     E = 1e6\nsection = { kind = \"rect\", b = 0.02, h = 0.002 }\n\
+                     density = 1000.0\nclamped = [0, 1]\n";
+    let more = [
+        (
+            base(&format!("{ok}, ribs = 3"), 37, twice),
+            "joint.0.nodes",
+            "[9, 0]",
+            "joins them already",
+        ),
+        (
+            base(&format!("{ok}, ribs = 3"), 37, same_name),
+            "rod.1.name",
+            "\"finger.back\"",
+            "rod.0",
+        ),
+    ];
+    for (text, key, value, says) in more {
+        let e = Scenario::from_str(&text, "case.toml", &[]).expect_err(key);
+        println!("{key} = {value}: {e}");
+        assert_eq!((e.key.as_str(), e.value.as_str()), (key, value), "{e}");
+        assert!(e.to_string().contains(says), "{e}");
+    }
     let dir = tempfile::tempdir().expect("temp dir");
     for (text, key, value) in cases {
         let e = Scenario::from_str(&text, "case.toml", &[]).expect_err(key);
