@@ -277,3 +277,69 @@ fn the_shipped_fin_ray_push_turns_its_tip_toward_the_load() {
         assert!((tip - want).abs() < 0.05e-3, "{set:?}: {tip}");
     }
 }
+
+/// A sweep over `ribs` changes the rods a case has: its per-rod columns (named after the
+/// first case's rods) are matched by name, so a second finger's columns hold that finger's
+/// numbers in every case (by position they would hold the first finger's extra rib).
+#[test]
+fn a_sweep_over_ribs_keeps_each_finger_in_its_own_columns() {
+    let finger = |name: &str, x: f64, load: &str| {
+        format!(
+            "[[rod]]\nname = \"{name}\"\nnodes = 25\n\
+             shape = {{ kind = \"fin_ray\", length = 0.1, base_width = 0.04, ribs = 2, base = [{x}, 0.0] }}\n\
+             E = 1e6\nsection = {{ kind = \"rect\", b = 0.02, h = 0.002 }}\ndensity = 1000.0\n{load}\n"
+        )
+    };
+    let text = format!(
+        "name = \"pair-sweep\"\n[solve]\nmode = \"static\"\ngravity = [0.0, 0.0]\n\n{}{}",
+        finger("left", 0.0, "loads = [{ node = 12, force = [0.05, 0.0] }]"),
+        finger("right", 0.2, "")
+    );
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("pair.toml");
+    std::fs::write(&path, text).expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_gripsim"))
+        .args([
+            "sweep",
+            "--vary",
+            "rod.*.shape.ribs=2,3",
+            "-j",
+            "1",
+            "--out",
+            "sw",
+        ])
+        .arg(&path)
+        .current_dir(dir.path())
+        .output()
+        .expect("run gripsim");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.path().join("sw/summary.csv")).expect("summary.csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let (left, right) = (
+        col("max_tip_deflection_m:left.front"),
+        col("max_tip_deflection_m:right.front"),
+    );
+    let right_cols: Vec<usize> = (0..header.len())
+        .filter(|&i| header[i].starts_with("max_tip_deflection_m:right."))
+        .collect();
+    assert_eq!(right_cols.len(), 4, "{header:?}");
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2);
+    for row in &rows {
+        let l: f64 = row[left].parse().expect("left");
+        println!(
+            "ribs {}: left tip deflection {l:.4e} m, right {}",
+            row[2], row[right]
+        );
+        assert!(l > 1e-3, "the loaded finger deflects: {l}");
+        for &c in &right_cols {
+            assert_eq!(row[c].parse::<f64>().expect("right"), 0.0, "{}", header[c]);
+        }
+    }
+}
