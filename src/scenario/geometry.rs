@@ -35,16 +35,9 @@ pub fn validate(sc: &Scenario) -> Result<(), ScenarioError> {
         message,
         hint: Some(hint.to_string()),
     };
-    for (ri, spec) in sc.rods.iter().enumerate() {
+    for spec in &sc.rods {
         let pts = shape_points(&spec.shape, spec.nodes);
-        let key = if spec.particle {
-            format!(
-                "particle.{}",
-                ri - sc.rods.iter().filter(|r| !r.particle).count()
-            )
-        } else {
-            format!("rod.{ri}")
-        };
+        let key = &spec.source;
         for (i, p) in pts.iter().enumerate() {
             if !(p[0].is_finite() && p[1].is_finite()) {
                 return Err(err(

@@ -45,14 +45,18 @@ pub fn mentioned(root: &toml::Table) -> Vec<String> {
         .collect()
 }
 
-/// Read every `[[joint]]` against the rods already read.
+/// Read every `[[joint]]` against the rods already read, after the `generated` joints of
+/// `fin_ray` fingers.
 pub fn parse(
     top: &TableReader,
     rods: &[RodSpec],
+    generated: Vec<JointSpec>,
     mode: Mode,
 ) -> Result<Vec<JointSpec>, ScenarioError> {
+    let ngen = generated.len();
+    let none = Vec::new();
     let list = match top.get("joint") {
-        None => return Ok(Vec::new()),
+        None => &none,
         Some(Value::Array(a)) => a,
         Some(other) => {
             return Err(top.err(
@@ -62,11 +66,11 @@ pub fn parse(
             ))
         }
     };
-    let mut joints: Vec<JointSpec> = Vec::new();
+    let mut joints: Vec<JointSpec> = generated;
     for (k, v) in list.iter().enumerate() {
         let t = top.table_value(&format!("joint.{k}"), v, JOINT_KEYS)?;
         let j = parse_one(&t, rods)?;
-        check_twice(&t, &joints, &j, rods)?;
+        check_twice(&t, &joints, ngen, &j, rods)?;
         t.finish()?;
         joints.push(j);
     }
@@ -205,6 +209,7 @@ fn check_members(t: &TableReader, rods: &[RodSpec], j: &JointSpec) -> Result<(),
 fn check_twice(
     t: &TableReader,
     earlier: &[JointSpec],
+    ngen: usize,
     j: &JointSpec,
     rods: &[RodSpec],
 ) -> Result<(), ScenarioError> {
@@ -217,11 +222,19 @@ fn check_twice(
     for (k, e) in earlier.iter().enumerate() {
         for (r, i, other) in ends(j) {
             if ends(e).contains(&(r, i, other)) {
+                let by = if k < ngen {
+                    format!(
+                        "the fin_ray finger of {} joins them already",
+                        rods[r].source
+                    )
+                } else {
+                    format!("joint.{} joins them already", k - ngen)
+                };
                 return Err(t.err_hint(
                     "nodes",
                     t.get("nodes"),
                     format!(
-                        "{:?} node {i} is joined to rod {:?} twice (joint.{k} joins them already)",
+                        "{:?} node {i} is joined to rod {:?} twice ({by})",
                         rods[r].name, rods[other].name
                     ),
                     "join a node to a rod once",
@@ -239,13 +252,19 @@ fn check_static_clamps(
     joints: &[JointSpec],
 ) -> Result<(), ScenarioError> {
     let comp = components(rods.len(), joints);
-    for (k, j) in joints.iter().enumerate() {
+    let ngen = joints.len()
+        - top
+            .get("joint")
+            .and_then(Value::as_array)
+            .map_or(0, Vec::len);
+    for (k, j) in joints.iter().enumerate().skip(ngen) {
         let c = comp[j.rods[0]];
         let clamps: usize = (0..rods.len())
             .filter(|&r| comp[r] == c)
             .map(|r| rods[r].clamped.len())
             .sum();
         if clamps < 2 {
+            let k = k - ngen;
             let v = top
                 .get("joint")
                 .and_then(|a| a.get(k))

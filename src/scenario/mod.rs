@@ -6,6 +6,7 @@ pub mod actuation;
 mod advice;
 pub mod contact;
 pub mod expect;
+pub mod fin_ray;
 pub mod friction;
 pub mod geometry;
 pub mod input;
@@ -276,6 +277,10 @@ pub struct RodSpec {
     /// Kelvin–Voigt retardation time τ (s): viscous stress τ E ε̇ beside the elastic E ε;
     /// `loss_factor` / (2π `loss_frequency`), 0 = no material damping.
     pub damping_time: f64,
+    /// The table it was read from (`rod.<i>`, `particle.<i>`; a generated finger's members
+    /// share their `[[rod]]`'s), for messages.
+    #[serde(skip)]
+    pub source: String,
 }
 
 /// A whole scenario.
@@ -562,30 +567,36 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             .enumerate()
             .map(|(i, v)| (format!("particle.{i}"), v, true)),
     );
+    let mut generated = Vec::new();
     for (path, v, is_particle) in tables {
-        let (rod, r) = if is_particle {
+        let (expanded, r) = if is_particle {
             let r = top.table_value(&path, v, PARTICLE_KEYS)?;
-            (parse_particle(&r, solve.mode)?, r)
+            (vec![parse_particle(&r, solve.mode)?], r)
         } else {
             let r = top.table_value(&path, v, ROD_KEYS)?;
-            (parse_rod(&r, solve.mode, &actuators, &joined)?, r)
+            match parse_rod(&r, solve.mode, &actuators, &joined)? {
+                (rod, None) => (vec![rod], r),
+                (rod, Some(fr)) => {
+                    let (members, joints) = fin_ray::expand(&r, rod, &fr, rods.len())?;
+                    generated.extend(joints);
+                    (members, r)
+                }
+            }
         };
-        if let Some(j) = rods.iter().position(|o: &RodSpec| o.name == rod.name) {
-            return Err(r.err_hint(
-                "name",
-                r.get("name"),
-                format!(
-                    "duplicate name (the {} before it has it already)",
-                    if j < rods_v.len() {
-                        format!("rod.{j}")
-                    } else {
-                        format!("particle.{}", j - rods_v.len())
-                    }
-                ),
-                "give every rod and particle its own name",
-            ));
+        for rod in expanded {
+            if let Some(o) = rods.iter().find(|o| o.name == rod.name) {
+                return Err(r.err_hint(
+                    "name",
+                    r.get("name"),
+                    format!(
+                        "duplicate name {:?} (the {} before it has it already)",
+                        rod.name, o.source
+                    ),
+                    "give every rod and particle its own name",
+                ));
+            }
+            rods.push(rod);
         }
-        rods.push(rod);
     }
 
     let (mut obstacles, mut obstacle_names, mut bodies) = (Vec::new(), Vec::new(), Vec::new());
@@ -644,7 +655,7 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "use mode = \"dynamic\", or remove [friction]",
         ));
     }
-    let joints = joint::parse(&top, &rods, solve.mode)?;
+    let joints = joint::parse(&top, &rods, generated, solve.mode)?;
     let expect = expect::parse(&top)?;
     let contact = contact::parse(&top)?;
     let mut flush_every = 100;
@@ -961,8 +972,26 @@ pub(crate) fn positive_int(
     }
 }
 
-const SHAPE_KEYS: &[&str] = &["kind", "start", "end", "points", "x0", "y0", "a", "length"];
-const SECTION_KEYS: &[&str] = &["kind", "b", "h", "radius"];
+const SHAPE_KEYS: &[&str] = &[
+    "kind",
+    "start",
+    "end",
+    "points",
+    "x0",
+    "y0",
+    "a",
+    "length",
+    "base_width",
+    "ribs",
+    "rib_angle",
+    "base",
+    "direction",
+    "side",
+    "rib_nodes",
+    "rib_section",
+    "rib_joint",
+];
+pub(crate) const SECTION_KEYS: &[&str] = &["kind", "b", "h", "radius"];
 const DRIVE_KEYS: &[&str] = &[
     "kind",
     "acceleration",
@@ -976,7 +1005,7 @@ fn parse_rod(
     mode: Mode,
     actuators: &[ActuatorSpec],
     joined: &[String],
-) -> Result<RodSpec, ScenarioError> {
+) -> Result<(RodSpec, Option<fin_ray::FinRay>), ScenarioError> {
     let name = r.str("name")?.to_string();
     if name.trim().is_empty() {
         return Err(r.err("name", r.get("name"), "must not be empty"));
@@ -995,6 +1024,7 @@ fn parse_rod(
     }
 
     let sh = r.table("shape", SHAPE_KEYS)?;
+    let mut finger = None;
     let shape = match sh.str("kind")? {
         "straight" => Shape::Straight {
             start: sh.vec2("start")?,
@@ -1034,11 +1064,17 @@ fn parse_rod(
                 length,
             }
         }
+        "fin_ray" => {
+            let (front, fr) = fin_ray::parse(&sh, read_section)?;
+            finger = Some(fr);
+            front
+        }
         other => {
-            let hint = match reader::did_you_mean(other, &["straight", "points", "parabola"]) {
-                Some(m) => format!("did you mean \"{m}\"?"),
-                None => "use \"straight\", \"points\" or \"parabola\"".into(),
-            };
+            let hint =
+                match reader::did_you_mean(other, &["straight", "points", "parabola", "fin_ray"]) {
+                    Some(m) => format!("did you mean \"{m}\"?"),
+                    None => "use \"straight\", \"points\", \"parabola\" or \"fin_ray\"".into(),
+                };
             return Err(sh.err_hint(
                 "kind",
                 sh.get("kind"),
@@ -1050,29 +1086,7 @@ fn parse_rod(
     sh.finish()?;
 
     let e = r.positive("E")?;
-    let se = r.table("section", SECTION_KEYS)?;
-    let section = match se.str("kind")? {
-        "rect" => Section::Rect {
-            b: se.positive("b")?,
-            h: se.positive("h")?,
-        },
-        "circle" => Section::Circle {
-            radius: se.positive("radius")?,
-        },
-        other => {
-            let hint = match reader::did_you_mean(other, &["rect", "circle"]) {
-                Some(m) => format!("did you mean \"{m}\"?"),
-                None => "use \"rect\" (b, h) or \"circle\" (radius)".into(),
-            };
-            return Err(se.err_hint(
-                "kind",
-                se.get("kind"),
-                format!("unknown section kind {other:?}"),
-                hint,
-            ));
-        }
-    };
-    se.finish()?;
+    let section = read_section(&r.table("section", SECTION_KEYS)?)?;
 
     if r.has("mass") {
         if let Some(other) = ["density", "node_mass"].into_iter().find(|k| r.has(k)) {
@@ -1083,6 +1097,14 @@ fn parse_rod(
                 "keep one: mass (kg, the whole rod, lumped by Voronoi length), density (kg/m³) or node_mass (kg per node)",
             ));
         }
+    }
+    if finger.is_some() && r.has("mass") {
+        return Err(r.err_hint(
+            "mass",
+            r.get("mass"),
+            "a fin_ray finger takes density or node_mass, not a total mass",
+            "give density = ... (kg/m³) or node_mass = ... (kg per node)",
+        ));
     }
     let mass = if r.has("mass") {
         MassSpec::Total(r.positive("mass")?)
@@ -1115,6 +1137,17 @@ fn parse_rod(
     };
 
     let mut clamped = Vec::new();
+    if finger.is_some() && r.has("clamped") {
+        return Err(r.err_hint(
+            "clamped",
+            r.get("clamped"),
+            "a fin_ray finger clamps nodes 0 and 1 of both flanks itself",
+            "remove `clamped`",
+        ));
+    }
+    if finger.is_some() {
+        clamped = vec![0, 1];
+    }
     if let Some(arr) = r.array("clamped")? {
         for (i, v) in arr.iter().enumerate() {
             let n = r.usize_value(&format!("clamped.{i}"), v)?;
@@ -1258,7 +1291,7 @@ fn parse_rod(
     let loss_frequency = r.opt_positive("loss_frequency")?.unwrap_or(10.0);
     let damping_time = loss_factor / (2.0 * std::f64::consts::PI * loss_frequency);
     r.finish()?;
-    Ok(RodSpec {
+    let spec = RodSpec {
         name,
         nodes,
         shape,
@@ -1274,7 +1307,36 @@ fn parse_rod(
         mirror,
         nu,
         damping_time,
-    })
+        source: r.key_path("").trim_end_matches('.').to_string(),
+    };
+    Ok((spec, finger))
+}
+
+/// A `section` table (`rect` b, h or `circle` radius).
+pub(crate) fn read_section(se: &TableReader) -> Result<Section, ScenarioError> {
+    let section = match se.str("kind")? {
+        "rect" => Section::Rect {
+            b: se.positive("b")?,
+            h: se.positive("h")?,
+        },
+        "circle" => Section::Circle {
+            radius: se.positive("radius")?,
+        },
+        other => {
+            let hint = match reader::did_you_mean(other, &["rect", "circle"]) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"rect\" (b, h) or \"circle\" (radius)".into(),
+            };
+            return Err(se.err_hint(
+                "kind",
+                se.get("kind"),
+                format!("unknown section kind {other:?}"),
+                hint,
+            ));
+        }
+    };
+    se.finish()?;
+    Ok(section)
 }
 
 /// A `[[particle]]`: a single free node (the seed's bouncing point mass).
@@ -1319,5 +1381,6 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
         mirror: false,
         nu: 0.5,
         damping_time: 0.0,
+        source: r.key_path("").trim_end_matches('.').to_string(),
     })
 }

@@ -158,6 +158,11 @@ pub struct Metrics {
     pub peak_impulse_consistent_node: Option<usize>,
     /// Σ over nodes of Σ |R| dt, per rod (N·s).
     pub total_impulse_per_rod_ns: Vec<f64>,
+    /// The rods the per-rod numbers belong to, in their order (a case may have other rods
+    /// than the first, e.g. a sweep over a Fin Ray finger's `ribs`: its per-rod columns are
+    /// matched by name). Empty in records written before it: matched by position.
+    #[serde(default)]
+    pub rod_names: Vec<String>,
     /// The node constrained at the end of the most steps (ties: the lowest rod, then node).
     pub most_contact_steps_rod: Option<String>,
     pub most_contact_steps_node: Option<usize>,
@@ -258,6 +263,7 @@ impl Metrics {
                 .iter()
                 .map(|r| r.total_impulse_per_node_ns.iter().sum())
                 .collect(),
+            rod_names: s.rods.iter().map(|r| r.name.clone()).collect(),
             most_contact_steps: most.as_ref().map(|m| m.2).unwrap_or(0),
             most_contact_steps_rod: most.as_ref().map(|m| m.0.clone()),
             most_contact_steps_node: most.as_ref().map(|m| m.1),
@@ -1277,6 +1283,17 @@ fn csv_header(manifest: &Manifest) -> Vec<String> {
     h
 }
 
+/// A case's number for the manifest's rod `k` (its column), matched by the rod's name (by
+/// position in records without names); None when the case has no such rod.
+fn per_rod(manifest: &Manifest, m: &Metrics, values: &[f64], k: usize) -> Option<f64> {
+    if m.rod_names.is_empty() {
+        return values.get(k).copied();
+    }
+    let name = manifest.rods.get(k)?;
+    let at = m.rod_names.iter().position(|n| n == name)?;
+    values.get(at).copied()
+}
+
 fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     let multi = manifest.rods.len() > 1;
     let m = r.run_metrics();
@@ -1301,9 +1318,8 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     }
     row.push(opt(&m.peak_impulse_consistent_node));
     row.extend((0..manifest.rods.len()).map(|k| {
-        m.total_impulse_per_rod_ns
-            .get(k)
-            .map(|v| num(*v))
+        per_rod(manifest, m, &m.total_impulse_per_rod_ns, k)
+            .map(num)
             .unwrap_or_default()
     }));
     if multi {
@@ -1323,9 +1339,8 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     }
     row.push(opt(&m.max_bending_stress_node));
     row.extend((0..manifest.rods.len()).map(|k| {
-        m.max_tip_deflection_per_rod_m
-            .get(k)
-            .map(|v| num(*v))
+        per_rod(manifest, m, &m.max_tip_deflection_per_rod_m, k)
+            .map(num)
             .unwrap_or_default()
     }));
     row.extend([

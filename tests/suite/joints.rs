@@ -14,14 +14,14 @@ const EI: f64 = E * 20.0 * 0.001 * 0.001 * 0.001 / 12.0;
 const EA: f64 = E * 20.0 * 0.001;
 const L: f64 = 0.1;
 
-fn run(text: &str) -> Simulation {
+pub(crate) fn run(text: &str) -> Simulation {
     let sc = Scenario::from_str(text, "test.toml", &[]).unwrap_or_else(|e| panic!("{e}"));
     let mut sim = Simulation::new(&sc);
     sim.run(&mut NullObserver).unwrap_or_else(|e| panic!("{e}"));
     sim
 }
 
-fn node(sim: &Simulation, r: usize, i: usize) -> [f64; 2] {
+pub(crate) fn node(sim: &Simulation, r: usize, i: usize) -> [f64; 2] {
     let q = sim.positions(r);
     [q[2 * i], q[2 * i + 1]]
 }
@@ -358,7 +358,14 @@ fn fin_ray(ribs: usize, kind: &str, p: f64, single: bool) -> String {
 }
 
 /// [`fin_ray`] with base width `w` (m) and rib thickness `rib_h` (m).
-fn fin_ray_with(ribs: usize, kind: &str, p: f64, single: bool, w: f64, rib_h: f64) -> String {
+pub(crate) fn fin_ray_with(
+    ribs: usize,
+    kind: &str,
+    p: f64,
+    single: bool,
+    w: f64,
+    rib_h: f64,
+) -> String {
     const H: f64 = 0.1;
     let per = 6; // front-flank edges between ribs
     let nf = (ribs + 1) * per + 1;

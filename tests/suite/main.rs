@@ -12,6 +12,7 @@ mod contact_geometry;
 mod edge3d;
 mod edge_friction;
 mod faults;
+mod fin_ray;
 mod first_contact;
 mod friction_bodies;
 mod friction_pull;
