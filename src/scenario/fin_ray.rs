@@ -32,20 +32,6 @@ pub struct FinRay {
     rib_joint: JointKind,
 }
 
-/// The keys of a `fin_ray` shape table besides `kind`.
-pub const KEYS: &[&str] = &[
-    "length",
-    "base_width",
-    "ribs",
-    "rib_angle",
-    "base",
-    "direction",
-    "side",
-    "rib_nodes",
-    "rib_section",
-    "rib_joint",
-];
-
 /// Read a `fin_ray` shape: the front flank's [`Shape`] and the rest of the finger.
 pub fn parse(
     sh: &TableReader,

@@ -972,6 +972,8 @@ pub(crate) fn positive_int(
     }
 }
 
+/// A rod's `shape` keys: the curves', then the Fin Ray finger's (`fin_ray.rs`; `length` serves
+/// both).
 const SHAPE_KEYS: &[&str] = &[
     "kind",
     "start",
