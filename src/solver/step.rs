@@ -318,17 +318,7 @@ impl Simulation {
         let res = if ctx.wants_iter {
             let (t, step) = (self.t, ctx.step);
             let mut cb = |it: IterationReport<'_>| {
-                obs.on_event(&Event::Iteration {
-                    step,
-                    t,
-                    phase,
-                    pass,
-                    iteration: it.iteration,
-                    rod: r,
-                    residual: it.residual,
-                    update: it.update,
-                    q: it.q,
-                });
+                obs.on_event(&iteration_event(step, t, phase, pass, r, it));
             };
             newton::solve(rod, w, &ctx.opt, Some(&mut cb))
         } else {
@@ -369,17 +359,7 @@ impl Simulation {
         let res = if ctx.wants_iter {
             let (t, step) = (self.t, ctx.step);
             let mut cb = |r: usize, it: IterationReport<'_>| {
-                obs.on_event(&Event::Iteration {
-                    step,
-                    t,
-                    phase,
-                    pass,
-                    iteration: it.iteration,
-                    rod: r,
-                    residual: it.residual,
-                    update: it.update,
-                    q: it.q,
-                });
+                obs.on_event(&iteration_event(step, t, phase, pass, r, it));
             };
             super::joints::solve_network(
                 &mut self.joints,
@@ -427,17 +407,7 @@ impl Simulation {
         let res = if ctx.wants_iter {
             let (t, step) = (self.t, ctx.step);
             let mut cb = |r: usize, it: IterationReport<'_>| {
-                obs.on_event(&Event::Iteration {
-                    step,
-                    t,
-                    phase,
-                    pass,
-                    iteration: it.iteration,
-                    rod: r,
-                    residual: it.residual,
-                    update: it.update,
-                    q: it.q,
-                });
+                obs.on_event(&iteration_event(step, t, phase, pass, r, it));
             };
             group.solve(&ctx.opt, Some(&mut cb))
         } else {
@@ -771,4 +741,26 @@ pub(super) fn advance_rod(
     };
     w.bdf.merged = merge;
     w.clear_release_marks();
+}
+
+/// One Newton iteration of rod `r` as the observers see it.
+fn iteration_event<'a>(
+    step: u64,
+    t: f64,
+    phase: Phase,
+    pass: u32,
+    r: usize,
+    it: IterationReport<'a>,
+) -> Event<'a> {
+    Event::Iteration {
+        step,
+        t,
+        phase,
+        pass,
+        iteration: it.iteration,
+        rod: r,
+        residual: it.residual,
+        update: it.update,
+        q: it.q,
+    }
 }
