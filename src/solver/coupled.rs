@@ -18,6 +18,8 @@
 //! multipliers (a small dense KKT system).
 
 use super::edges_coupled::{self, EdgeSystem};
+use super::joints::Joints;
+use super::joints_coupled as jc;
 use super::newton::{self, IterationReport, NewtonFailure, NewtonOptions, RodWork};
 use crate::contact::body::{dot3, BodyContact};
 use crate::contact::Constraint;
@@ -64,6 +66,10 @@ pub struct Coupled<'a> {
     pub members: &'a [usize],
     pub bodies: &'a mut [Body],
     pub scratch: &'a mut BodyScratch,
+    /// The joints, and the networks among the members (solved with them:
+    /// src/solver/joints_coupled.rs).
+    pub joints: &'a mut Joints,
+    pub networks: &'a [usize],
 }
 
 /// A failure of the coupled solve: the rod (or `usize::MAX` for a body) and why.
@@ -131,6 +137,7 @@ impl Coupled<'_> {
                 for &r in self.members {
                     newton::finish_residual(&self.rods[r], &mut self.work[r], opt);
                 }
+                jc::finish(self.joints, self.networks, self.rods, self.work);
                 return self.accept(res, iterations);
             }
         }
@@ -148,6 +155,15 @@ impl Coupled<'_> {
         sc.g.resize(nb, 0.0);
         sc.gz.resize(nb, 0.0);
         sc.dx.resize(self.bodies.len(), [0.0; 3]);
+    }
+
+    /// The joints' tolerance: the smallest step tolerance of the networks' rods (m).
+    fn joint_tol(&self, opt: &NewtonOptions) -> f64 {
+        self.networks
+            .iter()
+            .flat_map(|&id| self.joints.networks[id].rods.iter())
+            .map(|&r| opt.step_tol * self.work[r].length_scale)
+            .fold(f64::INFINITY, f64::min)
     }
 
     fn accept(&self, res: f64, iterations: u32) -> Result<u32, CoupledFailure> {
@@ -168,15 +184,32 @@ impl Coupled<'_> {
         self.body_system_start(opt);
         let mut converged = true;
         let (mut res_max, mut worst) = (0.0f64, (usize::MAX, 0usize));
+        let mut first = Vec::with_capacity(self.members.len());
+        for &r in self.members {
+            let w = &mut self.work[r];
+            follow_bodies(w, self.bodies);
+            first.push(
+                newton::residual(&self.rods[r], w, opt, true, iterations).map_err(|f| (r, f))?,
+            );
+        }
+        if !self.networks.is_empty() {
+            let v = jc::add_terms(self.joints, self.networks, self.rods, self.work);
+            converged &= v <= self.joint_tol(opt);
+        }
         for mi in 0..self.members.len() {
             let r = self.members[mi];
             let rod = &self.rods[r];
             let w = &mut self.work[r];
-            follow_bodies(w, self.bodies);
-            let (mut res, mut node) =
-                newton::residual(rod, w, opt, true, iterations).map_err(|f| (r, f))?;
+            let (mut res, mut node) = first[mi];
             if !w.edges.is_empty() {
                 (res, node) = super::edges::forces_into_rhs(rod, w, true);
+            } else if self
+                .joints
+                .network_of
+                .get(r)
+                .is_some_and(|&id| id != usize::MAX)
+            {
+                (res, node) = super::joints::rod_residual(rod, w);
             }
             if res > opt.force_tol * w.force_scale {
                 converged = false;
@@ -209,6 +242,7 @@ impl Coupled<'_> {
                 converged = false;
             }
         }
+        jc::columns(self.joints, self.networks, self.work);
         press_bodies(self.bodies, self.scratch, nb);
         let (body_converged, body_res, body_worst) = self.body_residuals(opt, iterations)?;
         converged &= body_converged;
@@ -307,7 +341,8 @@ impl Coupled<'_> {
         }
         let m = sc.rows.len();
         let me = sc.edges.len();
-        let n = nb + me + m;
+        let at = nb + me + m;
+        let n = at + jc::unknown_count(self.joints, self.networks);
         sc.kkt.clear();
         sc.kkt.resize(n * n, 0.0);
         sc.rhs.clear();
@@ -330,10 +365,27 @@ impl Coupled<'_> {
             let target = if *kind == 0 { c.target } else { c.stick_target };
             sc.rhs[nb + j] = target - dot3(a, &b.dx);
         }
+        if !self.networks.is_empty() {
+            let parts = jc::Parts {
+                works: self.work,
+                coupling: self.coupling,
+                edges: &sc.edges,
+            };
+            let lay = jc::Layout { n, nb, at };
+            jc::fill(
+                self.joints,
+                self.networks,
+                &parts,
+                &mut sc.kkt,
+                &mut sc.rhs,
+                lay,
+            );
+        }
         if !dense_solve(&mut sc.kkt, &mut sc.rhs, n) {
             return Err((usize::MAX, body_failure(0, res, iterations)));
         }
         edges_coupled::take(&sc.edges, &sc.rhs[nb..nb + me], self.work);
+        jc::take(self.joints, self.networks, self.work, &sc.rhs[at..]);
         for (bi, b) in self.bodies.iter_mut().enumerate() {
             sc.dx[bi] = [sc.rhs[3 * bi], sc.rhs[3 * bi + 1], sc.rhs[3 * bi + 2]];
             // A compliant contact keeps its law's normal force (set by `press_bodies`).
@@ -381,6 +433,7 @@ impl Coupled<'_> {
                 scale = scale.min(w.max_update / full);
             }
         }
+        jc::take_multipliers(self.joints, self.networks, scale);
         let mut small = true;
         for &r in self.members {
             let rod = &self.rods[r];

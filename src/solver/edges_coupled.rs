@@ -51,6 +51,11 @@ impl EdgeSystem {
     pub(super) fn len(&self) -> usize {
         self.rod.len()
     }
+
+    /// The index of rod `r`'s first multiplier (its multipliers are consecutive).
+    pub(super) fn first_of(&self, r: usize) -> Option<usize> {
+        self.rod.iter().position(|&x| x == r)
+    }
 }
 
 /// After the rod's band is factored, `w.rhs` holds z = A⁻¹(−L r̃) (the current forces out of

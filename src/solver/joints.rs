@@ -70,15 +70,20 @@ pub struct Network {
     pub rods: Vec<usize>,
     pub joints: Vec<usize>,
     /// Border nodes (rod, node, free index) and, per rod of the scenario, each node's slot.
-    border: Vec<(usize, usize, usize)>,
-    slot: Vec<Vec<usize>>,
+    pub(super) border: Vec<(usize, usize, usize)>,
+    pub(super) slot: Vec<Vec<usize>>,
     /// One banded solve Ã⁻¹ L e per border DOF (the rod's free DOFs long).
-    cols: Vec<Vec<f64>>,
-    w: Vec<f64>,
-    x: Vec<f64>,
+    pub(super) cols: Vec<Vec<f64>>,
+    /// W − ρ I on the border DOFs (row-major).
+    pub(super) w: Vec<f64>,
+    /// X = Uᵀ P Ã⁻¹ L U (row-major).
+    pub(super) x: Vec<f64>,
     dense: Vec<f64>,
-    rhs: Vec<f64>,
+    /// The border's solution: z, then ΔΛ.
+    pub(super) rhs: Vec<f64>,
     y: Vec<f64>,
+    /// The border nodes' residuals before the joints' terms (rods with edge contacts).
+    r_old: Vec<f64>,
 }
 
 /// Every joint of a scenario and the networks they make.
@@ -208,11 +213,12 @@ impl Network {
         self.dense = vec![0.0; (k + m) * (k + m)];
         self.rhs = vec![0.0; k + m];
         self.y = vec![0.0; k];
+        self.r_old = vec![0.0; k];
     }
 
     /// The DOF of the border that (rod, node, direction) is, if any.
     #[inline]
-    fn dof(&self, r: usize, i: usize, a: usize) -> Option<usize> {
+    pub(super) fn dof(&self, r: usize, i: usize, a: usize) -> Option<usize> {
         let s = self.slot[r][i];
         (s != usize::MAX).then_some(2 * s + a)
     }
@@ -285,6 +291,10 @@ pub fn add_joint_terms(
         force[r].fill(0.0);
     }
     let k = 2 * net.border.len();
+    for (s, &(r, i, _)) in net.border.iter().enumerate() {
+        net.r_old[2 * s] = works[r].r[2 * i];
+        net.r_old[2 * s + 1] = works[r].r[2 * i + 1];
+    }
     let mut violation = 0.0f64;
     for &jk in &net.joints {
         let j = &mut list[jk];
@@ -304,11 +314,23 @@ pub fn add_joint_terms(
             violation = violation.max(c.abs());
         }
     }
-    for &(r, i, fi) in &net.border {
+    for (s, &(r, i, fi)) in net.border.iter().enumerate() {
         let w = &mut works[r];
-        let (rx, ry) = newton::rows(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
-        w.rhs[2 * fi] = -rx;
-        w.rhs[2 * fi + 1] = -ry;
+        if w.edges.is_empty() {
+            let (rx, ry) = newton::rows(w.r[2 * i], w.r[2 * i + 1], w.contact[i]);
+            w.rhs[2 * fi] = -rx;
+            w.rhs[2 * fi + 1] = -ry;
+        } else {
+            // The right-hand side keeps the edge contacts' forces (`w.r` does not): add the
+            // joints' part alone.
+            let d = [
+                w.r[2 * i] - net.r_old[2 * s],
+                w.r[2 * i + 1] - net.r_old[2 * s + 1],
+            ];
+            let (rx, ry) = newton::rows(d[0], d[1], w.contact[i]);
+            w.rhs[2 * fi] -= rx;
+            w.rhs[2 * fi + 1] -= ry;
+        }
         if hessian {
             let p = rho(&rods[r]);
             let d = net.dof(r, i, 0).unwrap_or(0);
@@ -381,7 +403,7 @@ fn add_spring(
 }
 
 /// The largest filtered residual of a rod (its free rows), and the node where it is.
-fn rod_residual(rod: &Rod, w: &RodWork) -> (f64, usize) {
+pub(super) fn rod_residual(rod: &Rod, w: &RodWork) -> (f64, usize) {
     let mut res = 0.0f64;
     let mut worst = 0;
     for i in 0..rod.n {
@@ -599,7 +621,7 @@ fn border_solve(
 }
 
 /// Ã⁻¹ L e for every border DOF, and X = Uᵀ P (those) (zero between rods).
-fn columns(net: &mut Network, works: &[RodWork]) {
+pub(super) fn columns(net: &mut Network, works: &[RodWork]) {
     let k = 2 * net.border.len();
     net.x.fill(0.0);
     for col in 0..k {
@@ -611,7 +633,7 @@ fn columns(net: &mut Network, works: &[RodWork]) {
         let (ux, uy) = newton::rows(e.0, e.1, w.contact[i]);
         v[2 * fi] = ux;
         v[2 * fi + 1] = uy;
-        w.band.solve(v);
+        super::edges::solve_k(w, v);
         for (s, &(rt, it, ft)) in net.border.iter().enumerate() {
             if rt != r {
                 continue;
@@ -624,7 +646,7 @@ fn columns(net: &mut Network, works: &[RodWork]) {
 }
 
 /// y = (W − ρ I) z + Gᵀ ΔΛ, and each member's update δ̃ = δ̃₀ − Σ y_s Ã⁻¹ L e_s.
-fn corrections(net: &mut Network, list: &[Joint], works: &mut [RodWork]) {
+pub(super) fn corrections(net: &mut Network, list: &[Joint], works: &mut [RodWork]) {
     let k = 2 * net.border.len();
     for u in 0..k {
         net.y[u] = (0..k).map(|v| net.w[u * k + v] * net.rhs[v]).sum();
@@ -712,4 +734,16 @@ fn damping(
         }
     }
     Ok(scale)
+}
+
+/// The multipliers of network `id` take the border's increments ΔΛ (`net.rhs[k..]`), damped
+/// by `scale` (a network solved with free bodies or edge contacts: src/solver/coupled.rs).
+pub(super) fn take_multipliers(joints: &mut Joints, id: usize, scale: f64) {
+    let net = &joints.networks[id];
+    let n = 2 * net.border.len();
+    for (e, &jk) in net.joints.iter().enumerate() {
+        for a in 0..2 {
+            joints.joints[jk].lambda[a] += scale * net.rhs[n + 2 * e + a];
+        }
+    }
 }

@@ -10,6 +10,7 @@ mod edges;
 mod edges_coupled;
 mod fruit;
 pub mod joints;
+mod joints_coupled;
 pub mod newton;
 mod outputs;
 mod release;

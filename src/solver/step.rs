@@ -292,7 +292,16 @@ impl Simulation {
             iterations += self.solve_rod(ctx, r, phase, pass, obs)?;
         }
         for id in 0..self.joints.networks.len() {
-            if self.joints.networks[id].rods.iter().any(|&r| self.dirty[r]) {
+            let rods = &self.joints.networks[id].rods;
+            if rods.iter().any(|&r| self.is_member[r]) || !rods.iter().any(|&r| self.dirty[r]) {
+                continue;
+            }
+            if rods.iter().any(|&r| !self.work[r].edges.is_empty()) {
+                // Held by edge contacts: the edge rows and the joints in one dense system.
+                let members = rods.clone();
+                iterations +=
+                    self.solve_coupled(ctx, &members, &[id], false, (phase, pass), obs)?;
+            } else {
                 iterations += self.solve_network(ctx, id, phase, pass, obs)?;
             }
         }
@@ -339,23 +348,6 @@ impl Simulation {
         pass: u32,
         obs: &mut O,
     ) -> Result<u32, StepError> {
-        let members = &self.joints.networks[id].rods;
-        if let Some(&r) = members
-            .iter()
-            .find(|&&r| self.is_member[r] || !self.work[r].edges.is_empty())
-        {
-            self.rollback();
-            return Err(StepError::Newton {
-                rod: r,
-                fail: NewtonFailure {
-                    node: 0,
-                    residual: 0.0,
-                    reason: "joined rods touching a free body or held by edge contacts are not \
-                             solved (yet): use node contacts on fixed obstacles",
-                    iterations: 0,
-                },
-            });
-        }
         let res = if ctx.wants_iter {
             let (t, step) = (self.t, ctx.step);
             let mut cb = |r: usize, it: IterationReport<'_>| {
@@ -385,7 +377,8 @@ impl Simulation {
         })
     }
 
-    /// The rods that touch a free body, solved with the bodies.
+    /// The rods that touch a free body (with the networks they belong to), solved with the
+    /// bodies.
     fn solve_group<O: Observer>(
         &mut self,
         ctx: &StepCtx,
@@ -396,13 +389,37 @@ impl Simulation {
         let members: Vec<usize> = (0..self.rods.len())
             .filter(|&r| self.is_member[r])
             .collect();
+        let nets: Vec<usize> = (0..self.joints.networks.len())
+            .filter(|&id| self.is_member[self.joints.networks[id].rods[0]])
+            .collect();
+        self.solve_coupled(ctx, &members, &nets, true, (phase, pass), obs)
+    }
+
+    /// Rods `members` (with the networks `nets` among them) solved in one Newton with the free
+    /// bodies (`with_bodies`) or with none (a network held by edge contacts).
+    fn solve_coupled<O: Observer>(
+        &mut self,
+        ctx: &StepCtx,
+        members: &[usize],
+        nets: &[usize],
+        with_bodies: bool,
+        (phase, pass): (Phase, u32),
+        obs: &mut O,
+    ) -> Result<u32, StepError> {
+        let bodies: &mut [crate::world::Body] = if with_bodies {
+            &mut self.bodies
+        } else {
+            &mut []
+        };
         let mut group = Coupled {
             rods: &self.rods,
             work: &mut self.work,
             coupling: &mut self.coupling,
-            members: &members,
-            bodies: &mut self.bodies,
+            members,
+            bodies,
             scratch: &mut self.scratch,
+            joints: &mut self.joints,
+            networks: nets,
         };
         let res = if ctx.wants_iter {
             let (t, step) = (self.t, ctx.step);
@@ -419,16 +436,25 @@ impl Simulation {
         })
     }
 
-    /// Rods holding any node or segment against a free body join the body group.
+    /// Rods holding any node or segment against a free body join the body group; a network
+    /// joins it whole (its joints are solved with the bodies).
     fn update_members(&mut self) {
-        for r in 0..self.rods.len() {
-            let w = &self.work[r];
-            let m = w
-                .contact
-                .iter()
-                .any(|c| c.is_some_and(|c| c.body.is_some()))
-                || w.edges.iter().any(|e| e.body.is_some())
-                || self.presses_body(r);
+        let mut wanted: Vec<bool> = (0..self.rods.len())
+            .map(|r| {
+                let w = &self.work[r];
+                w.contact
+                    .iter()
+                    .any(|c| c.is_some_and(|c| c.body.is_some()))
+                    || w.edges.iter().any(|e| e.body.is_some())
+                    || self.presses_body(r)
+            })
+            .collect();
+        for net in &self.joints.networks {
+            if net.rods.iter().any(|&r| wanted[r]) {
+                net.rods.iter().for_each(|&r| wanted[r] = true);
+            }
+        }
+        for (r, &m) in wanted.iter().enumerate() {
             if m != self.is_member[r] {
                 self.is_member[r] = m;
                 self.group_dirty = true;

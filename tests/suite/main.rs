@@ -22,6 +22,7 @@ mod fruit_records;
 mod grasp3d;
 mod integrator;
 mod joints;
+mod joints_bodies;
 mod no_data_loss;
 mod pick_and_place;
 mod planar_identity;
