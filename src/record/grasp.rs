@@ -15,7 +15,7 @@
 //! - Safety margin: Σ μ_s N over the prong contacts on the fruit divided by its weight, its
 //!   minimum over the lift (≥ 1 is needed to hold a fruit at rest).
 
-use crate::events::{ContactView, Event, RodStepView};
+use crate::events::{xy, ContactView, Event, RodStepView};
 use serde::Serialize;
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -116,7 +116,7 @@ impl GraspTracker {
                 ..
             } => {
                 if let Some(b) = bodies.first() {
-                    self.step(*t, rods, b.position, b.velocity, contacts);
+                    self.step(*t, rods, xy(b.position), xy(b.velocity), contacts);
                 }
             }
             Event::RunEnd { .. } => self.finish(),

@@ -343,7 +343,7 @@ impl SummaryCollector {
                     None => self.obstacles.get(c.obstacle).cloned().unwrap_or_default(),
                 };
                 p.max_pressure_node = NodeRef { rod, node: c.node };
-                p.max_pressure_point = c.point;
+                p.max_pressure_point = crate::events::xy(c.point);
                 p.max_pressure_time_s = t;
                 p.half_width_at_max_m = c.half_width;
                 p.bruise_pressure_pa = c.bruise_pressure;
