@@ -143,9 +143,10 @@ impl GraspTracker {
         };
         let (mut cx, mut cy, mut n) = (0.0, 0.0, 0.0);
         for (r, v) in rods.iter().enumerate() {
+            let d = usize::from(v.dim.max(2));
             for &i in self.clamped.get(r).map(Vec::as_slice).unwrap_or(&[]) {
-                cx += v.q[2 * i];
-                cy += v.q[2 * i + 1];
+                cx += v.q[d * i];
+                cy += v.q[d * i + 1];
                 n += 1.0;
             }
         }

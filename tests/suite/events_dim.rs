@@ -151,3 +151,180 @@ fn a_planar_run_sends_dimension_2_with_z_zero() {
     assert!(d.rotation_error < 1e-15, "{}", d.rotation_error);
     assert_eq!((d.frames, d.twist_stress), (0, 0));
 }
+
+mod spatial {
+    use gripsim::events::{Event, Fanout, Observer, Scene};
+    use gripsim::record::summary::SummaryCollector;
+    use gripsim::rod3d::events::{Event3, Observer3};
+    use gripsim::rod3d::run3::{run_both, Events};
+    use gripsim::scenario::three::Scenario3;
+
+    fn lift() -> Scenario3 {
+        let path = crate::common::scenario("3d-lift");
+        Scenario3::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// What the one stream of a 3D run says, step by step.
+    #[derive(Default)]
+    struct Stream {
+        dimension: u8,
+        shapes: usize,
+        steps: u64,
+        /// Largest |Σ (−force on the rods at the body's contacts) + Σ (the table's force on
+        /// the body) − the body's contact force| over the steps (N), and the steps the body
+        /// hung in the fingers alone.
+        imbalance: f64,
+        held_only_by_fingers: u64,
+        /// Largest total normal force of one finger on the fruit (N).
+        peak_finger: f64,
+        /// Largest |reaction| of a node (N).
+        peak_reaction: f64,
+        last_q: Vec<Vec<f64>>,
+        fruit_end: [f64; 3],
+        phases: Vec<usize>,
+        added: u64,
+        body_added: u64,
+        ended: bool,
+    }
+
+    impl Observer for Stream {
+        fn on_event(&mut self, e: &Event<'_>) {
+            match e {
+                Event::RunStart(info) => {
+                    self.dimension = info.dimension;
+                    if let Scene::Spatial { shapes } = info.scene {
+                        self.shapes = shapes.len();
+                    }
+                }
+                Event::StepEnd {
+                    step,
+                    dt,
+                    rods,
+                    bodies,
+                    contacts,
+                    ..
+                } => {
+                    self.steps = *step;
+                    for r in rods.iter() {
+                        assert_eq!((r.dim, r.q.len()), (3, 3 * r.in_contact.len()));
+                        for f in r.reaction.chunks_exact(3) {
+                            let m = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+                            self.peak_reaction = self.peak_reaction.max(m);
+                        }
+                    }
+                    self.last_q = rods.iter().map(|r| r.q.to_vec()).collect();
+                    let b = &bodies[0];
+                    self.fruit_end = b.position;
+                    let mut sum = [0.0; 3];
+                    let mut fingers = vec![0.0f64; rods.len()];
+                    let (mut own, mut rods_on) = (0, 0);
+                    for c in contacts.iter() {
+                        let f: Vec<f64> = (0..3)
+                            .map(|a| c.normal_force * c.normal[a] + c.friction_force * c.tangent[a])
+                            .collect();
+                        if c.rod == usize::MAX && c.node == 0 {
+                            own += 1;
+                            (0..3).for_each(|a| sum[a] += f[a]);
+                        } else if c.body == 0 {
+                            rods_on += 1;
+                            fingers[c.rod] += c.normal_force.max(0.0);
+                            (0..3).for_each(|a| sum[a] -= f[a]);
+                        }
+                    }
+                    self.peak_finger = fingers.iter().fold(self.peak_finger, |m, &x| m.max(x));
+                    if *dt > 0.0 {
+                        let d =
+                            (0..3).fold(0.0f64, |m, a| m.max((sum[a] - b.contact_force[a]).abs()));
+                        self.imbalance = self.imbalance.max(d);
+                        self.held_only_by_fingers += u64::from(own == 0 && rods_on > 0);
+                    }
+                }
+                Event::PhaseChanged { to, .. } => self.phases.push(to.unwrap_or(usize::MAX)),
+                Event::ConstraintAdded(_) => self.added += 1,
+                Event::BodyContactChanged { added: true, .. } => self.body_added += 1,
+                Event::RunEnd { error, .. } => self.ended = error.is_none(),
+                _ => {}
+            }
+        }
+    }
+
+    /// The 3D stream's last rod DOFs.
+    #[derive(Default)]
+    struct Dofs(Vec<Vec<f64>>);
+
+    impl Observer3 for Dofs {
+        fn on_event(&mut self, e: &Event3<'_>) {
+            if let Event3::Step { rods, .. } = e {
+                self.0 = rods.iter().map(|r| r.q.to_vec()).collect();
+            }
+        }
+    }
+
+    #[test]
+    fn a_3d_lift_sends_the_one_stream_balanced_at_every_step() {
+        let sc = lift();
+        let (mut stream, mut summary, mut dofs) =
+            (Stream::default(), SummaryCollector::new(), Dofs::default());
+        let mut fan = Fanout::new();
+        fan.push(&mut stream);
+        fan.push(&mut summary);
+        let mut events = Events {
+            text: "",
+            obs: &mut fan,
+        };
+        let s3 = run_both(&sc, None, &mut dofs, &mut events, &|| false).unwrap();
+        eprintln!(
+            "3d-lift: {} steps, imbalance {:e} N, {} steps in the fingers alone, peak finger {} N, peak reaction {} N",
+            stream.steps, stream.imbalance, stream.held_only_by_fingers, stream.peak_finger, stream.peak_reaction
+        );
+        assert_eq!(stream.dimension, 3);
+        assert_eq!(stream.shapes, 2, "the table and the fruit");
+        assert!(stream.ended);
+        assert_eq!(stream.steps, s3.steps);
+        assert_eq!(stream.steps, 17749);
+        // Momentum: what the fingers and the table give the fruit is what its own equations
+        // of motion say it got, at every step; for most of them it hangs in the fingers.
+        assert!(
+            stream.imbalance < 1e-9,
+            "imbalance {:e} N",
+            stream.imbalance
+        );
+        assert!(
+            stream.held_only_by_fingers > 2500,
+            "{}",
+            stream.held_only_by_fingers
+        );
+        // The fruit ends where the 3D run says, and each finger's peak grip is the summary's.
+        assert_eq!(Some(stream.fruit_end), s3.fruit_end);
+        let g = s3.grasp.as_ref().unwrap();
+        assert!(
+            (stream.peak_finger - g.peak_grip_force_n).abs() <= 1e-12 * g.peak_grip_force_n,
+            "{} vs {}",
+            stream.peak_finger,
+            g.peak_grip_force_n
+        );
+        // The positions are the DOFs' x, y, z.
+        for (q, d) in stream.last_q.iter().zip(&dofs.0) {
+            for (i, x) in q.chunks_exact(3).enumerate() {
+                assert_eq!(x, &d[4 * i..4 * i + 3]);
+            }
+        }
+        assert_eq!(stream.phases, vec![1, 2, 3, usize::MAX]);
+        assert!(stream.added >= 2 && stream.body_added >= 1);
+        // The planar summary reads the strided stream (its counters come from the run's
+        // stats): the run completed, its peak reaction and final positions.
+        let stats = gripsim::solver::RunStats {
+            steps: s3.steps,
+            t: s3.t_end,
+            ..Default::default()
+        };
+        let sum = summary.finish(&stats, 0.0);
+        assert!(sum.completed);
+        assert_eq!(sum.scenario, "3d-lift");
+        assert_eq!(sum.peak_reaction_force_n, stream.peak_reaction);
+        assert!(sum.peak_reaction_force_n > 0.5 && sum.peak_reaction_force_n < 2.0);
+        let rod = &sum.rods[0];
+        let last = &stream.last_q[0];
+        assert_eq!(rod.final_positions[9], [last[27], last[28]]);
+    }
+}
