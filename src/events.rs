@@ -43,16 +43,56 @@ pub enum ReleaseReason {
 /// Static facts about the run, sent once before the first step.
 #[derive(Debug, Clone)]
 pub struct RunInfo<'a> {
+    /// 2 (planar) or 3 (spatial): the stride of every per-node vector of the run's events.
+    pub dimension: u8,
     pub scenario_name: &'a str,
     /// The scenario as TOML text (with `--set` overrides applied).
     pub scenario_text: &'a str,
     pub rods: &'a [RodInfo],
-    pub obstacles: &'a [crate::obstacle::Obstacle],
+    /// What to draw and where the bodies start.
+    pub scene: Scene<'a>,
     /// The obstacles' names (`obstacle.<i>` unless named).
     pub obstacle_names: &'a [String],
-    /// Free bodies (fruit): which obstacle each carries, its mass and inertia.
+    /// Free bodies (fruit): which obstacle each carries, its mass and inertia (in 3D the
+    /// centroid, weight and velocity hold their x and y components, the inertia is the
+    /// trace's mean).
     pub bodies: &'a [crate::world::body::BodySpec],
     pub mode: crate::scenario::Mode,
+}
+
+/// The obstacles and bodies of a run, as its mechanics knows them.
+#[derive(Debug, Clone, Copy)]
+pub enum Scene<'a> {
+    /// The planar obstacles (the free bodies' shapes among them).
+    Planar {
+        obstacles: &'a [crate::obstacle::Obstacle],
+    },
+    /// The 3D obstacles (first) and free bodies: shape, pose at t = 0, free or fixed.
+    Spatial {
+        shapes: &'a [crate::rod3d::events::Shape3Info],
+    },
+}
+
+impl<'a> RunInfo<'a> {
+    /// The planar obstacles (none in a 3D run).
+    pub fn planar_obstacles(&self) -> &'a [crate::obstacle::Obstacle] {
+        match self.scene {
+            Scene::Planar { obstacles } => obstacles,
+            Scene::Spatial { .. } => &[],
+        }
+    }
+}
+
+/// The x and y components of a dim-tagged 3-vector (a planar reader's view of it).
+#[inline]
+pub fn xy(v: [f64; 3]) -> [f64; 2] {
+    [v[0], v[1]]
+}
+
+/// A planar 2-vector as a dim-tagged 3-vector (z = 0).
+#[inline]
+pub fn v3(v: [f64; 2]) -> [f64; 3] {
+    [v[0], v[1], 0.0]
 }
 
 /// Static facts about one rod.
@@ -78,9 +118,13 @@ pub struct RodInfo {
     pub particle: bool,
 }
 
-/// The state of one rod at the end of a step. All vectors are interleaved `[x0, y0, x1, y1, …]`.
+/// The state of one rod at the end of a step. All vectors are interleaved with stride `dim`:
+/// `[x0, y0, x1, y1, …]` in 2D, `[x0, y0, z0, x1, …]` in 3D.
 #[derive(Debug, Clone, Copy)]
 pub struct RodStepView<'a> {
+    /// 2 or 3: the stride of `q`, `u`, `reaction`, `impulse`, `drive_force`, `normal`,
+    /// `normal2` and `q_predictor`.
+    pub dim: u8,
     pub q: &'a [f64],
     pub u: &'a [f64],
     /// Eq. 2 reaction on each constrained node (N); zero for unconstrained nodes.
@@ -107,6 +151,21 @@ pub struct RodStepView<'a> {
     pub gap: &'a [f64],
     /// Predictor position of each node in this step (before any corrector pass).
     pub q_predictor: &'a [f64],
+    /// Twist stress τ = G J |τ_twist| / (J / r_max) … of each node (Pa) in 3D; empty in 2D.
+    pub twist_stress: &'a [f64],
+    /// The material frames of a 3D rod; None in 2D.
+    pub frames: Option<FrameView<'a>>,
+}
+
+/// A 3D rod's material frames at the end of a step.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameView<'a> {
+    /// Material angle θ of each edge relative to its reference frame (rad), `nodes − 1`.
+    pub theta: &'a [f64],
+    /// Twist θᵢ − θᵢ₋₁ + m_ref at each node (rad; 0 at the ends), `nodes`.
+    pub twist: &'a [f64],
+    /// First material director m₁ of each edge, `3 (nodes − 1)`.
+    pub m1: &'a [f64],
 }
 
 /// A constraint added or released inside a step.
@@ -119,11 +178,12 @@ pub struct ContactChange {
     pub rod: usize,
     pub node: usize,
     pub obstacle: usize,
-    pub normal: [f64; 2],
+    /// The outward normal (z = 0 in 2D).
+    pub normal: [f64; 3],
     /// Signed distance of the predicted node position when it was detected (negative inside).
     pub gap: f64,
-    /// Eq. 2 reaction of the node at the moment of release (zero when added).
-    pub reaction: [f64; 2],
+    /// Eq. 2 reaction of the node at the moment of release (zero when added; z = 0 in 2D).
+    pub reaction: [f64; 3],
     /// Prescribed normal velocity change of the corrector (m/s) for an added constraint.
     pub z: f64,
 }
@@ -152,36 +212,40 @@ pub struct FrictionChange {
     pub weight: f64,
 }
 
-/// One active contact at the end of a step, with its friction state.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+/// One active contact at the end of a step, with its friction state. Vectors hold 3
+/// components, z = 0 in 2D; serialised with `dim` of them.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactView {
     /// The rod, or `usize::MAX` for a free body's own contact with a fixed obstacle (then
     /// `node` is the body's index); serialised as null then.
-    #[serde(serialize_with = "index_or_null")]
     pub rod: usize,
     pub node: usize,
     pub obstacle: usize,
     /// The free body the surface belongs to (`usize::MAX` for a fixed obstacle: null).
-    #[serde(serialize_with = "index_or_null")]
     pub body: usize,
-    pub point: [f64; 2],
-    pub normal: [f64; 2],
+    pub point: [f64; 3],
+    pub normal: [f64; 3],
+    /// The direction the friction force is measured along: t = (−n_y, n_x, 0) in 2D; in 3D
+    /// the unit direction of the friction force on the rod (zero without friction).
+    pub tangent: [f64; 3],
     /// Normal reaction (N, ≥ 0 when pressed) and tangential (friction) reaction along
-    /// t = (−n_y, n_x) (N).
+    /// `tangent` (N; ≥ 0 in 3D).
     pub normal_force: f64,
     pub friction_force: f64,
-    /// Slip velocity along t relative to the surface (m/s).
+    /// Slip velocity along `tangent` relative to the surface (m/s).
     pub slip_velocity: f64,
     pub stuck: bool,
     /// |R_t| / (μ_s R_n); 0 when frictionless.
     pub utilisation: f64,
     pub mu_s: f64,
     /// A compliant fruit's contact (Hertz line contact, docs/model.md): how far the face
-    /// presses into the undeformed fruit (m), the contact half-width a (m), the peak pressure
-    /// p₀ (Pa), the fruit's bruise threshold (Pa) and the half-width of the part of the contact
-    /// above it (m). All 0 at a rigid obstacle (its pressure is not modelled).
+    /// presses into the undeformed fruit (m), the contact half-width a (m) and, of an
+    /// elliptical 3D patch, its minor half-width b ≤ a (m; = `half_width` in 2D), the peak
+    /// pressure p₀ (Pa), the fruit's bruise threshold (Pa) and the half-width of the part of
+    /// the contact above it (m). All 0 at a rigid obstacle (its pressure is not modelled).
     pub indentation: f64,
     pub half_width: f64,
+    pub half_width_minor: f64,
     pub peak_pressure: f64,
     pub bruise_pressure: f64,
     pub bruise_half_width: f64,
@@ -189,22 +253,47 @@ pub struct ContactView {
     /// the same) and the barycentric weight s of the contact point (1 − s) x_i + s x_{i+1},
     /// whose normal force is shared (1 − s, s) by the two nodes. Null and 0 for a node's
     /// contact.
-    #[serde(serialize_with = "index_or_null")]
     pub segment: usize,
     pub weight: f64,
     /// A conforming contact arc (edge mode, a compliant fruit): the first and last node of the
     /// arc's segments, every node of which shares its load. Null for any other contact.
-    #[serde(serialize_with = "index_or_null")]
     pub first: usize,
-    #[serde(serialize_with = "index_or_null")]
     pub last: usize,
+    /// 2 or 3: how many components of `point`, `normal` and `tangent` are the run's.
+    pub dim: u8,
 }
 
-fn index_or_null<S: serde::Serializer>(i: &usize, s: S) -> Result<S::Ok, S::Error> {
-    if *i == usize::MAX {
-        s.serialize_none()
-    } else {
-        s.serialize_u64(*i as u64)
+impl serde::Serialize for ContactView {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let d = if self.dim == 3 { 3 } else { 2 };
+        let idx = |i: usize| (i != usize::MAX).then_some(i as u64);
+        let mut m = s.serialize_struct("ContactView", 24)?;
+        m.serialize_field("rod", &idx(self.rod))?;
+        m.serialize_field("node", &self.node)?;
+        m.serialize_field("obstacle", &self.obstacle)?;
+        m.serialize_field("body", &idx(self.body))?;
+        m.serialize_field("point", &self.point[..d])?;
+        m.serialize_field("normal", &self.normal[..d])?;
+        m.serialize_field("tangent", &self.tangent[..d])?;
+        m.serialize_field("normal_force", &self.normal_force)?;
+        m.serialize_field("friction_force", &self.friction_force)?;
+        m.serialize_field("slip_velocity", &self.slip_velocity)?;
+        m.serialize_field("stuck", &self.stuck)?;
+        m.serialize_field("utilisation", &self.utilisation)?;
+        m.serialize_field("mu_s", &self.mu_s)?;
+        m.serialize_field("indentation", &self.indentation)?;
+        m.serialize_field("half_width", &self.half_width)?;
+        m.serialize_field("half_width_minor", &self.half_width_minor)?;
+        m.serialize_field("peak_pressure", &self.peak_pressure)?;
+        m.serialize_field("bruise_pressure", &self.bruise_pressure)?;
+        m.serialize_field("bruise_half_width", &self.bruise_half_width)?;
+        m.serialize_field("segment", &idx(self.segment))?;
+        m.serialize_field("weight", &self.weight)?;
+        m.serialize_field("first", &idx(self.first))?;
+        m.serialize_field("last", &idx(self.last))?;
+        m.serialize_field("dim", &self.dim)?;
+        m.end()
     }
 }
 
@@ -221,21 +310,30 @@ pub struct JointView {
     pub moment: f64,
 }
 
-/// A free body at the end of a step.
+/// A free body at the end of a step. Vectors hold 3 components (z = 0 in 2D; a planar
+/// rotation and its rates are about z).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct BodyView<'a> {
     pub name: &'a str,
     pub obstacle: usize,
-    /// Centroid (m) and rotation from the shape as given (rad).
-    pub position: [f64; 2],
+    /// Centroid (m), and rotation from the shape as given: the planar angle (rad, about z;
+    /// 0 in 3D) and the unit quaternion [x, y, z, w].
+    pub position: [f64; 3],
     pub angle: f64,
-    pub velocity: [f64; 2],
-    pub angular_velocity: f64,
+    pub rotation: [f64; 4],
+    pub velocity: [f64; 3],
+    pub angular_velocity: [f64; 3],
     /// Net contact force (N) and torque about the centroid (N·m) on the body over the step:
     /// from the prongs and from fixed obstacles.
-    pub contact_force: [f64; 2],
-    pub contact_torque: f64,
+    pub contact_force: [f64; 3],
+    pub contact_torque: [f64; 3],
     pub mass: f64,
+}
+
+/// The unit quaternion [x, y, z, w] of a rotation by `angle` about z.
+pub fn about_z(angle: f64) -> [f64; 4] {
+    let (s, c) = (0.5 * angle).sin_cos();
+    [0.0, 0.0, s, c]
 }
 
 /// One event of the run.
@@ -278,9 +376,10 @@ pub enum Event<'a> {
         /// The body's contact point (a polygon vertex index; 0 for round shapes).
         feature: usize,
         added: bool,
-        normal: [f64; 2],
-        /// Normal and tangential reaction when released (N).
-        reaction: [f64; 2],
+        normal: [f64; 3],
+        /// Normal and tangential reaction when released (N; the third component 0 in 2D,
+        /// the second the tangential magnitude in 3D).
+        reaction: [f64; 3],
     },
     /// An actuation program moved to its next phase (`to` = None: the program ended).
     PhaseChanged {
@@ -542,6 +641,7 @@ impl OwnedStepEnd {
 /// An owned [`RodStepView`].
 #[derive(Debug, Clone, Default)]
 pub struct OwnedRodStep {
+    dim: u8,
     q: Vec<f64>,
     u: Vec<f64>,
     reaction: Vec<f64>,
@@ -555,6 +655,12 @@ pub struct OwnedRodStep {
     bending_stress: Vec<f64>,
     gap: Vec<f64>,
     q_predictor: Vec<f64>,
+    twist_stress: Vec<f64>,
+    /// θ, twist and m₁ of a 3D rod's frames (`has_frames`).
+    theta: Vec<f64>,
+    twist: Vec<f64>,
+    m1: Vec<f64>,
+    has_frames: bool,
 }
 
 fn copy_into<T: Copy>(to: &mut Vec<T>, from: &[T]) {
@@ -564,6 +670,7 @@ fn copy_into<T: Copy>(to: &mut Vec<T>, from: &[T]) {
 
 impl OwnedRodStep {
     pub fn set(&mut self, v: &RodStepView<'_>) {
+        self.dim = v.dim;
         copy_into(&mut self.q, v.q);
         copy_into(&mut self.u, v.u);
         copy_into(&mut self.reaction, v.reaction);
@@ -577,10 +684,21 @@ impl OwnedRodStep {
         copy_into(&mut self.bending_stress, v.bending_stress);
         copy_into(&mut self.gap, v.gap);
         copy_into(&mut self.q_predictor, v.q_predictor);
+        copy_into(&mut self.twist_stress, v.twist_stress);
+        self.has_frames = v.frames.is_some();
+        let f = v.frames.unwrap_or(FrameView {
+            theta: &[],
+            twist: &[],
+            m1: &[],
+        });
+        copy_into(&mut self.theta, f.theta);
+        copy_into(&mut self.twist, f.twist);
+        copy_into(&mut self.m1, f.m1);
     }
 
     pub fn view(&self) -> RodStepView<'_> {
         RodStepView {
+            dim: self.dim,
             q: &self.q,
             u: &self.u,
             reaction: &self.reaction,
@@ -594,6 +712,12 @@ impl OwnedRodStep {
             bending_stress: &self.bending_stress,
             gap: &self.gap,
             q_predictor: &self.q_predictor,
+            twist_stress: &self.twist_stress,
+            frames: self.has_frames.then_some(FrameView {
+                theta: &self.theta,
+                twist: &self.twist,
+                m1: &self.m1,
+            }),
         }
     }
 }
@@ -603,12 +727,13 @@ impl OwnedRodStep {
 pub struct OwnedBody {
     name: String,
     obstacle: usize,
-    position: [f64; 2],
+    position: [f64; 3],
     angle: f64,
-    velocity: [f64; 2],
-    angular_velocity: f64,
-    contact_force: [f64; 2],
-    contact_torque: f64,
+    rotation: [f64; 4],
+    velocity: [f64; 3],
+    angular_velocity: [f64; 3],
+    contact_force: [f64; 3],
+    contact_torque: [f64; 3],
     mass: f64,
 }
 
@@ -621,6 +746,7 @@ impl OwnedBody {
         self.obstacle = b.obstacle;
         self.position = b.position;
         self.angle = b.angle;
+        self.rotation = b.rotation;
         self.velocity = b.velocity;
         self.angular_velocity = b.angular_velocity;
         self.contact_force = b.contact_force;
@@ -634,6 +760,7 @@ impl OwnedBody {
             obstacle: self.obstacle,
             position: self.position,
             angle: self.angle,
+            rotation: self.rotation,
             velocity: self.velocity,
             angular_velocity: self.angular_velocity,
             contact_force: self.contact_force,

@@ -650,9 +650,9 @@ mod tests {
             rod: 0,
             node: 0,
             obstacle: 0,
-            normal: [0.0, 1.0],
+            normal: [0.0, 1.0, 0.0],
             gap: 0.0,
-            reaction: [0.0; 2],
+            reaction: [0.0; 3],
             z: 0.0,
         }
     }
@@ -663,6 +663,7 @@ mod tests {
         let q = [0.0, 0.0];
         let (b, i) = ([false], [usize::MAX]);
         let rod = RodStepView {
+            dim: 2,
             q: &q,
             u: &q,
             reaction: &q,
@@ -676,6 +677,8 @@ mod tests {
             bending_stress: &[0.0],
             gap: &[1.0],
             q_predictor: &q,
+            twist_stress: &[],
+            frames: None,
         };
         for step in 0..=last {
             let t = step as f64;

@@ -44,10 +44,13 @@ pub fn as_writer_thread() {
 
 /// A [`RunInfo`] with its parts owned, to cross to the thread.
 struct OwnedRunInfo {
+    dimension: u8,
     scenario_name: String,
     scenario_text: String,
     rods: Vec<RodInfo>,
     obstacles: Vec<crate::obstacle::Obstacle>,
+    /// The 3D scene's shapes (`dimension` 3; `obstacles` is then empty).
+    shapes: Vec<crate::rod3d::events::Shape3Info>,
     obstacle_names: Vec<String>,
     bodies: Vec<crate::world::body::BodySpec>,
     mode: crate::scenario::Mode,
@@ -55,11 +58,17 @@ struct OwnedRunInfo {
 
 impl OwnedRunInfo {
     fn new(i: &RunInfo<'_>) -> Self {
+        let shapes = match i.scene {
+            crate::events::Scene::Spatial { shapes } => shapes.to_vec(),
+            crate::events::Scene::Planar { .. } => Vec::new(),
+        };
         Self {
+            dimension: i.dimension,
+            shapes,
             scenario_name: i.scenario_name.to_string(),
             scenario_text: i.scenario_text.to_string(),
             rods: i.rods.to_vec(),
-            obstacles: i.obstacles.to_vec(),
+            obstacles: i.planar_obstacles().to_vec(),
             obstacle_names: i.obstacle_names.to_vec(),
             bodies: i.bodies.to_vec(),
             mode: i.mode,
@@ -67,11 +76,21 @@ impl OwnedRunInfo {
     }
 
     fn view(&self) -> RunInfo<'_> {
+        let scene = if self.dimension == 3 {
+            crate::events::Scene::Spatial {
+                shapes: &self.shapes,
+            }
+        } else {
+            crate::events::Scene::Planar {
+                obstacles: &self.obstacles,
+            }
+        };
         RunInfo {
+            dimension: self.dimension,
+            scene,
             scenario_name: &self.scenario_name,
             scenario_text: &self.scenario_text,
             rods: &self.rods,
-            obstacles: &self.obstacles,
             obstacle_names: &self.obstacle_names,
             bodies: &self.bodies,
             mode: self.mode,

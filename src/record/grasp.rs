@@ -15,7 +15,7 @@
 //! - Safety margin: Σ μ_s N over the prong contacts on the fruit divided by its weight, its
 //!   minimum over the lift (≥ 1 is needed to hold a fruit at rest).
 
-use crate::events::{ContactView, Event, RodStepView};
+use crate::events::{xy, ContactView, Event, RodStepView};
 use serde::Serialize;
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -116,7 +116,7 @@ impl GraspTracker {
                 ..
             } => {
                 if let Some(b) = bodies.first() {
-                    self.step(*t, rods, b.position, b.velocity, contacts);
+                    self.step(*t, rods, xy(b.position), xy(b.velocity), contacts);
                 }
             }
             Event::RunEnd { .. } => self.finish(),
@@ -143,9 +143,10 @@ impl GraspTracker {
         };
         let (mut cx, mut cy, mut n) = (0.0, 0.0, 0.0);
         for (r, v) in rods.iter().enumerate() {
+            let d = usize::from(v.dim.max(2));
             for &i in self.clamped.get(r).map(Vec::as_slice).unwrap_or(&[]) {
-                cx += v.q[2 * i];
-                cy += v.q[2 * i + 1];
+                cx += v.q[d * i];
+                cy += v.q[d * i + 1];
                 n += 1.0;
             }
         }

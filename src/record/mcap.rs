@@ -328,7 +328,7 @@ impl McapSink {
     fn run_start(&mut self, info: &RunInfo<'_>) {
         self.static_mode = info.mode == Mode::Static;
         self.rods = info.rods.to_vec();
-        self.obstacles = info.obstacles.to_vec();
+        self.obstacles = info.planar_obstacles().to_vec();
         self.bodies = info.bodies.to_vec();
         let mode = match info.mode {
             Mode::Dynamic => "dynamic",
@@ -352,7 +352,7 @@ impl McapSink {
             },
             units: UNITS.iter().copied().collect(),
             rods: info.rods.iter().map(RodMeta::from).collect(),
-            obstacles: info.obstacles,
+            obstacles: info.planar_obstacles(),
         };
         let record = ::mcap::records::Metadata {
             name: "gripsim".into(),
@@ -449,9 +449,9 @@ impl McapSink {
             rod: c.rod,
             node: c.node,
             obstacle: c.obstacle,
-            normal: c.normal,
+            normal: crate::events::xy(c.normal),
             gap: c.gap,
-            reaction: c.reaction,
+            reaction: crate::events::xy(c.reaction),
             z: c.z,
         };
         self.send(CONTACT, time, &msg);
@@ -1329,7 +1329,7 @@ fn body_points(
     style: &SceneStyle,
 ) -> Vec<fx::Vector3> {
     let at_rest = BodyView {
-        position: [0.0, 0.0],
+        position: [0.0; 3],
         angle: 0.0,
         ..*b
     };

@@ -47,12 +47,12 @@ pub fn body_outline(
     let c0 = specs
         .iter()
         .find(|s| s.obstacle == b.obstacle)
-        .map_or(b.position, |s| s.centroid);
+        .map_or(crate::events::xy(b.position), |s| s.centroid);
     let placed = crate::world::body::Placed {
         shape,
         c0,
         pose: crate::world::body::Pose {
-            c: b.position,
+            c: crate::events::xy(b.position),
             theta: b.angle,
         },
     };
@@ -63,7 +63,7 @@ pub fn body_outline(
         .collect();
     // A spoke from the centre to the outline shows the body's rotation.
     if let Some(first) = pts.first().copied() {
-        pts.push(b.position);
+        pts.push(crate::events::xy(b.position));
         pts.push(first);
     }
     pts
@@ -794,7 +794,7 @@ impl Observer for SurveyObserver {
                 self.step(*dt, rods);
                 // Free bodies (fruit): their centroids; the margin covers their size.
                 for b in bodies.iter() {
-                    self.survey.visited.add(b.position);
+                    self.survey.visited.add(crate::events::xy(b.position));
                 }
             }
             _ => {}

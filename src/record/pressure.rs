@@ -23,7 +23,7 @@
 //! undeformed surface to the face, the pressure profile below the face (depth ∝ p) with the
 //! bruise threshold as a line, and a scale bar are all drawn at true scale.
 
-use crate::events::ContactView;
+use crate::events::{v3, xy, ContactView};
 
 /// Pieces a contact's pressure profile is drawn with.
 pub const SEGMENTS: usize = 16;
@@ -74,7 +74,7 @@ pub fn is_pressed(c: &ContactView) -> bool {
 /// The pieces of a pressed contact along the prong's face, in scene coordinates (m), each with
 /// the colour of the pressure at its middle.
 pub fn patch(c: &ContactView) -> Vec<([[f64; 2]; 2], [u8; 3])> {
-    let t = tangent(c.normal);
+    let t = tangent(xy(c.normal));
     let a = c.half_width;
     (0..SEGMENTS)
         .map(|k| {
@@ -122,8 +122,9 @@ pub enum Face<'a> {
 /// (`closest`: the surface's closest point to the contact's), the face that presses the fruit.
 pub fn from_the_fruit(c: &ContactView, closest: [f64; 2]) -> ContactView {
     ContactView {
-        normal: [-c.normal[0], -c.normal[1]],
-        point: closest,
+        normal: [-c.normal[0], -c.normal[1], 0.0],
+        tangent: [c.normal[1], -c.normal[0], 0.0],
+        point: v3(closest),
         ..*c
     }
 }
@@ -153,7 +154,7 @@ pub struct Zoom {
 /// The zoom of contact `c` (`n` the fruit's outward normal, `point` on the pressing face) of
 /// `face` against the fruit's surface `fruit` (drawn from its closest points; `None` draws none).
 pub fn zoom(c: &ContactView, face: Face<'_>, fruit: Option<Surface<'_>>) -> Zoom {
-    let n = c.normal;
+    let n = xy(c.normal);
     let t = tangent(n);
     let d = c.indentation.max(0.0);
     // The origin: the undeformed surface under the contact point.
@@ -365,8 +366,9 @@ mod tests {
             node: 1,
             obstacle: 0,
             body: usize::MAX,
-            point: [0.0, 0.05 - 1e-3],
-            normal: [0.0, 1.0],
+            point: [0.0, 0.05 - 1e-3, 0.0],
+            normal: [0.0, 1.0, 0.0],
+            tangent: [-1.0, 0.0, 0.0],
             normal_force: 10.0,
             friction_force: 0.0,
             slip_velocity: 0.0,
@@ -375,6 +377,7 @@ mod tests {
             mu_s: 0.0,
             indentation: 1e-3,
             half_width: 4e-3,
+            half_width_minor: 4e-3,
             peak_pressure: 8e4,
             bruise_pressure: 1e5,
             bruise_half_width: 0.0,
@@ -382,6 +385,7 @@ mod tests {
             weight: 0.0,
             first: usize::MAX,
             last: usize::MAX,
+            dim: 2,
         }
     }
 
@@ -475,14 +479,14 @@ mod tests {
             rod: usize::MAX,
             node: 0,
             obstacle: 0,
-            point: [0.0, -1e-3],
-            normal: [0.0, 1.0],
+            point: [0.0, -1e-3, 0.0],
+            normal: [0.0, 1.0, 0.0],
             ..contact()
         };
         let surface = |p: [f64; 2]| table.query(p).closest;
         let fruit = |p: [f64; 2]| placed.query(p).closest;
-        let v = from_the_fruit(&c, surface(c.point));
-        assert_eq!((v.normal, v.point), ([0.0, -1.0], [0.0, 0.0]));
+        let v = from_the_fruit(&c, surface(xy(c.point)));
+        assert_eq!((v.normal, v.point), ([0.0, -1.0, 0.0], [0.0, 0.0, 0.0]));
         let z = zoom(&v, Face::Surface(&surface, "table"), Some(&fruit));
         let mid = z.fruit[20];
         assert!(mid[0].abs() < 1e-9 && mid[1].abs() < 1e-9, "{mid:?}");

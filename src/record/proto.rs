@@ -146,10 +146,12 @@ macro_rules! step_messages {
                 self.node = c.node as u64;
                 self.obstacle = c.obstacle as u64;
                 self.body = index(c.body);
+                // The run's components only (`dim`: 2 writes x, y as before).
+                let d = if c.dim == 3 { 3 } else { 2 };
                 self.point.clear();
-                self.point.extend(c.point.iter().map(|&x| x as $t));
+                self.point.extend(c.point[..d].iter().map(|&x| x as $t));
                 self.normal.clear();
-                self.normal.extend(c.normal.iter().map(|&x| x as $t));
+                self.normal.extend(c.normal[..d].iter().map(|&x| x as $t));
                 self.normal_force = c.normal_force as $t;
                 self.friction_force = c.friction_force as $t;
                 self.slip_velocity = c.slip_velocity as $t;
@@ -459,7 +461,7 @@ fn body_numbers(b: &BodyView<'_>) -> [f64; 6] {
         b.angle,
         b.velocity[0],
         b.velocity[1],
-        b.angular_velocity,
+        b.angular_velocity[2],
     ]
 }
 
@@ -997,12 +999,13 @@ impl Body {
             self.name.push_str(b.name);
         }
         self.obstacle = b.obstacle as u64;
-        set(&mut self.position, &b.position);
+        // The planar message: x, y and the rates about z.
+        set(&mut self.position, &b.position[..2]);
         self.angle = b.angle;
-        set(&mut self.velocity, &b.velocity);
-        self.angular_velocity = b.angular_velocity;
-        set(&mut self.contact_force, &b.contact_force);
-        self.contact_torque = b.contact_torque;
+        set(&mut self.velocity, &b.velocity[..2]);
+        self.angular_velocity = b.angular_velocity[2];
+        set(&mut self.contact_force, &b.contact_force[..2]);
+        self.contact_torque = b.contact_torque[2];
         self.mass = b.mass;
     }
 }
@@ -1267,6 +1270,9 @@ pub(crate) mod tests {
         gap[5] = -0.0;
         let views = [
             RodStepView {
+                dim: 2,
+                twist_stress: &[],
+                frames: None,
                 q: &q,
                 u: &u,
                 reaction: &react,
@@ -1282,6 +1288,9 @@ pub(crate) mod tests {
                 q_predictor: &pred,
             },
             RodStepView {
+                dim: 2,
+                twist_stress: &[],
+                frames: None,
                 q: &u,
                 u: &q,
                 reaction: &reaction,
@@ -1300,12 +1309,13 @@ pub(crate) mod tests {
         let bodies = [BodyView {
             name: "apple",
             obstacle: 2,
-            position: [0.1, -0.2],
+            position: [0.1, -0.2, 0.0],
             angle: 0.3,
-            velocity: [0.0, -1.0],
-            angular_velocity: 0.0,
-            contact_force: [2.0, 9.8],
-            contact_torque: -0.01,
+            rotation: crate::events::about_z(0.3),
+            velocity: [0.0, -1.0, 0.0],
+            angular_velocity: [0.0; 3],
+            contact_force: [2.0, 9.8, 0.0],
+            contact_torque: [0.0, 0.0, -0.01],
             mass: 0.1,
         }];
         let contacts = [ContactView {
@@ -1313,8 +1323,9 @@ pub(crate) mod tests {
             node: 0,
             obstacle: 1,
             body: 0,
-            point: [0.1, 0.2],
-            normal: [0.0, 1.0],
+            point: [0.1, 0.2, 0.0],
+            normal: [0.0, 1.0, 0.0],
+            tangent: [-1.0, 0.0, 0.0],
             normal_force: 1.5,
             friction_force: -0.5,
             slip_velocity: 0.0,
@@ -1323,6 +1334,7 @@ pub(crate) mod tests {
             mu_s: 0.5,
             indentation: 1e-4,
             half_width: 2e-3,
+            half_width_minor: 2e-3,
             peak_pressure: 1e5,
             bruise_pressure: 2e5,
             bruise_half_width: 0.0,
@@ -1330,6 +1342,7 @@ pub(crate) mod tests {
             weight: 0.0,
             first: usize::MAX,
             last: usize::MAX,
+            dim: 2,
         }];
         check(&StepFields {
             step,

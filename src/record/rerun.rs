@@ -686,7 +686,7 @@ impl RerunSink {
     }
 
     fn run_start(&mut self, info: &crate::events::RunInfo<'_>) {
-        self.obstacles = info.obstacles.to_vec();
+        self.obstacles = info.planar_obstacles().to_vec();
         self.bodies = info.bodies.to_vec();
         self.obstacle_names = info.obstacle_names.to_vec();
         for r in info.rods {
@@ -753,7 +753,7 @@ impl RerunSink {
                 "run of {:?}: {} rod(s), {} obstacle(s), {} mode, detail {}",
                 info.scenario_name,
                 info.rods.len(),
-                info.obstacles.len(),
+                info.planar_obstacles().len(),
                 format!("{:?}", info.mode).to_lowercase(),
                 self.opts.detail.describe()
             ),
@@ -1081,9 +1081,9 @@ impl RerunSink {
                 .bodies
                 .iter()
                 .find(|s| s.obstacle == b.obstacle)
-                .map_or(b.position, |s| s.centroid),
+                .map_or(crate::events::xy(b.position), |s| s.centroid),
             pose: crate::world::body::Pose {
-                c: b.position,
+                c: crate::events::xy(b.position),
                 theta: b.angle,
             },
         });
@@ -1109,7 +1109,7 @@ impl RerunSink {
             .unwrap_or_default();
         let fruit_name = self.bodies.get(body).map_or("fruit", |b| b.name.as_str());
         let surface = |x: [f64; 2]| table.query(x).closest;
-        let v = pr::from_the_fruit(c, surface(c.point));
+        let v = pr::from_the_fruit(c, surface(crate::events::xy(c.point)));
         let z = pr::zoom(&v, pr::Face::Surface(&surface, &name), fruit);
         (z, format!("{fruit_name:?} on {name:?}"))
     }

@@ -343,7 +343,7 @@ impl SummaryCollector {
                     None => self.obstacles.get(c.obstacle).cloned().unwrap_or_default(),
                 };
                 p.max_pressure_node = NodeRef { rod, node: c.node };
-                p.max_pressure_point = c.point;
+                p.max_pressure_point = crate::events::xy(c.point);
                 p.max_pressure_time_s = t;
                 p.half_width_at_max_m = c.half_width;
                 p.bruise_pressure_pa = c.bruise_pressure;
@@ -371,6 +371,16 @@ impl SummaryCollector {
                 self.peak_at = Some((c.rod, c.node, t));
             }
         }
+    }
+}
+
+/// |v| of node i's vector in `v` of stride `d` (2: `hypot`, the planar bits).
+fn norm_at(v: &[f64], d: usize, i: usize) -> f64 {
+    if d == 3 {
+        let (x, y, z) = (v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+        (x * x + y * y + z * z).sqrt()
+    } else {
+        v[2 * i].hypot(v[2 * i + 1])
     }
 }
 
@@ -434,21 +444,21 @@ impl Observer for SummaryCollector {
                 for (ri, v) in rods.iter().enumerate() {
                     let s = &mut self.rods[ri];
                     let mut drive = [0.0; 2];
+                    // The stride of the per-node vectors (3D: x and y here, |·| of all three).
+                    let d = usize::from(v.dim.max(2));
                     for i in 0..s.final_positions.len() {
-                        s.final_positions[i] = [v.q[2 * i], v.q[2 * i + 1]];
-                        s.final_velocities[i] = [v.u[2 * i], v.u[2 * i + 1]];
-                        drive[0] += v.drive_force[2 * i];
-                        drive[1] += v.drive_force[2 * i + 1];
+                        s.final_positions[i] = [v.q[d * i], v.q[d * i + 1]];
+                        s.final_velocities[i] = [v.u[d * i], v.u[d * i + 1]];
+                        drive[0] += v.drive_force[d * i];
+                        drive[1] += v.drive_force[d * i + 1];
                         // A node with no reaction and no impulse, now or before, has
                         // nothing to add: skipping it saves the hypot calls and the window of
                         // every free node in every step (the sums and peaks are the same).
-                        let idle = v.reaction[2 * i] == 0.0
-                            && v.reaction[2 * i + 1] == 0.0
-                            && v.impulse[2 * i] == 0.0
-                            && v.impulse[2 * i + 1] == 0.0
+                        let idle = v.reaction[d * i..d * i + d].iter().all(|&x| x == 0.0)
+                            && v.impulse[d * i..d * i + d].iter().all(|&x| x == 0.0)
                             && self.windows[ri][i].is_empty();
                         if !idle {
-                            let rm = v.reaction[2 * i].hypot(v.reaction[2 * i + 1]);
+                            let rm = norm_at(v.reaction, d, i);
                             if rm > s.peak_reaction_per_node_n[i] {
                                 s.peak_reaction_per_node_n[i] = rm;
                             }
@@ -456,14 +466,13 @@ impl Observer for SummaryCollector {
                                 self.peak = rm;
                                 self.peak_at = Some((ri, i, *t));
                             }
-                            s.total_impulse_per_node_ns[i] +=
-                                v.impulse[2 * i].hypot(v.impulse[2 * i + 1]);
+                            s.total_impulse_per_node_ns[i] += norm_at(v.impulse, d, i);
                             if *dt > 0.0 {
                                 let f = self.windows[ri][i].push(
                                     *t - *dt,
                                     *t,
-                                    v.impulse[2 * i],
-                                    v.impulse[2 * i + 1],
+                                    v.impulse[d * i],
+                                    v.impulse[d * i + 1],
                                     self.force_window,
                                 );
                                 if f > s.peak_impulse_consistent_force_per_node_n[i] {
@@ -495,7 +504,7 @@ impl Observer for SummaryCollector {
                     }
                     s.final_drive_force_n = drive;
                     let (tip, base, start) = &mut self.tips[ri];
-                    let at = |k: usize| [v.q[2 * k], v.q[2 * k + 1]];
+                    let at = |k: usize| [v.q[d * k], v.q[d * k + 1]];
                     let b = base.map(at).unwrap_or([0.0; 2]);
                     let (tip0, b0) = *start.get_or_insert((at(*tip), b));
                     let p = at(*tip);

@@ -535,7 +535,7 @@ impl ContactSample {
             rod: c.rod,
             node: c.node,
             added,
-            normal: c.normal,
+            normal: crate::events::xy(c.normal),
         }
     }
 }
@@ -1155,8 +1155,13 @@ impl Observer for DetectObserver {
                     let touching = contacts
                         .iter()
                         .any(|c| c.rod != usize::MAX && c.obstacle == b.obstacle);
-                    self.detector
-                        .grasp(*step, *t, &q, Some(b.position), touching);
+                    self.detector.grasp(
+                        *step,
+                        *t,
+                        &q,
+                        Some(crate::events::xy(b.position)),
+                        touching,
+                    );
                 }
             }
             _ => {}

@@ -80,6 +80,9 @@ impl Views {
             .zip(&self.obstacles)
             .zip(self.obstacles2.iter().zip(&self.normals2))
             .map(|((v, o), (o2, n2))| RodStepView {
+                dim: 2,
+                twist_stress: &[],
+                frames: None,
                 q: &v.q,
                 u: &v.u,
                 reaction: &v.reaction,
@@ -157,10 +160,13 @@ fn drive(
                     });
                 infos = meta.rods.iter().map(|r| r.info()).collect();
                 let info = RunInfo {
+                    dimension: 2,
+                    scene: crate::events::Scene::Planar {
+                        obstacles: &sc.obstacles,
+                    },
                     scenario_name: &meta.scenario_name,
                     scenario_text: &meta.scenario_text,
                     rods: &infos,
-                    obstacles: &sc.obstacles,
                     obstacle_names: &sc.obstacle_names,
                     bodies: &sc.bodies,
                     mode: sc.solve.mode,
@@ -321,10 +327,13 @@ fn survey_stored(path: &Path) -> Result<Survey, ReplayError> {
                 let infos: Vec<RodInfo> = meta.rods.iter().map(|r| r.info()).collect();
                 let sc = super::read::parse_scenario(path, &meta)?;
                 obs.on_event(&Event::RunStart(&RunInfo {
+                    dimension: 2,
+                    scene: crate::events::Scene::Planar {
+                        obstacles: &sc.obstacles,
+                    },
                     scenario_name: &meta.scenario_name,
                     scenario_text: &meta.scenario_text,
                     rods: &infos,
-                    obstacles: &sc.obstacles,
                     obstacle_names: &sc.obstacle_names,
                     bodies: &sc.bodies,
                     mode: sc.solve.mode,
@@ -729,6 +738,9 @@ pub fn write_diff(out: &Path, a: &Run, b: &Run, rep: &DiffReport) -> Result<(), 
                     let obst = vec![usize::MAX; n];
                     let zeros = vec![0.0; 2 * n];
                     let view = RodStepView {
+                        dim: 2,
+                        twist_stress: &[],
+                        frames: None,
                         q: &q,
                         u: &bs.u,
                         reaction: &bs.reaction,

@@ -265,9 +265,9 @@ impl Contact {
             rod: self.rod,
             node: self.node,
             obstacle: self.obstacle,
-            normal: self.normal,
+            normal: crate::events::v3(self.normal),
             gap: self.gap,
-            reaction: self.reaction,
+            reaction: crate::events::v3(self.reaction),
             z: self.z,
         }
     }

@@ -23,5 +23,6 @@ pub mod contact3;
 pub mod edge3;
 pub mod gripper;
 pub mod run3;
+pub mod spatial;
 pub mod system;
 pub mod world;

@@ -7,7 +7,9 @@ use super::contact3::Surface3;
 use super::events::{Emit3, NullObserver3, Observer3};
 use super::gripper::{radial, Gripper3};
 use super::rod::{angle, pos};
+use super::spatial::Spatial;
 use super::world::World3;
+use crate::events::{NullObserver, Observer};
 use crate::obstacle3::{Obstacle3, Pose3, V3};
 use crate::replay::grasp::GraspRule;
 use crate::scenario::expect::GraspOutcome;
@@ -314,6 +316,39 @@ pub fn run_until<O: Observer3>(
     obs: &mut O,
     stop: &dyn Fn() -> bool,
 ) -> Result<Summary3, String> {
+    let mut events = Events {
+        text: "",
+        obs: &mut NullObserver,
+    };
+    run_both(sc, csv, obs, &mut events, stop)
+}
+
+/// [`run`] sending the one event stream of [`crate::events`] (dimension 3,
+/// [`super::spatial`]) to `obs`, with `text` as the scenario's text.
+pub fn run_events<E: Observer>(
+    sc: &Scenario3,
+    text: &str,
+    obs: &mut E,
+) -> Result<Summary3, String> {
+    let mut events = Events { text, obs };
+    run_both(sc, None, &mut NullObserver3, &mut events, &|| false)
+}
+
+/// Where a run sends the one event stream: an observer, and the scenario text for its
+/// `RunStart`.
+pub struct Events<'a, E: Observer> {
+    pub text: &'a str,
+    pub obs: &'a mut E,
+}
+
+/// [`run_until`], sending the 3D events to `obs` and the one event stream to `events`.
+pub fn run_both<O: Observer3, E: Observer>(
+    sc: &Scenario3,
+    csv: Option<&std::path::Path>,
+    obs: &mut O,
+    events: &mut Events<'_, E>,
+    stop: &dyn Fn() -> bool,
+) -> Result<Summary3, String> {
     let (mut w, mut g) = build(sc)?;
     let out = csv.map(crate::record::OutputFile::new);
     let mut file = match &out {
@@ -326,10 +361,19 @@ pub fn run_until<O: Observer3>(
         }
         None => None,
     };
-    let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs, stop);
+    let mut sp = Spatial::default();
+    let live = events.obs.wants_steps();
+    if live {
+        sp.start(&w, &sc.name, events.text, events.obs);
+    }
+    let mut ev = live.then_some((&mut sp, &mut *events.obs));
+    let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs, &mut ev, stop);
     if let Err(e) = &result {
         // The sinks close their files with the error as the run's end.
         w.fail_observed(obs, e);
+    }
+    if let Some((sp, o)) = ev {
+        sp.end(&w, result.as_ref().err().map(String::as_str), o);
     }
     let flushed = file.map(|mut f| std::io::Write::flush(&mut f));
     if let Some(o) = &out {
@@ -342,17 +386,36 @@ pub fn run_until<O: Observer3>(
     result
 }
 
-fn run_loop(
+/// The one event stream's buffers and observer, while someone listens to it.
+type Live<'a, E> = Option<(&'a mut Spatial, &'a mut E)>;
+
+/// The names of the hand's moves, for `PhaseChanged`.
+fn move_names(g: &Gripper3) -> Vec<String> {
+    g.moves
+        .iter()
+        .map(|m| {
+            let d = format!("{m:?}").to_lowercase();
+            d.split([' ', '{']).next().unwrap_or_default().to_string()
+        })
+        .collect()
+}
+
+fn run_loop<E: Observer>(
     sc: &Scenario3,
     w: &mut World3,
     g: &mut Gripper3,
     mut csv: Option<&mut std::io::BufWriter<std::fs::File>>,
     obs: &mut impl Observer3,
+    ev: &mut Live<'_, E>,
     stop: &dyn Fn() -> bool,
 ) -> Result<Summary3, String> {
     let mut emit = Emit3::default();
     w.start_observed(&mut emit, obs);
     w.initial_observed(&mut emit, obs);
+    let names = move_names(g);
+    if let Some((sp, o)) = ev.as_mut() {
+        sp.step_end(w, 0.0, 0, 0, *o);
+    }
     let fruit_start = w.bodies.first().map(|b| b.centre().into());
     let mut s = Summary3 {
         name: sc.name.clone(),
@@ -383,9 +446,16 @@ fn run_loop(
         }
         let t1 = (s.steps + 1) as f64 * sc.dt;
         g.drive(w, t1, sc.dt);
+        if let Some((sp, o)) = ev.as_mut() {
+            sp.before_step(w, *o);
+        }
         let rep = w
             .step_observed(sc.dt, &mut emit, obs)
             .map_err(|e| format!("step {} (t = {t1:e} s): {e}", s.steps + 1))?;
+        if let Some((sp, o)) = ev.as_mut() {
+            sp.step_end(w, sc.dt, rep.newton_iterations, rep.passes, *o);
+            sp.phase(w, g.current, &names, *o);
+        }
         s.steps += 1;
         s.newton_iterations += rep.newton_iterations as u64;
         s.contact_passes += rep.passes as u64;

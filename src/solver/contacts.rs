@@ -207,9 +207,9 @@ impl Simulation {
             rod: r,
             node: i,
             obstacle: k,
-            normal,
+            normal: crate::events::v3(normal),
             gap: self.rod_surfaces(r).query(k, p).distance,
-            reaction: [w.r[2 * i], w.r[2 * i + 1]],
+            reaction: [w.r[2 * i], w.r[2 * i + 1], 0.0],
             z: 0.0,
         }
     }
@@ -385,7 +385,7 @@ impl Simulation {
             nc = held;
             let mut ev = self.change(ctx, pass, r, i, k, corner.normal);
             ev.gap = prox.distance;
-            ev.reaction = [0.0; 2];
+            ev.reaction = [0.0; 3];
             ev.z = self.prescribed_z(ctx, r, i, corner.normal, corner.target);
             obs.on_event(&Event::ConstraintAdded(ev));
         }
@@ -431,7 +431,7 @@ impl Simulation {
         c.grip = friction::initial_grip(&c, [w.q[2 * i], w.q[2 * i + 1]]);
         let mut ev = self.change(ctx, pass, r, i, k, c.normal);
         ev.gap = prox.distance;
-        ev.reaction = [0.0; 2];
+        ev.reaction = [0.0; 3];
         ev.z = self.prescribed_z(ctx, r, i, c.normal, c.target);
         self.work[r].contact[i] = Some(c);
         obs.on_event(&Event::ConstraintAdded(ev));
@@ -619,8 +619,8 @@ impl Simulation {
             obstacle: c.obstacle,
             feature: c.feature,
             added,
-            normal: c.normal,
-            reaction,
+            normal: crate::events::v3(c.normal),
+            reaction: crate::events::v3(reaction),
         });
     }
 }

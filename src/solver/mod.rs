@@ -353,10 +353,13 @@ impl Simulation {
         let sc_name = self.scenario.name.clone();
         let text = self.scenario.text.clone();
         let info = RunInfo {
+            dimension: 2,
             scenario_name: &sc_name,
             scenario_text: &text,
             rods: &self.infos.clone(),
-            obstacles: &self.obstacles.clone(),
+            scene: crate::events::Scene::Planar {
+                obstacles: &self.obstacles.clone(),
+            },
             obstacle_names: &self.scenario.obstacle_names.clone(),
             bodies: &self.scenario.bodies.clone(),
             mode: self.scenario.solve.mode,

@@ -3,7 +3,7 @@
 
 use super::{BodyOut, Simulation};
 use crate::contact::{self, friction, Grip};
-use crate::events::{BodyView, ContactView, Event, Observer, RodStepView};
+use crate::events::{v3, BodyView, ContactView, Event, Observer, RodStepView};
 
 impl Simulation {
     pub(super) fn fill_outputs(&mut self, r: usize, dt: f64, initial: bool) {
@@ -81,6 +81,7 @@ impl Simulation {
             .iter()
             .zip(&self.work)
             .map(|(o, w)| RodStepView {
+                dim: 2,
                 q: &w.q,
                 u: &w.u,
                 reaction: &o.reaction,
@@ -94,6 +95,8 @@ impl Simulation {
                 bending_stress: &o.stress,
                 gap: &o.gap,
                 q_predictor: &o.q_pred,
+                twist_stress: &[],
+                frames: None,
             })
             .collect();
         let names: Vec<&str> = self.bodies.iter().map(|b| b.spec.name.as_str()).collect();
@@ -105,12 +108,13 @@ impl Simulation {
             .map(|((b, o), name)| BodyView {
                 name,
                 obstacle: b.spec.obstacle,
-                position: b.pose.c,
+                position: v3(b.pose.c),
                 angle: b.pose.theta,
-                velocity: [b.v[0], b.v[1]],
-                angular_velocity: b.v[2],
-                contact_force: o.force,
-                contact_torque: o.torque,
+                rotation: crate::events::about_z(b.pose.theta),
+                velocity: [b.v[0], b.v[1], 0.0],
+                angular_velocity: [0.0, 0.0, b.v[2]],
+                contact_force: v3(o.force),
+                contact_torque: [0.0, 0.0, o.torque],
                 mass: b.spec.mass,
             })
             .collect();
@@ -190,6 +194,9 @@ impl Simulation {
         for bi in 0..self.bodies.len() {
             self.body_contact_views(bi, dt);
         }
+        for v in &mut self.contact_out {
+            v.tangent = [-v.normal[1], v.normal[0], 0.0];
+        }
     }
 
     /// A rod's contact on a free body, into the body's net contact wrench: minus the force on
@@ -248,8 +255,8 @@ impl Simulation {
             node: e.segment,
             obstacle: e.obstacle,
             body: e.body.map_or(usize::MAX, |l| l.body),
-            point: [p[0] - off * e.normal[0], p[1] - off * e.normal[1]],
-            normal: e.normal,
+            point: v3([p[0] - off * e.normal[0], p[1] - off * e.normal[1]]),
+            normal: v3(e.normal),
             normal_force: rn,
             friction_force: rt,
             slip_velocity: if dt > 0.0 {
@@ -298,8 +305,9 @@ impl Simulation {
             point: [
                 w.q[2 * i] - off * c.normal[0],
                 w.q[2 * i + 1] - off * c.normal[1],
+                0.0,
             ],
-            normal: c.normal,
+            normal: v3(c.normal),
             normal_force: rn,
             friction_force: rt,
             slip_velocity: if dt > 0.0 {
@@ -338,8 +346,8 @@ impl Simulation {
             obstacle: p.obstacle,
             body: fruit.body.unwrap_or(usize::MAX),
             // The face's point, pressed δ into the fruit's undeformed surface.
-            point: [x[0] - off * p.normal[0], x[1] - off * p.normal[1]],
-            normal: p.normal,
+            point: v3([x[0] - off * p.normal[0], x[1] - off * p.normal[1]]),
+            normal: v3(p.normal),
             normal_force: p.force,
             friction_force: friction,
             slip_velocity: slip,
@@ -475,8 +483,8 @@ impl Simulation {
             rod: r,
             node: g.segment,
             obstacle: g.obstacle,
-            point: [x[0] - off * g.normal[0], x[1] - off * g.normal[1]],
-            normal: g.normal,
+            point: v3([x[0] - off * g.normal[0], x[1] - off * g.normal[1]]),
+            normal: v3(g.normal),
             normal_force: g.resultant,
             body: fruit.and_then(|c| c.body).unwrap_or(usize::MAX),
             friction_force: friction,
@@ -497,6 +505,7 @@ impl Simulation {
             weight: g.weight,
             first: g.first,
             last: g.last.min(self.rods[r].n - 1),
+            ..RIGID
         }
     }
 
@@ -542,13 +551,13 @@ impl Simulation {
                 node: bi,
                 obstacle: c.obstacle,
                 body: usize::MAX,
-                point: [b.pose.c[0] + c.lever[0], b.pose.c[1] + c.lever[1]],
+                point: v3([b.pose.c[0] + c.lever[0], b.pose.c[1] + c.lever[1]]),
                 indentation,
                 half_width,
                 peak_pressure,
                 bruise_pressure: bruise,
                 bruise_half_width: above,
-                normal: c.normal,
+                normal: v3(c.normal),
                 normal_force: lam[0],
                 friction_force: rt,
                 slip_velocity: slip,
@@ -571,8 +580,9 @@ const RIGID: ContactView = ContactView {
     node: 0,
     obstacle: usize::MAX,
     body: usize::MAX,
-    point: [0.0; 2],
-    normal: [0.0; 2],
+    point: [0.0; 3],
+    normal: [0.0; 3],
+    tangent: [0.0; 3],
     normal_force: 0.0,
     friction_force: 0.0,
     slip_velocity: 0.0,
@@ -581,6 +591,7 @@ const RIGID: ContactView = ContactView {
     mu_s: 0.0,
     indentation: 0.0,
     half_width: 0.0,
+    half_width_minor: 0.0,
     peak_pressure: 0.0,
     bruise_pressure: 0.0,
     bruise_half_width: 0.0,
@@ -588,6 +599,7 @@ const RIGID: ContactView = ContactView {
     weight: 0.0,
     first: usize::MAX,
     last: usize::MAX,
+    dim: 2,
 };
 
 /// A free node's contact force at the end of a step: its eq. 2 reaction `r` when a constraint

@@ -92,7 +92,7 @@ impl Simulation {
         c.grip = friction::initial_grip(&c, [w.q[2 * i], w.q[2 * i + 1]]);
         let mut ev = self.change(ctx, pass, r, i, t.obstacle, c.normal);
         ev.gap = t.prox.distance;
-        ev.reaction = [0.0; 2];
+        ev.reaction = [0.0; 3];
         self.work[r].contact[i] = Some(c);
         obs.on_event(&Event::ConstraintAdded(ev));
     }

@@ -50,11 +50,11 @@ impl Observer for Trace {
                 }
                 if let Some(b) = bodies.first() {
                     self.body.push((
-                        b.position,
-                        b.velocity,
-                        b.angular_velocity,
-                        b.contact_force,
-                        b.contact_torque,
+                        gripsim::events::xy(b.position),
+                        gripsim::events::xy(b.velocity),
+                        b.angular_velocity[2],
+                        gripsim::events::xy(b.contact_force),
+                        b.contact_torque[2],
                     ));
                 }
                 self.contacts.push(contacts.to_vec());

@@ -285,7 +285,11 @@ fn the_free_fruits_contacts_reach_the_mcap_and_the_csv() {
             );
             let f = |k: &str| j[k].as_f64().unwrap();
             let xy = |k: &str| [j[k][0].as_f64().unwrap(), j[k][1].as_f64().unwrap()];
-            assert_eq!((xy("point"), xy("normal")), (c.point, c.normal), "{ctx}");
+            assert_eq!(
+                (xy("point"), xy("normal")),
+                (gripsim::events::xy(c.point), gripsim::events::xy(c.normal)),
+                "{ctx}"
+            );
             assert_eq!(
                 (f("normal_force"), f("friction_force")),
                 (c.normal_force, c.friction_force),

@@ -11,6 +11,7 @@ mod contact3d;
 mod contact_geometry;
 mod edge3d;
 mod edge_friction;
+mod events_dim;
 mod faults;
 mod fin_ray;
 mod first_contact;

@@ -58,10 +58,10 @@ impl Observer for Digest {
             r.add_all(rod.drive_force);
         }
         for b in bodies {
-            s.add_all(&b.position);
-            s.add_all(&[b.angle, b.velocity[0], b.velocity[1], b.angular_velocity]);
-            r.add_all(&b.contact_force);
-            r.add(b.contact_torque);
+            s.add_all(&b.position[..2]);
+            s.add_all(&[b.angle, b.velocity[0], b.velocity[1], b.angular_velocity[2]]);
+            r.add_all(&b.contact_force[..2]);
+            r.add(b.contact_torque[2]);
         }
         for k in contacts {
             let index = |i: usize| if i == usize::MAX { -1.0 } else { i as f64 };

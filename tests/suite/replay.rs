@@ -132,7 +132,10 @@ fn synthetic(path: &Path, inject: Inject) {
         scenario_name: &sc.name,
         scenario_text: &sc.text,
         rods: &infos,
-        obstacles: &sc.obstacles,
+        dimension: 2,
+        scene: gripsim::events::Scene::Planar {
+            obstacles: &sc.obstacles,
+        },
         obstacle_names: &sc.obstacle_names,
         bodies: &sc.bodies,
         mode: sc.solve.mode,
@@ -144,9 +147,9 @@ fn synthetic(path: &Path, inject: Inject) {
         rod,
         node,
         obstacle: 0,
-        normal: [0.0, 1.0],
+        normal: [0.0, 1.0, 0.0],
         gap: 0.0,
-        reaction: [0.0, 0.0],
+        reaction: [0.0, 0.0, 0.0],
         z: 0.0,
     };
     let mut ball_y = 0.006;
@@ -245,6 +248,9 @@ fn synthetic(path: &Path, inject: Inject) {
             .collect();
         let views: Vec<RodStepView> = (0..2)
             .map(|r| RodStepView {
+                dim: 2,
+                twist_stress: &[],
+                frames: None,
                 q: &states[r].q,
                 u: &states[r].u,
                 reaction: &states[r].reaction,

@@ -264,7 +264,9 @@ impl Observer for NodeTrace {
                 self.contact.push(v.in_contact[0]);
             }
             Event::ConstraintReleased(..) => self.released += 1,
-            Event::ConstraintAdded(c) => self.added_normals.push((c.normal, [0.0, 0.0])),
+            Event::ConstraintAdded(c) => self
+                .added_normals
+                .push((gripsim::events::xy(c.normal), [0.0, 0.0])),
             _ => {}
         }
     }
