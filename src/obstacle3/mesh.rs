@@ -20,6 +20,7 @@ pub struct TriMesh {
 impl TriMesh {
     /// A mesh from vertices and counter-clockwise (outward) triangles.
     pub fn new(vertices: Vec<V3>, triangles: Vec<[usize; 3]>) -> Result<TriMesh, String> {
+        crate::rod3d::limits::check_mesh_faces(triangles.len())?;
         if triangles.len() < 4 {
             return Err(format!(
                 "a closed mesh needs at least 4 triangles, found {}",
@@ -72,12 +73,24 @@ impl TriMesh {
         let (models, _) =
             tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed))
                 .map_err(|e| format!("not a readable OBJ mesh: {e}"))?;
+        let faces: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+        crate::rod3d::limits::check_mesh_faces(faces)?;
         let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
         for m in &models {
             let base = vertices.len();
             let p = &m.mesh.positions;
             for c in p.chunks_exact(3) {
-                vertices.push(V3::new(c[0], c[1], c[2]) * scale);
+                let v = V3::new(c[0], c[1], c[2]) * scale;
+                if !v.iter().all(|x| x.is_finite()) {
+                    return Err(format!(
+                        "vertex {} ({}, {}, {}) times scale {scale:e} is not a finite number",
+                        vertices.len() + 1,
+                        c[0],
+                        c[1],
+                        c[2]
+                    ));
+                }
+                vertices.push(v);
             }
             for t in m.mesh.indices.chunks_exact(3) {
                 triangles.push([

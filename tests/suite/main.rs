@@ -20,6 +20,7 @@ mod frictionless_golden;
 mod fruit;
 mod fruit_records;
 mod grasp3d;
+mod hostile3d;
 mod integrator;
 mod joints;
 mod no_data_loss;
