@@ -8,6 +8,17 @@
 
 use super::{Proximity3, V3};
 
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a over `bytes`, continuing from `h`.
+fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
+    for b in bytes {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriMesh {
     pub vertices: Vec<V3>,
@@ -15,6 +26,9 @@ pub struct TriMesh {
     /// Centre and radius of a sphere holding every vertex (the cheap bound).
     pub centre: V3,
     pub radius: f64,
+    /// FNV-1a hash of the OBJ text and the scale it was read with (0: not read from a file):
+    /// a recording stores it, so that a replay notices a different mesh at the same path.
+    pub source_hash: u64,
 }
 
 impl TriMesh {
@@ -52,6 +66,7 @@ impl TriMesh {
             triangles,
             centre,
             radius,
+            source_hash: 0,
         };
         let vol = m.signed_volume();
         if !(vol > 0.0) {
@@ -100,7 +115,9 @@ impl TriMesh {
                 ]);
             }
         }
-        TriMesh::new(vertices, triangles)
+        let mut m = TriMesh::new(vertices, triangles)?;
+        m.source_hash = fnv1a(text.as_bytes(), fnv1a(&scale.to_le_bytes(), FNV_OFFSET));
+        Ok(m)
     }
 
     #[inline]

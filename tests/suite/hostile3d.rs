@@ -455,3 +455,46 @@ fn a_box_rests_on_a_plane_and_on_a_plane_given_twice() {
         assert!(spin < 1e-9, "{spin:e}");
     }
 }
+
+/// Item 8: a replay reads the mesh the scenario names beside the recording; a different mesh
+/// there is refused (the recording keeps the mesh's hash), the same one replays.
+#[test]
+fn a_replay_refuses_a_different_mesh_beside_the_recording() {
+    let d = tempfile::tempdir().unwrap();
+    let s = base(d.path());
+    std::fs::write(d.path().join("m.obj"), bipyramid(12)).unwrap();
+    let out = gripsim()
+        .current_dir(d.path())
+        .arg("run")
+        .arg(&s)
+        .args(["--mcap", "r.mcap", "--set", "solve.t_end=0.002"])
+        .args(["--set", "fruit.shape={kind=\"mesh\",file=\"m.obj\"}"])
+        .args(["--set", "fruit.centre=[0,0,-0.1]"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+    let check = || {
+        gripsim()
+            .current_dir(d.path())
+            .args(["replay", "check", "r.mcap"])
+            .output()
+            .unwrap()
+    };
+    let same = check();
+    assert!(
+        !String::from_utf8_lossy(&same.stderr).contains("not the mesh the run used"),
+        "{}",
+        text(&same)
+    );
+    assert_ne!(same.status.code(), Some(2), "{}", text(&same));
+    std::fs::write(d.path().join("m.obj"), bipyramid(16)).unwrap();
+    let other = check();
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert_eq!(other.status.code(), Some(2), "{}", text(&other));
+    assert!(
+        err.contains("r.mcap")
+            && err.contains("the mesh of \"fruit\" found beside the recording (32 triangles")
+            && err.contains("is not the mesh the run used"),
+        "{err}"
+    );
+}
