@@ -333,6 +333,8 @@ struct Outputs {
     /// The recording options given that only a planar run honours (option, value): a 3D
     /// run records every step in f64, with fixed arrow scales, in its writers' own chunks.
     planar_only: Vec<(&'static str, String)>,
+    /// `--perturb` (its imperfection is among the `--set`s): refused in 3D.
+    perturb: bool,
 }
 
 /// The recording options of `run` given on the command line that a 3D run cannot honour
@@ -416,6 +418,7 @@ fn main() -> ExitCode {
                     ArrowsArg::Log => gripsim::record::ArrowScale::Log,
                 },
                 planar_only,
+                perturb,
             };
             run(&scenario, out, no_record, &sets, quiet)
         }
@@ -484,13 +487,26 @@ enum Loaded {
 
 /// Read the scenario at `path` once and parse it with the `--set` overrides; also returns
 /// its text (the recordings store it, and the plan of the outputs reads the files it names).
+/// `perturb`: `run --perturb` (its `solve.imperfection` is in `sets`), planar only.
 fn load(
     path: &Path,
     sets: &[String],
+    perturb: bool,
 ) -> Result<(String, Loaded), gripsim::scenario::ScenarioError> {
     let text = gripsim::scenario::input::read_text(path)?;
     let file = path.display().to_string();
     let loaded = if gripsim::scenario::three::is_3d(&text) {
+        if perturb {
+            return Err(gripsim::scenario::ScenarioError {
+                file,
+                key: String::new(),
+                value: String::new(),
+                message: "--perturb (a static solve's imperfection) is not yet available in 3D \
+                          (dimension = 3): drop the option"
+                    .into(),
+                hint: None,
+            });
+        }
         let dir = path.parent().unwrap_or(Path::new("."));
         Loaded::Three(Box::new(
             gripsim::scenario::three::Scenario3::from_str_with(&text, &file, dir, sets)?,
@@ -502,8 +518,11 @@ fn load(
 }
 
 fn validate(path: &Path, sets: &[String]) -> ExitCode {
-    match load(path, sets) {
+    match load(path, sets, false) {
         Ok((_, Loaded::Three(sc))) => {
+            for w in sc.warnings() {
+                eprintln!("warning: {}: {w}", path.display());
+            }
             say!(
                 "{}: ok ({:?}, 3D, {} finger(s) of {} node(s), {} obstacle(s), fruit: {})",
                 path.display(),
@@ -575,7 +594,7 @@ fn uncommitted(files: &mut [(&str, Finished)]) {
 }
 
 fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
-    let (text, sc) = match load(path, sets) {
+    let (text, sc) = match load(path, sets, out.perturb) {
         Ok((text, Loaded::Planar(sc))) => (text, *sc),
         Ok((text, Loaded::Three(sc))) => {
             return run3(path, &text, *sc, out, no_record, sets, quiet)
@@ -999,6 +1018,8 @@ fn print_summary3(s: &gripsim::rod3d::run3::Summary3, wall: f64) {
             "penetration     {:.3e} m max after the corrector",
             s.worst_penetration.max(0.0)
         );
+    } else {
+        println!("penetration     none (no contact: no fruit or obstacle)");
     }
     println!("twist           {:.3e} rad max", s.max_twist);
 }
@@ -1014,6 +1035,9 @@ fn run3(
     sets: &[String],
     quiet: bool,
 ) -> ExitCode {
+    for w in sc.warnings() {
+        eprintln!("warning: {}: {w}", path.display());
+    }
     // Refused before anything is written: an option the run would silently ignore.
     if let Some((option, value)) = out.planar_only.first() {
         eprintln!(

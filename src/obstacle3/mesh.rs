@@ -8,6 +8,17 @@
 
 use super::{Proximity3, V3};
 
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a over `bytes`, continuing from `h`.
+fn fnv1a(bytes: &[u8], mut h: u64) -> u64 {
+    for b in bytes {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriMesh {
     pub vertices: Vec<V3>,
@@ -15,11 +26,15 @@ pub struct TriMesh {
     /// Centre and radius of a sphere holding every vertex (the cheap bound).
     pub centre: V3,
     pub radius: f64,
+    /// FNV-1a hash of the OBJ text and the scale it was read with (0: not read from a file):
+    /// a recording stores it, so that a replay notices a different mesh at the same path.
+    pub source_hash: u64,
 }
 
 impl TriMesh {
     /// A mesh from vertices and counter-clockwise (outward) triangles.
     pub fn new(vertices: Vec<V3>, triangles: Vec<[usize; 3]>) -> Result<TriMesh, String> {
+        crate::rod3d::limits::check_mesh_faces(triangles.len())?;
         if triangles.len() < 4 {
             return Err(format!(
                 "a closed mesh needs at least 4 triangles, found {}",
@@ -51,6 +66,7 @@ impl TriMesh {
             triangles,
             centre,
             radius,
+            source_hash: 0,
         };
         let vol = m.signed_volume();
         if !(vol > 0.0) {
@@ -72,12 +88,24 @@ impl TriMesh {
         let (models, _) =
             tobj::load_obj_buf(&mut reader, &opts, |_| Err(tobj::LoadError::OpenFileFailed))
                 .map_err(|e| format!("not a readable OBJ mesh: {e}"))?;
+        let faces: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+        crate::rod3d::limits::check_mesh_faces(faces)?;
         let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
         for m in &models {
             let base = vertices.len();
             let p = &m.mesh.positions;
             for c in p.chunks_exact(3) {
-                vertices.push(V3::new(c[0], c[1], c[2]) * scale);
+                let v = V3::new(c[0], c[1], c[2]) * scale;
+                if !v.iter().all(|x| x.is_finite()) {
+                    return Err(format!(
+                        "vertex {} ({}, {}, {}) times scale {scale:e} is not a finite number",
+                        vertices.len() + 1,
+                        c[0],
+                        c[1],
+                        c[2]
+                    ));
+                }
+                vertices.push(v);
             }
             for t in m.mesh.indices.chunks_exact(3) {
                 triangles.push([
@@ -87,7 +115,9 @@ impl TriMesh {
                 ]);
             }
         }
-        TriMesh::new(vertices, triangles)
+        let mut m = TriMesh::new(vertices, triangles)?;
+        m.source_hash = fnv1a(text.as_bytes(), fnv1a(&scale.to_le_bytes(), FNV_OFFSET));
+        Ok(m)
     }
 
     #[inline]

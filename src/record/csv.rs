@@ -56,6 +56,73 @@ fn page_aligned(rows: &[u8], offset: u64, next: usize, out: &mut Vec<u8>) {
     }
 }
 
+/// Whole rows to a file with the layout of [`page_aligned`], for a writer that formats its
+/// own rows (the 3D run's CSV, src/rod3d/run3.rs): `write` collects bytes, [`PagedRows::rows_end`]
+/// (after whole rows) writes all but the last row, one page at most per `write`, and `flush`
+/// writes everything. A killed process leaves a file that ends with a whole row.
+pub struct PagedRows<W: std::io::Write> {
+    out: W,
+    buf: Vec<u8>,
+    scratch: Vec<u8>,
+    offset: u64,
+}
+
+impl<W: std::io::Write> PagedRows<W> {
+    pub fn new(out: W) -> Self {
+        PagedRows {
+            out,
+            buf: Vec::new(),
+            scratch: Vec::new(),
+            offset: 0,
+        }
+    }
+
+    /// The writer (after [`std::io::Write::flush`], everything is in it).
+    pub fn into_inner(self) -> W {
+        self.out
+    }
+
+    /// Write the collected whole rows but the last (which stays until the row after it is
+    /// known).
+    pub fn rows_end(&mut self) -> std::io::Result<()> {
+        self.write_rows(false)
+    }
+
+    fn write_rows(&mut self, all: bool) -> std::io::Result<()> {
+        let keep = if all {
+            self.buf.len()
+        } else {
+            let body = &self.buf[..self.buf.len().saturating_sub(1)];
+            body.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1)
+        };
+        let next = self.buf.len() - keep;
+        self.scratch.clear();
+        page_aligned(&self.buf[..keep], self.offset, next, &mut self.scratch);
+        self.buf.drain(..keep);
+        let mut at = 0;
+        while at < self.scratch.len() {
+            let room = (PAGE - self.offset % PAGE) as usize;
+            let n = room.min(self.scratch.len() - at);
+            self.out.write_all(&self.scratch[at..at + n])?;
+            at += n;
+            self.offset += n as u64;
+        }
+        Ok(())
+    }
+}
+
+impl<W: std::io::Write> std::io::Write for PagedRows<W> {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.buf.extend_from_slice(b);
+        Ok(b.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.write_rows(true)?;
+        self.out.flush()
+    }
+}
+
 #[derive(serde::Serialize)]
 struct Row<'a> {
     step: u64,

@@ -439,6 +439,10 @@ struct ShapeMeta<'a> {
     size: Vec<f64>,
     position: [f64; 3],
     rotation: [f64; 4],
+    /// A mesh's OBJ text and scale, hashed (`TriMesh::source_hash`, 16 hex digits): a replay
+    /// refuses a different mesh at the path the scenario names.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mesh_hash: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -469,6 +473,10 @@ fn shape_meta(s: &Shape3Info) -> ShapeMeta<'_> {
         size,
         position: s.pose.position.into(),
         rotation: quat(&s.pose),
+        mesh_hash: match &s.shape {
+            Shape3::Mesh(m) if m.source_hash != 0 => Some(format!("{:016x}", m.source_hash)),
+            _ => None,
+        },
     }
 }
 

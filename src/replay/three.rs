@@ -501,6 +501,40 @@ struct MetaIn {
     scenario_text: String,
     #[serde(default)]
     sets: Vec<String>,
+    #[serde(default)]
+    shapes: Vec<ShapeIn>,
+}
+
+#[derive(serde::Deserialize)]
+struct ShapeIn {
+    name: String,
+    #[serde(default)]
+    mesh_hash: Option<String>,
+}
+
+/// Each mesh the recording hashed must be the mesh the re-read scenario found (beside the
+/// recording): a different file at that path is refused, never replayed silently.
+fn same_meshes(sc: &Scenario3, shapes: &[ShapeIn]) -> Result<(), String> {
+    use crate::obstacle3::Shape3;
+    let fruit = sc.fruit.iter().map(|f| (f.name.as_str(), &f.shape));
+    let obstacles = sc.obstacles.iter().map(|o| (o.name.as_str(), &o.shape));
+    for (name, shape) in fruit.chain(obstacles) {
+        let Shape3::Mesh(m) = shape else { continue };
+        let recorded = shapes
+            .iter()
+            .find(|s| s.name == name)
+            .and_then(|s| s.mesh_hash.as_deref());
+        let found = format!("{:016x}", m.source_hash);
+        if let Some(r) = recorded.filter(|r| *r != found) {
+            return Err(format!(
+                "the mesh of {name:?} found beside the recording ({} triangles, hash {found}) \
+                 is not the mesh the run used (hash {r}): put the run's mesh file there, \
+                 at the path its scenario names",
+                m.triangles.len()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Whether `path` is the MCAP of a 3D run (its `/sim/step` carries `gripsim.Step3`): the
@@ -596,6 +630,7 @@ impl Run3 {
             &meta.sets,
         )
         .map_err(|e| err(format!("the recorded scenario: {e}")))?;
+        same_meshes(&scenario, &meta.shapes).map_err(err)?;
         Ok(Run3 {
             scenario,
             name: meta.scenario_name,

@@ -22,6 +22,7 @@ pub mod body3;
 pub mod contact3;
 pub mod edge3;
 pub mod gripper;
+pub mod limits;
 pub mod run3;
 pub mod spatial;
 pub mod system;

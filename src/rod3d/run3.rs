@@ -354,7 +354,7 @@ pub fn run_both<O: Observer3, E: Observer>(
     let mut file = match &out {
         Some(o) => {
             let f = o.create().map_err(|e| e.to_string())?;
-            let mut f = std::io::BufWriter::new(f);
+            let mut f = crate::record::csv::PagedRows::new(f);
             writeln!(f, "step,t,object,node,x,y,z,twist,contact,rx,ry,rz")
                 .map_err(|e| e.to_string())?;
             Some(f)
@@ -404,7 +404,7 @@ fn run_loop<E: Observer>(
     sc: &Scenario3,
     w: &mut World3,
     g: &mut Gripper3,
-    mut csv: Option<&mut std::io::BufWriter<std::fs::File>>,
+    mut csv: Option<&mut crate::record::csv::PagedRows<std::fs::File>>,
     obs: &mut impl Observer3,
     ev: &mut Live<'_, E>,
     stop: &dyn Fn() -> bool,
@@ -475,7 +475,9 @@ fn run_loop<E: Observer>(
             g.step(w, s.steps);
         }
         if let Some(f) = csv.as_deref_mut() {
-            csv_rows(f, w, s.steps).map_err(|e| e.to_string())?;
+            csv_rows(f, w, s.steps)
+                .and_then(|()| f.rows_end())
+                .map_err(|e| e.to_string())?;
         }
     }
     s.grasp = grasp.map(GraspLive::finish);

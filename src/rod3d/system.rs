@@ -436,6 +436,33 @@ fn lu_solve(a: &[f64], n: usize, piv: &[usize], b: &mut [f64]) {
     }
 }
 
+/// Relative compliance of a body's contact row: ε = this × J S⁻¹ K (diagonal estimate).
+pub const REDUNDANCY_COMPLIANCE: f64 = 1e-10;
+
+/// A body's contact rows may be linearly dependent: a box's four corners on a plane give four
+/// normal rows (twelve when stuck) on the three (six) motions they can restrain, and a plane
+/// given twice doubles every row. The bordered matrix [S K; J 0] is then singular although
+/// the motion is determined. Each row gets a compliance ε λ (J δX + ε λ = v) of
+/// [`REDUNDANCY_COMPLIANCE`] times its own scale Σ |j_c k_c| / S_cc: the matrix is regular,
+/// the forces on the body balance exactly (its rows of S δX + K λ = f are untouched), the
+/// redundant rows share their load by the least-squares rule, and a row's constraint is missed
+/// by ε λ (about 1e-10 × dt² × the acceleration the force gives the body: below 1e-16 m).
+fn redundancy_compliance(kkt: &Kkt, nx: usize, dim: usize, m: &mut [f64]) {
+    for (i, (at, j, k, _)) in kkt.rows.iter().enumerate() {
+        let scale: f64 = (0..6)
+            .map(|c| {
+                let s = m[(at + c) * dim + at + c].abs();
+                if s > 0.0 {
+                    (j[c] * k[c]).abs() / s
+                } else {
+                    0.0
+                }
+            })
+            .sum();
+        m[(nx + i) * dim + nx + i] = REDUNDANCY_COMPLIANCE * scale;
+    }
+}
+
 /// The dense system of the bodies' unknowns and their contacts' multipliers, kept from call
 /// to call: after [`solve_bordered`], `sol` holds δX then λ.
 #[derive(Debug, Clone, Default)]
@@ -486,6 +513,7 @@ pub fn solve_bordered(
         }
         d.sol[nx + i] = *v;
     }
+    redundancy_compliance(kkt, nx, dim, &mut d.m);
     lu_factor(&mut d.m, dim, &mut d.piv).map_err(|_| "singular body system")?;
     lu_solve(&d.m, dim, &d.piv, &mut d.sol);
     let dx = &d.sol[..nx];

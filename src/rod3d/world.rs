@@ -419,4 +419,6 @@ impl World3 {
 
 mod edges3;
 mod newton3;
+mod start3;
+pub use start3::Overlap3;
 mod update3;

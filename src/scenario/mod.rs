@@ -506,8 +506,9 @@ fn missing_file_hint(path: &std::path::Path, e: &std::io::Error) -> String {
     general.into()
 }
 
-fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError> {
-    let top = TableReader::new(file, String::new(), root, TOP_KEYS);
+/// The scenario's `name` (it names the recording files), in both dimensions: letters,
+/// digits, '-', '_' and '.', with at least one letter or digit ("." and ".." name folders).
+pub(crate) fn scenario_name(top: &TableReader) -> Result<String, ScenarioError> {
     let name = top.str("name")?.to_string();
     if name.trim().is_empty() {
         return Err(top.err("name", top.get("name"), "must not be empty"));
@@ -532,6 +533,12 @@ fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError>
             "use e.g. \"seed-grasp-r5\"",
         ));
     }
+    Ok(name)
+}
+
+fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError> {
+    let top = TableReader::new(file, String::new(), root, TOP_KEYS);
+    let name = scenario_name(&top)?;
     let description = top.opt_str("description")?.unwrap_or("").to_string();
     let solve = parse_solve(&top.table("solve", SOLVE_KEYS)?)?;
 

@@ -60,6 +60,7 @@ use super::reader::{ScenarioError, TableReader};
 use crate::contact::friction::{Coulomb, FrictionTable};
 use crate::obstacle3::{Obstacle3, Pose3, Shape3, TriMesh};
 use crate::rod3d::gripper::Move3;
+use crate::rod3d::limits::{check_gripper, SizeError};
 use crate::rod3d::{ContactSide3, Rod3Spec, Section3};
 use toml::Value;
 
@@ -133,6 +134,9 @@ const MOVE: &[&str] = &[
     "angle",
 ];
 
+/// Largest `scale` of a mesh (from the file's units to metres).
+const MAX_MESH_SCALE: f64 = 1e6;
+
 /// The fruit: its shape about its centre, where it is, and whether it moves.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fruit3 {
@@ -192,11 +196,112 @@ pub fn file_is_3d(path: &std::path::Path) -> bool {
     }
 }
 
+/// A text with a `dimension` key of any type or value is read by the 3D reader, which says
+/// what is wrong with one that is not the integer 3 (`3.0`, `"3"`): the planar reader has no
+/// such key and would report the 3D keys instead.
 pub fn is_3d(text: &str) -> bool {
     text.parse::<toml::Table>()
         .ok()
-        .and_then(|t| t.get("dimension").and_then(Value::as_integer))
-        == Some(3)
+        .is_some_and(|t| t.contains_key("dimension"))
+}
+
+/// `dimension` is the integer 3 here; anything else (3.0, "3") is a type error that says so.
+fn dimension_error(top: &TableReader<'_>, dim: &Value) -> ScenarioError {
+    let message = match dim {
+        Value::Integer(_) => {
+            "a 3D scenario says dimension = 3 (a planar one has no dimension key)".to_string()
+        }
+        other => format!(
+            "expected the integer 3, found {} {}",
+            super::reader::type_name(other),
+            super::reader::show(other)
+        ),
+    };
+    top.err_hint(
+        "dimension",
+        Some(dim),
+        message,
+        "write dimension = 3 (no quotes, no decimal point) for a 3D scenario, or no dimension \
+         key for a planar one",
+    )
+}
+
+/// Nothing starts inside anything ([`crate::rod3d::World3::start_overlap`] on the world the
+/// run would build): the error names both things, the depth, and the key that places the
+/// fruit or the obstacle.
+fn start_check(top: &TableReader<'_>, sc: &Scenario3) -> Result<(), ScenarioError> {
+    use crate::rod3d::world::Overlap3;
+    let fruit_err = |message: String| -> Result<(), ScenarioError> {
+        let f = top.table("fruit", FRUIT)?;
+        Err(f.err_hint(
+            "centre",
+            f.get("centre"),
+            message,
+            "move the fruit, the obstacle or the gripper so that nothing starts inside \
+             anything (touching is fine)",
+        ))
+    };
+    let (w, _) =
+        crate::rod3d::run3::build(sc).map_err(|e| top.err("fruit", top.get("fruit"), e))?;
+    let fixed_fruit = usize::from(sc.fruit.as_ref().is_some_and(|f| !f.free));
+    let show = |p: [f64; 3]| format!("[{:.4e}, {:.4e}, {:.4e}]", p[0], p[1], p[2]);
+    match w.start_overlap() {
+        None => Ok(()),
+        Some(Overlap3::Body {
+            obstacle,
+            depth,
+            at,
+            ..
+        }) => fruit_err(format!(
+            "the fruit {:?} starts {depth:.3e} m inside obstacle {:?} (its point at {} m)",
+            w.bodies[0].obstacle.name,
+            w.obstacles[obstacle].name,
+            show(at)
+        )),
+        Some(Overlap3::Node {
+            rod,
+            node,
+            body,
+            surface,
+            depth,
+            at,
+            face,
+        }) => {
+            let what = format!(
+                "{} node {node}{} (at {} m) starts {depth:.3e} m inside",
+                w.rod_names[rod],
+                if face { "'s face" } else { "" },
+                show(at)
+            );
+            if body || surface < fixed_fruit {
+                let name = sc.fruit.as_ref().map_or("", |f| f.name.as_str());
+                return fruit_err(format!("{what} the fruit {name:?}"));
+            }
+            let k = surface - fixed_fruit;
+            let all = top.array("obstacle")?.map(|a| a.as_slice()).unwrap_or(&[]);
+            let o = top.table_value(&format!("obstacle.{k}"), &all[k], OBSTACLE)?;
+            Err(o.err_hint(
+                "at",
+                o.get("at"),
+                format!("{what} obstacle {:?}", sc.obstacles[k].name),
+                "move the obstacle or the gripper so that the prongs start outside (touching \
+                 is fine)",
+            ))
+        }
+    }
+}
+
+/// The gripper's size against [`crate::rod3d::limits`]: nodes per prong, fingers, nodes in
+/// all (before the world is built).
+fn check_sizes(top: &TableReader<'_>, nodes: usize, fingers: usize) -> Result<(), ScenarioError> {
+    match check_gripper(nodes, fingers) {
+        Ok(()) => Ok(()),
+        Err(SizeError::Nodes(m) | SizeError::Fingers(m)) => {
+            let p = top.table("prong", PRONG)?;
+            let key = if p.has("points") { "points" } else { "nodes" };
+            Err(p.err(key, p.get(key), m))
+        }
+    }
 }
 
 fn vec3(r: &TableReader<'_>, key: &'static str) -> Result<[f64; 3], ScenarioError> {
@@ -256,20 +361,9 @@ impl Scenario3 {
         let top = TableReader::new(file, String::new(), &root, TOP);
         let dim = top.required("dimension")?;
         if dim.as_integer() != Some(3) {
-            return Err(top.err("dimension", Some(dim), "a 3D scenario says dimension = 3"));
+            return Err(dimension_error(&top, dim));
         }
-        let name = top.str("name")?.to_string();
-        if name.is_empty()
-            || !name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-        {
-            return Err(top.err(
-                "name",
-                top.get("name"),
-                "may only hold letters, digits, '-', '_' and '.' (it names the output files)",
-            ));
-        }
+        let name = super::scenario_name(&top)?;
         let description = top.opt_str("description")?.unwrap_or("").to_string();
         let solve = top.table("solve", SOLVE)?;
         // The planar solve limits (src/scenario/mod.rs).
@@ -286,6 +380,7 @@ impl Scenario3 {
         solve.finish()?;
         let (prong, clamped_edges, damping_time) = parse_prong(&top.table("prong", PRONG)?)?;
         let (fingers, radius, centre, sensor_tau) = parse_gripper(&top)?;
+        check_sizes(&top, prong.points.len(), fingers)?;
         let (side, points) = parse_contact(&top)?;
         let friction = parse_friction(&top)?;
         let fruit = match top.opt_table("fruit", FRUIT)? {
@@ -293,10 +388,11 @@ impl Scenario3 {
             Some(f) => Some(parse_fruit(&f, dir)?),
         };
         let obstacles = parse_obstacles(&top, dir)?;
+        unique_names(&top, fingers, fruit.as_ref(), &obstacles)?;
         let moves = parse_moves(&top)?;
         let expect = super::expect::parse(&top)?;
         top.finish()?;
-        Ok(Scenario3 {
+        let sc = Scenario3 {
             name,
             description,
             file: file.to_string(),
@@ -320,7 +416,9 @@ impl Scenario3 {
             obstacles,
             moves,
             expect,
-        })
+        };
+        start_check(&top, &sc)?;
+        Ok(sc)
     }
 
     /// [`Scenario3::from_str`] after the `--set KEY=VALUE` overrides `sets`
@@ -352,6 +450,24 @@ impl Scenario3 {
             sc.file = file.to_string();
             sc
         })
+    }
+
+    /// What a person should know before running: a mesh large enough to slow every step.
+    pub fn warnings(&self) -> Vec<String> {
+        let fruit = self.fruit.iter().map(|f| ("fruit".to_string(), &f.shape));
+        let obstacles = self
+            .obstacles
+            .iter()
+            .enumerate()
+            .map(|(k, o)| (format!("obstacle.{k}"), &o.shape));
+        fruit
+            .chain(obstacles)
+            .filter_map(|(key, shape)| match shape {
+                Shape3::Mesh(m) => crate::rod3d::limits::mesh_cost_warning(m.triangles.len())
+                    .map(|w| format!("{key}.shape: {w}")),
+                _ => None,
+            })
+            .collect()
     }
 
     /// Read and parse a 3D scenario file.
@@ -415,6 +531,9 @@ fn parse_gripper(top: &TableReader<'_>) -> Result<(usize, f64, [f64; 3], f64), S
                     g.get("fingers"),
                     "a radial gripper needs at least 2 fingers",
                 ));
+            }
+            if let Err(SizeError::Fingers(m)) = check_gripper(3, n) {
+                return Err(g.err("fingers", g.get("fingers"), m));
             }
             n
         }
@@ -486,12 +605,18 @@ fn prong_points(p: &TableReader<'_>) -> Result<Vec<[f64; 3]>, ScenarioError> {
             if pts.len() < 3 {
                 return Err(p.err("points", p.get("points"), "a prong needs at least 3 nodes"));
             }
+            if let Err(SizeError::Nodes(m)) = check_gripper(pts.len(), 1) {
+                return Err(p.err("points", p.get("points"), m));
+            }
             pts
         }
         None => {
             let n = p.usize("nodes")?;
             if n < 3 {
                 return Err(p.err("nodes", p.get("nodes"), "a prong needs at least 3 nodes"));
+            }
+            if let Err(SizeError::Nodes(m)) = check_gripper(n, 1) {
+                return Err(p.err("nodes", p.get("nodes"), m));
             }
             let s = p.table("shape", SHAPE)?;
             let length = s.positive("length")?;
@@ -516,6 +641,34 @@ fn prong_points(p: &TableReader<'_>) -> Result<Vec<[f64; 3]>, ScenarioError> {
                 .collect()
         }
     };
+    let key = if p.has("points") { "points" } else { "shape" };
+    let size = points
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(1e-300);
+    for (i, w) in points.windows(2).enumerate() {
+        let l = (0..3)
+            .map(|a| (w[1][a] - w[0][a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if !(l > 1e-12 * size) || !l.is_finite() {
+            return Err(p.err_hint(
+                key,
+                p.get(key),
+                format!(
+                    "nodes {i} and {} {} (edge length {l:e} m)",
+                    i + 1,
+                    if l.is_finite() {
+                        "coincide"
+                    } else {
+                        "are too far apart to represent"
+                    }
+                ),
+                "give the prong distinct nodes of a realistic size (metres)",
+            ));
+        }
+    }
     Ok(points)
 }
 
@@ -637,6 +790,14 @@ fn parse_shape(s: &TableReader<'_>, dir: &std::path::Path) -> Result<Shape3, Sce
         "mesh" => {
             let f = s.str("file")?;
             let scale = s.opt_positive("scale")?.unwrap_or(1.0);
+            if scale > MAX_MESH_SCALE {
+                return Err(s.err_hint(
+                    "scale",
+                    s.get("scale"),
+                    format!("is too large (at most {MAX_MESH_SCALE:e})"),
+                    "the factor from the file's units to metres: 0.001 for millimetres",
+                ));
+            }
             let path = dir.join(f);
             let text = super::input::read_referenced(&path, "mesh")
                 .map_err(|m| s.err("file", s.get("file"), m))?;
@@ -657,13 +818,91 @@ fn parse_shape(s: &TableReader<'_>, dir: &std::path::Path) -> Result<Shape3, Sce
     Ok(shape)
 }
 
+/// A fruit's or obstacle's `name` (it names CSV rows and recording entities): not empty, no
+/// control character (newline, NUL), no ',' or '"' (a CSV cell holds it as written).
+fn object_name(r: &TableReader<'_>) -> Result<Option<String>, ScenarioError> {
+    let Some(name) = r.opt_str("name")? else {
+        return Ok(None);
+    };
+    if name.trim().is_empty() {
+        return Err(r.err("name", r.get("name"), "must not be empty"));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| c.is_control() || *c == ',' || *c == '"')
+    {
+        return Err(r.err_hint(
+            "name",
+            r.get("name"),
+            format!("must not hold the character {c:?} (it names CSV rows and recording entities)"),
+            "use letters, digits, spaces, '-', '_' or '.'",
+        ));
+    }
+    Ok(Some(name.to_string()))
+}
+
+/// Every object of the world has its own name: the fingers are `finger0` … `finger{n-1}`,
+/// then the fruit, then the obstacles.
+fn unique_names(
+    top: &TableReader<'_>,
+    fingers: usize,
+    fruit: Option<&Fruit3>,
+    obstacles: &[Obstacle3],
+) -> Result<(), ScenarioError> {
+    let is_finger = |n: &str| {
+        n.strip_prefix("finger")
+            .and_then(|k| k.parse::<usize>().ok().filter(|k| k.to_string() == n[6..]))
+            .is_some_and(|k| k < fingers)
+    };
+    let mut seen: Vec<(&str, String)> = Vec::new();
+    let named = fruit
+        .map(|f| (f.name.as_str(), "fruit".to_string()))
+        .into_iter()
+        .chain(
+            obstacles
+                .iter()
+                .enumerate()
+                .map(|(k, o)| (o.name.as_str(), format!("obstacle.{k}"))),
+        );
+    for (name, key) in named {
+        let clash = if is_finger(name) {
+            Some(format!(
+                "finger {name:?} (the gripper's fingers are finger0 … finger{})",
+                fingers - 1
+            ))
+        } else {
+            seen.iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, k)| format!("{k}.name"))
+        };
+        if let Some(other) = clash {
+            let r = match key.strip_prefix("obstacle.") {
+                None => top.table("fruit", FRUIT)?,
+                Some(k) => {
+                    let all = top.array("obstacle")?.map(|a| a.as_slice()).unwrap_or(&[]);
+                    let k: usize = k.parse().unwrap_or(0);
+                    top.table_value(&key, &all[k], OBSTACLE)?
+                }
+            };
+            return Err(r.err_hint(
+                "name",
+                r.get("name"),
+                format!("duplicate name {name:?}: {other} has it already"),
+                "give the fruit and every obstacle a name of its own",
+            ));
+        }
+        seen.push((name, key));
+    }
+    Ok(())
+}
+
 fn parse_fruit(f: &TableReader<'_>, dir: &std::path::Path) -> Result<Fruit3, ScenarioError> {
     let shape = parse_shape(&f.table("shape", SHAPE)?, dir)?;
     if shape == Shape3::Plane {
         return Err(f.err("shape", f.get("shape"), "a fruit cannot be a plane"));
     }
     let fruit = Fruit3 {
-        name: f.opt_str("name")?.unwrap_or("fruit").to_string(),
+        name: object_name(f)?.unwrap_or_else(|| "fruit".into()),
         shape,
         centre: vec3(f, "centre")?,
         density: f.positive("density")?,
@@ -709,10 +948,7 @@ fn parse_obstacles(
         } else {
             Pose3::at(at)
         };
-        let name = o
-            .opt_str("name")?
-            .map(str::to_string)
-            .unwrap_or_else(|| format!("obstacle{k}"));
+        let name = object_name(&o)?.unwrap_or_else(|| format!("obstacle{k}"));
         o.finish()?;
         out.push(Obstacle3::new(&name, shape, pose));
     }

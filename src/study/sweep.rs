@@ -394,6 +394,13 @@ fn build_cases(
     jobs: usize,
     text: String,
 ) -> Result<Option<(Base, Vec<Case>)>, StudyError> {
+    if crate::scenario::three::is_3d(&text) {
+        return Err(StudyError::Usage(format!(
+            "{}: a sweep is not yet available in 3D (dimension = 3): run each case with \
+             `gripsim run --set KEY=VALUE`",
+            opts.scenario.display()
+        )));
+    }
     if opts.vary.is_empty() {
         return Err(StudyError::Usage(
             "a sweep needs at least one --vary KEY=V1,V2,...".into(),

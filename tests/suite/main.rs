@@ -21,6 +21,7 @@ mod frictionless_golden;
 mod fruit;
 mod fruit_records;
 mod grasp3d;
+mod hostile3d;
 mod integrator;
 mod joints;
 mod joints_bodies;
