@@ -65,8 +65,9 @@ impl World3 {
         contact_bases(w, contacts, &mut self.reactions[r], jac);
         body_rows(w, contacts, s, fb, jac);
         kinetic_rows(w, contacts, jac);
+        super::compliant3::law_rows(w, contacts, &self.bodies, jac);
         for &(i, _) in &w.bases {
-            for a in 0..contacts[i].as_ref().unwrap().held() {
+            for a in contacts[i].as_ref().unwrap().held_axes() {
                 let j = pos(i) + a;
                 if jac {
                     let rows = band_range(w.rhs.len(), j);
@@ -249,7 +250,7 @@ fn contact_bases(w: &mut Work3, contacts: &[Option<Contact3>], reactions: &mut [
         }
         let rl = -(q * rw);
         w.rhs[k0..k0 + 3].copy_from_slice(rl.as_slice());
-        for a in 0..ct.held() {
+        for a in ct.held_axes() {
             w.elim[k0 + a] = true;
             w.follow[k0 + a] = World3::follow(ct, &q, a);
         }
@@ -323,8 +324,10 @@ fn kinetic_rows(w: &mut Work3, contacts: &[Option<Contact3>], jac: bool) {
         w.kinetic_pool.extend(w.kinetic.drain(..).map(|k| k.n));
     }
     for &(i, _) in &w.bases {
-        let mu = contacts[i].as_ref().unwrap().kinetic();
-        if mu <= 0.0 {
+        let ct = contacts[i].as_ref().unwrap();
+        let mu = ct.kinetic();
+        // A compliant contact's kinetic force is the law's (src/rod3d/world/compliant3.rs).
+        if mu <= 0.0 || ct.law.is_some() {
             continue;
         }
         let k0 = pos(i);

@@ -39,7 +39,13 @@ impl World3 {
         let moved = lever_map(&c.lever) * self.body_dx(c.surface);
         let v_rel = (x - x0 - moved) / dt;
         let v_rel = v_rel - c.normal * c.normal.dot(&v_rel);
-        match decide(&c, &self.reactions[r][i], &v_rel) {
+        // A compliant contact whose indentation has gone carries no force: released.
+        let change = if self.law_released(r, i, &c) {
+            Some(Change3::Release)
+        } else {
+            decide(&c, &self.reactions[r][i], &v_rel)
+        };
+        match change {
             None => return 0,
             Some(Change3::Release) => {
                 self.contacts[r][i] = None;
