@@ -195,6 +195,26 @@ pub struct BodyContact3 {
     pub switches: u8,
     /// Reaction on the body from the last solve (world).
     pub force: V3,
+    /// A compliant fruit's Hertz law on this obstacle (None: rigid). The normal is then free:
+    /// the body carries F(δ) n at δ = gap − n·(G ΔX), and a stuck contact holds only the two
+    /// tangential directions of [`BodyContact3::tangents`].
+    pub law: Option<PointContact>,
+}
+
+impl BodyContact3 {
+    /// Two tangents completing the normal to an orthonormal basis.
+    pub fn tangents(&self) -> [V3; 2] {
+        let n = self.normal;
+        let pick = if n.x.abs() < 0.9 { V3::x() } else { V3::y() };
+        let t1 = (pick - n * n.dot(&pick)).normalize();
+        [t1, n.cross(&t1)]
+    }
+
+    /// The indentation δ = gap − n·(G ΔX) at the body displacement `dx`.
+    pub fn indentation(&self, dx: &nalgebra::Vector6<f64>) -> f64 {
+        let g = super::body3::lever_map(&self.lever);
+        self.gap - self.normal.dot(&(g * dx))
+    }
 }
 
 #[cfg(test)]

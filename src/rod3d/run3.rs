@@ -51,7 +51,8 @@ pub struct Summary3 {
 pub struct Pressure3 {
     /// Largest normal force of one contact on the fruit (N, the law's).
     pub peak_contact_force_n: f64,
-    /// Largest Hertz peak pressure p₀ (Pa), where (rod, node, surface point) and when.
+    /// Largest Hertz peak pressure p₀ (Pa), where (rod, node, surface point; on an obstacle
+    /// the fruit rests on: its name, node 0) and when.
     pub max_pressure_pa: f64,
     pub max_pressure_node: crate::record::summary::NodeRef,
     pub max_pressure_point: [f64; 3],
@@ -106,6 +107,21 @@ impl Pressure3 {
                 self.max_pressure_point = p.point.into();
                 self.max_pressure_time_s = w.time;
                 (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
+            }
+        }
+        // The fruit on the obstacles it rests on (the table): named by the obstacle, node 0.
+        for (k, force, d, radii, p0, point) in w.pressed_on_obstacles() {
+            self.peak_contact_force_n = self.peak_contact_force_n.max(force);
+            self.max_indentation_m = self.max_indentation_m.max(d);
+            if p0 > self.max_pressure_pa {
+                self.max_pressure_pa = p0;
+                self.max_pressure_node = crate::record::summary::NodeRef {
+                    rod: w.obstacles[k].name.clone(),
+                    node: 0,
+                };
+                self.max_pressure_point = point.into();
+                self.max_pressure_time_s = w.time;
+                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = radii;
             }
         }
         self.bruise_ratio = self.max_pressure_pa / self.bruise_pressure_pa;

@@ -168,6 +168,41 @@ fn a_flat_face_pressed_on_a_compliant_ellipsoid_settles_on_elliptical_hertz() {
     assert!(p.radii.0 > 1.2 * p.radii.1);
 }
 
+#[test]
+fn a_compliant_sphere_resting_on_a_table_settles_on_hertz() {
+    // The fruit–table contact is compliant too: the sphere sinks by Hertz's δ under its weight.
+    let r = 0.0375;
+    let mut w = World3::new([0.0, 0.0, -9.81]);
+    w.obstacles.push(Obstacle3::new(
+        "table",
+        Shape3::Plane,
+        Pose3::at([0.0, 0.0, -r]),
+    ));
+    let mut body = Body3::new("apple", Shape3::Sphere { radius: r }, 905.0, [0.0; 3]).unwrap();
+    body.material = Some(apple());
+    w.bodies.push(body);
+    // dt 5 ms: backward Euler damps the contact's rebound (ω Δt ≈ 1.2) within the run.
+    for _ in 0..200 {
+        w.step(5e-3).unwrap();
+    }
+    let f = w.bodies[0].mass * 9.81;
+    let a = (3.0 * f * r / (4.0 * e_star())).cbrt();
+    let (delta, p0) = (a * a / r, 3.0 * f / (2.0 * std::f64::consts::PI * a * a));
+    let sunk = -w.bodies[0].centre().z;
+    let on = w.pressed_on_obstacles();
+    assert_eq!(on.len(), 1, "{on:?}");
+    let (_, force, d, radii, p, _) = on[0];
+    println!(
+        "table: F {force:.9} N (mg {f:.9}), sunk {sunk:.6e} m (Hertz {delta:.6e}), a {:.6e} m \
+         (Hertz {a:.6e}), p0 {p:.6e} Pa (Hertz {p0:.6e})",
+        radii.0
+    );
+    let err = |x: f64, y: f64| (x / y - 1.0).abs();
+    assert!(err(force, f) < 1e-6 && err(d, delta) < 1e-5);
+    assert!(err(sunk, delta) < 0.02 && err(radii.0, a) < 0.02 && err(p, p0) < 0.02);
+    assert!(w.bodies[0].v.norm() < 1e-6);
+}
+
 /// A vertical jaw: two weightless vertical pads pressed with `grip` N each at their middle node
 /// on a free compliant sphere of mass `m` (apple, R 37.5 mm) under gravity, with μ_s = μ_k =
 /// `mu`. Returns how far the sphere fell in 0.3 s (m).

@@ -77,6 +77,52 @@ pub(super) fn law_rows(w: &mut Work3, contacts: &[Option<Contact3>], bodies: &[B
     }
 }
 
+/// A compliant body contact's part of the bodies' system: the law's force on the body,
+/// f = F(δ) (n − μ_k d) (d the slip direction of a sliding contact, else 0), into the
+/// right-hand side (Gᵀ f) and its stiffness Gᵀ (n − μ_k d) F′ nᵀ G into S (δ = gap − n·G ΔX);
+/// stuck, the two tangential rows t·(G ΔX) = 0 with their force columns, as a rigid stuck
+/// contact's (their last force into `forces`).
+pub(super) fn body_law_rows(
+    bc: &BodyContact3,
+    dx: &Vector6<f64>,
+    s: &mut DMatrix<f64>,
+    fb: &mut DVector<f64>,
+    forces: &mut DVector<f64>,
+    kkt: &mut crate::rod3d::system::Kkt,
+) {
+    let law = bc.law.expect("a compliant body contact");
+    let g = lever_map(&bc.lever);
+    let (f, k) = law.force(bc.indentation(dx));
+    let dir = if bc.stuck.is_some() {
+        V3::zeros()
+    } else {
+        bc.dir
+    };
+    let fdir = bc.normal - dir * bc.coulomb.mu_k;
+    let gf = g.transpose() * fdir;
+    let gn = g.transpose() * bc.normal;
+    let at = 6 * bc.body;
+    for e in 0..6 {
+        fb[at + e] += f * gf[e];
+        for c in 0..6 {
+            s[(at + e, at + c)] += k * gf[e] * gn[c];
+        }
+    }
+    if bc.stuck.is_some() {
+        // The held friction's last force, for the convergence test (as a rigid contact's).
+        let ft = bc.force - bc.normal * bc.normal.dot(&bc.force);
+        let gt = g.transpose() * ft;
+        for e in 0..6 {
+            forces[at + e] += gt[e];
+        }
+        let now = g * dx;
+        for t in bc.tangents() {
+            let j = t.transpose() * g;
+            kkt.push(at, j, -j, -t.dot(&now));
+        }
+    }
+}
+
 impl World3 {
     /// The compliant material of a surface, if any.
     pub fn material(&self, s: Surface3) -> Option<&Material> {
@@ -145,6 +191,39 @@ impl World3 {
                     point: x + c.normal * (d - c.offset),
                 });
             }
+        }
+        out
+    }
+
+    /// The Hertz law of compliant body b on fixed obstacle k at the body's surface point `p`
+    /// (outward normal of the obstacle `n`; None: a rigid body). The obstacle is rigid: E* is
+    /// the fruit's; its curvature (a sphere's or an ellipsoid's, a plane's 0) adds to the
+    /// fruit's.
+    pub(super) fn table_law(&self, b: usize, k: usize, p: &V3, n: &V3) -> Option<PointContact> {
+        let m = self.bodies[b].material.as_ref()?;
+        let pick = if n.x.abs() < 0.9 { V3::x() } else { V3::y() };
+        let t1 = (pick - n * n.dot(&pick)).normalize();
+        let t = [t1, n.cross(&t1)];
+        let fruit = surface_curvature(&self.bodies[b].obstacle, p, &t);
+        let table = surface_curvature(&self.obstacles[k], p, &t);
+        Some(PointContact::of_curvatures(
+            fruit,
+            table,
+            1.0 / m.compliance(),
+        ))
+    }
+
+    /// The compliant body contacts at the end of the last step: (obstacle, force, δ, (a, b),
+    /// p₀, point).
+    pub fn pressed_on_obstacles(&self) -> Vec<(usize, f64, f64, (f64, f64), f64, V3)> {
+        let mut out = Vec::new();
+        for bc in &self.body_contacts {
+            let Some(law) = bc.law else { continue };
+            let body = &self.bodies[bc.body];
+            let d = bc.indentation(&body.dx).max(0.0);
+            let point = body.centre() + bc.lever;
+            let (f, _) = law.force(d);
+            out.push((bc.obstacle, f, d, law.radii(d), law.peak_pressure(d), point));
         }
         out
     }

@@ -113,12 +113,16 @@ impl World3 {
         kkt.clear();
         for bc in &self.body_contacts {
             let g = lever_map(&bc.lever);
+            let dx = self.bodies[bc.body].dx;
+            let at = 6 * bc.body;
+            if bc.law.is_some() {
+                super::compliant3::body_law_rows(bc, &dx, s, fb, forces, kkt);
+                continue;
+            }
             let f = g.transpose() * bc.force;
             for e in 0..6 {
                 forces[6 * bc.body + e] += f[e];
             }
-            let dx = self.bodies[bc.body].dx;
-            let at = 6 * bc.body;
             match bc.stuck {
                 Some(mv) => {
                     let now = g * dx;
@@ -438,6 +442,18 @@ impl World3 {
         self.update_edge_forces(dx);
         let mut k = 0;
         for bc in &mut self.body_contacts {
+            if let Some(law) = bc.law {
+                // The law's normal force at the new displacement, with the held tangential
+                // multipliers (stuck) or the kinetic force (sliding).
+                let (f, _) = law.force(bc.indentation(&self.bodies[bc.body].dx));
+                bc.force = (bc.normal - bc.dir * bc.coulomb.mu_k) * f;
+                if bc.stuck.is_some() {
+                    let t = bc.tangents();
+                    bc.force = bc.normal * f + t[0] * lam[k] + t[1] * lam[k + 1];
+                    k += 2;
+                }
+                continue;
+            }
             if bc.stuck.is_some() {
                 bc.force = V3::new(lam[k], lam[k + 1], lam[k + 2]);
                 k += 3;

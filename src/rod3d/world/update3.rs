@@ -129,7 +129,9 @@ impl World3 {
                 None => (false, bc.dir.dot(&slip)),
             };
             let cone = decide_cone(bc.coulomb, stuck, bc.switches, fn_, ft.norm(), slip_along);
-            if fn_ < 0.0 && cone != Some(Cone::Slide) {
+            // A compliant contact whose indentation has gone carries no force: released.
+            let gone = bc.law.is_some() && bc.indentation(&self.bodies[bc.body].dx) <= 0.0;
+            if gone || (fn_ < 0.0 && cone != Some(Cone::Slide)) {
                 report.released += 1;
                 changed += 1;
                 return false;
@@ -186,6 +188,7 @@ impl World3 {
                         coulomb,
                         switches: 0,
                         force: V3::zeros(),
+                        law: self.table_law(b, k, &pw, &prox.normal),
                     });
                     report.added += 1;
                     changed += 1;
