@@ -1,5 +1,6 @@
 //! A compliant fruit: Hertz line contact between a prong's face and a fruit of elastic
 //! material, as a force law F(δ) of the indentation δ that the Newton system solves implicitly.
+//! In 3D the law is Hertz point (elliptical) contact, [`PointContact`] (below).
 //!
 //! Hertz line contact of two cylinders with parallel axes, length b, load F, 1/R = 1/R₁ + 1/R₂,
 //! 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (Johnson, *Contact Mechanics*, 1985, §4.2):

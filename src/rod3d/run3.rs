@@ -110,18 +110,18 @@ impl Pressure3 {
             }
         }
         // The fruit on the obstacles it rests on (the table): named by the obstacle, node 0.
-        for (k, force, d, radii, p0, point) in w.pressed_on_obstacles() {
-            self.peak_contact_force_n = self.peak_contact_force_n.max(force);
-            self.max_indentation_m = self.max_indentation_m.max(d);
-            if p0 > self.max_pressure_pa {
-                self.max_pressure_pa = p0;
+        for p in w.pressed_on_obstacles() {
+            self.peak_contact_force_n = self.peak_contact_force_n.max(p.force);
+            self.max_indentation_m = self.max_indentation_m.max(p.indentation);
+            if p.pressure > self.max_pressure_pa {
+                self.max_pressure_pa = p.pressure;
                 self.max_pressure_node = crate::record::summary::NodeRef {
-                    rod: w.obstacles[k].name.clone(),
+                    rod: w.surface_name(p.surface).to_string(),
                     node: 0,
                 };
-                self.max_pressure_point = point.into();
+                self.max_pressure_point = p.point.into();
                 self.max_pressure_time_s = w.time;
-                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = radii;
+                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
             }
         }
         self.bruise_ratio = self.max_pressure_pa / self.bruise_pressure_pa;

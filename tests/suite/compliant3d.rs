@@ -191,7 +191,7 @@ fn a_compliant_sphere_resting_on_a_table_settles_on_hertz() {
     let sunk = -w.bodies[0].centre().z;
     let on = w.pressed_on_obstacles();
     assert_eq!(on.len(), 1, "{on:?}");
-    let (_, force, d, radii, p, _) = on[0];
+    let (force, d, radii, p) = (on[0].force, on[0].indentation, on[0].radii, on[0].pressure);
     println!(
         "table: F {force:.9} N (mg {f:.9}), sunk {sunk:.6e} m (Hertz {delta:.6e}), a {:.6e} m \
          (Hertz {a:.6e}), p0 {p:.6e} Pa (Hertz {p0:.6e})",

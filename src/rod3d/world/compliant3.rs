@@ -213,17 +213,24 @@ impl World3 {
         ))
     }
 
-    /// The compliant body contacts at the end of the last step: (obstacle, force, δ, (a, b),
-    /// p₀, point).
-    pub fn pressed_on_obstacles(&self) -> Vec<(usize, f64, f64, (f64, f64), f64, V3)> {
+    /// The compliant fruit's contacts with fixed obstacles (the table) at the end of the last
+    /// step, as [`Pressed3`] with `surface` the obstacle and `rod`, `node` 0.
+    pub fn pressed_on_obstacles(&self) -> Vec<Pressed3> {
         let mut out = Vec::new();
         for bc in &self.body_contacts {
             let Some(law) = bc.law else { continue };
             let body = &self.bodies[bc.body];
             let d = bc.indentation(&body.dx).max(0.0);
-            let point = body.centre() + bc.lever;
-            let (f, _) = law.force(d);
-            out.push((bc.obstacle, f, d, law.radii(d), law.peak_pressure(d), point));
+            out.push(Pressed3 {
+                rod: 0,
+                node: 0,
+                surface: Surface3::Obstacle(bc.obstacle),
+                force: law.force(d).0,
+                indentation: d,
+                radii: law.radii(d),
+                pressure: law.peak_pressure(d),
+                point: body.centre() + bc.lever,
+            });
         }
         out
     }
