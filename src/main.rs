@@ -1022,6 +1022,36 @@ fn print_summary3(s: &gripsim::rod3d::run3::Summary3, wall: f64) {
         println!("penetration     none (no contact: no fruit or obstacle)");
     }
     println!("twist           {:.3e} rad max", s.max_twist);
+    if let Some(p) = &s.contact_pressure {
+        print_pressure3(p);
+    }
+}
+
+/// A 3D compliant fruit's contact: the planar pressure block's words, with the contact
+/// ellipse's two semi-axes.
+fn print_pressure3(p: &gripsim::rod3d::run3::Pressure3) {
+    println!(
+        "fruit contact   peak force {:.4} N (the contact law's), peak pressure {:.4e} Pa at rod {:?} node {} (t = {:.6} s, half-width {:.3e} x {:.3e} m), deepest indentation {:.3e} m",
+        p.peak_contact_force_n,
+        p.max_pressure_pa,
+        p.max_pressure_node.rod,
+        p.max_pressure_node.node,
+        p.max_pressure_time_s,
+        p.half_width_at_max_m,
+        p.half_width_minor_at_max_m,
+        p.max_indentation_m
+    );
+    let expected = match (p.bruised, p.bruise_expected) {
+        (true, true) => " (as the scenario expects)",
+        (false, true) => " (the scenario expects a bruise: [expect] bruised = true)",
+        _ => "",
+    };
+    println!(
+        "bruise          {}: peak pressure {:.3} x the bruise pressure {:.4e} Pa{expected}",
+        if p.bruised { "BRUISED" } else { "not bruised" },
+        p.bruise_ratio,
+        p.bruise_pressure_pa,
+    );
 }
 
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary, `.rrd`

@@ -33,6 +33,8 @@ pub struct Body3 {
     pub start: Pose3,
     /// Displacement over the current step: (Δc, φ).
     pub dx: Vector6<f64>,
+    /// A compliant fruit's material (None: rigid).
+    pub material: Option<crate::contact::compliant::Material>,
 }
 
 impl Body3 {
@@ -61,6 +63,7 @@ impl Body3 {
             force: V3::zeros(),
             start: pose,
             dx: Vector6::zeros(),
+            material: None,
         })
     }
 

@@ -20,6 +20,7 @@
 //! rectangle (h/2 for a flat prong facing the obstacle, as the planar `surface = "face"`),
 //! or the radius of a round section, taken at the start of the step.
 
+use crate::contact::compliant::PointContact;
 use crate::contact::friction::{decide_cone, Cone, Coulomb};
 use crate::obstacle3::V3;
 use nalgebra::Matrix3;
@@ -57,6 +58,10 @@ pub struct Contact3 {
     pub switches: u8,
     /// Released once in this step and re-added: kept for the rest of the step.
     pub locked: bool,
+    /// A compliant fruit's Hertz law (None: rigid). The normal coordinate is then free and
+    /// carries the law's force F(δ) at the indentation δ = target + a·ΔX − n·x; a stuck
+    /// contact holds only the tangential coordinates (src/rod3d/compliant3.rs).
+    pub law: Option<PointContact>,
 }
 
 impl Contact3 {
@@ -82,11 +87,20 @@ impl Contact3 {
         }
     }
 
-    /// How many local coordinates are prescribed: 1 sliding, 3 stuck.
+    /// How many local coordinates are prescribed: 1 sliding, 3 stuck (compliant: 0, 2).
     pub fn held(&self) -> usize {
-        match self.grip {
-            Grip3::Slide { .. } => 1,
-            Grip3::Stick { .. } => 3,
+        self.held_axes().len()
+    }
+
+    /// The prescribed local coordinates (0 the normal, 1 and 2 the tangents): the normal
+    /// sliding, all three stuck; on a compliant fruit the normal is free (the law's force),
+    /// so none sliding and the tangents stuck.
+    pub fn held_axes(&self) -> std::ops::Range<usize> {
+        match (self.grip, self.law.is_some()) {
+            (Grip3::Slide { .. }, false) => 0..1,
+            (Grip3::Stick { .. }, false) => 0..3,
+            (Grip3::Slide { .. }, true) => 0..0,
+            (Grip3::Stick { .. }, true) => 1..3,
         }
     }
 
@@ -181,6 +195,26 @@ pub struct BodyContact3 {
     pub switches: u8,
     /// Reaction on the body from the last solve (world).
     pub force: V3,
+    /// A compliant fruit's Hertz law on this obstacle (None: rigid). The normal is then free:
+    /// the body carries F(δ) n at δ = gap − n·(G ΔX), and a stuck contact holds only the two
+    /// tangential directions of [`BodyContact3::tangents`].
+    pub law: Option<PointContact>,
+}
+
+impl BodyContact3 {
+    /// Two tangents completing the normal to an orthonormal basis.
+    pub fn tangents(&self) -> [V3; 2] {
+        let n = self.normal;
+        let pick = if n.x.abs() < 0.9 { V3::x() } else { V3::y() };
+        let t1 = (pick - n * n.dot(&pick)).normalize();
+        [t1, n.cross(&t1)]
+    }
+
+    /// The indentation δ = gap − n·(G ΔX) at the body displacement `dx`.
+    pub fn indentation(&self, dx: &nalgebra::Vector6<f64>) -> f64 {
+        let g = super::body3::lever_map(&self.lever);
+        self.gap - self.normal.dot(&(g * dx))
+    }
 }
 
 #[cfg(test)]
@@ -202,6 +236,7 @@ mod tests {
             },
             switches: 0,
             locked: false,
+            law: None,
         }
     }
 

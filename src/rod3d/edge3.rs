@@ -132,6 +132,7 @@ impl EdgeContact3 {
             coulomb: self.coulomb,
             switches: self.switches,
             locked: self.locked,
+            law: None,
         }
     }
 

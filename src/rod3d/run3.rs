@@ -42,6 +42,93 @@ pub struct Summary3 {
     /// Did the hand hold the fruit through its lift? (A free fruit only; the planar rule and
     /// key names, `record::grasp`.)
     pub grasp: Option<Grasp3>,
+    /// A compliant fruit's contact pressure and bruise verdict (None: a rigid fruit).
+    pub contact_pressure: Option<Pressure3>,
+}
+
+/// A compliant fruit's contacts over the run, with the planar summary's key names
+/// (`record::summary::PressureSummary`): the Hertz contact of the largest peak pressure,
+/// where and when, the deepest indentation and the bruise verdict.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Pressure3 {
+    /// Largest normal force of one contact on the fruit (N, the law's).
+    pub peak_contact_force_n: f64,
+    /// Largest Hertz peak pressure p₀ (Pa), where (rod, node, surface point; on an obstacle
+    /// the fruit rests on: its name, node 0) and when.
+    pub max_pressure_pa: f64,
+    pub max_pressure_node: crate::record::summary::NodeRef,
+    pub max_pressure_point: [f64; 3],
+    pub max_pressure_time_s: f64,
+    /// The contact ellipse's semi-axes a ≥ b at that moment (m; equal on a sphere under a
+    /// flat face).
+    pub half_width_at_max_m: f64,
+    pub half_width_minor_at_max_m: f64,
+    /// Deepest indentation of the fruit (m).
+    pub max_indentation_m: f64,
+    /// The fruit's bruise threshold (Pa) and whether the pressure went above it.
+    pub bruise_pressure_pa: f64,
+    pub bruised: bool,
+    /// max p₀ / bruise threshold.
+    pub bruise_ratio: f64,
+    /// The scenario expects the fruit to bruise (`[expect] bruised`).
+    pub bruise_expected: bool,
+}
+
+impl Pressure3 {
+    fn new(bruise_pressure: f64, expected: bool) -> Pressure3 {
+        Pressure3 {
+            peak_contact_force_n: 0.0,
+            max_pressure_pa: 0.0,
+            max_pressure_node: crate::record::summary::NodeRef {
+                rod: String::new(),
+                node: 0,
+            },
+            max_pressure_point: [0.0; 3],
+            max_pressure_time_s: 0.0,
+            half_width_at_max_m: 0.0,
+            half_width_minor_at_max_m: 0.0,
+            max_indentation_m: 0.0,
+            bruise_pressure_pa: bruise_pressure,
+            bruised: false,
+            bruise_ratio: 0.0,
+            bruise_expected: expected,
+        }
+    }
+
+    /// Take in the compliant contacts at the end of a step.
+    fn step(&mut self, w: &World3) {
+        for p in w.pressed() {
+            self.peak_contact_force_n = self.peak_contact_force_n.max(p.force);
+            self.max_indentation_m = self.max_indentation_m.max(p.indentation);
+            if p.pressure > self.max_pressure_pa {
+                self.max_pressure_pa = p.pressure;
+                self.max_pressure_node = crate::record::summary::NodeRef {
+                    rod: w.rod_names[p.rod].clone(),
+                    node: p.node,
+                };
+                self.max_pressure_point = p.point.into();
+                self.max_pressure_time_s = w.time;
+                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
+            }
+        }
+        // The fruit on the obstacles it rests on (the table): named by the obstacle, node 0.
+        for p in w.pressed_on_obstacles() {
+            self.peak_contact_force_n = self.peak_contact_force_n.max(p.force);
+            self.max_indentation_m = self.max_indentation_m.max(p.indentation);
+            if p.pressure > self.max_pressure_pa {
+                self.max_pressure_pa = p.pressure;
+                self.max_pressure_node = crate::record::summary::NodeRef {
+                    rod: w.surface_name(p.surface).to_string(),
+                    node: 0,
+                };
+                self.max_pressure_point = p.point.into();
+                self.max_pressure_time_s = w.time;
+                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
+            }
+        }
+        self.bruise_ratio = self.max_pressure_pa / self.bruise_pressure_pa;
+        self.bruised = self.max_pressure_pa >= self.bruise_pressure_pa;
+    }
 }
 
 /// The grasp of a free fruit in a 3D run: the rule of `replay check` ([`GraspRule`]) run live,
@@ -179,16 +266,22 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     }
     g.moves = sc.moves.clone();
     g.sensor_tau = sc.sensor_tau;
+    // The prong's part of 1/E*: (1 − ν²)/E with ν = E/(2G) − 1.
+    let (e, g_mod) = (sc.prong.youngs_modulus, sc.prong.shear_modulus);
+    let nu = (e / (2.0 * g_mod) - 1.0).clamp(0.0, 0.5);
+    w.prong_compliance = vec![(1.0 - nu * nu) / e; w.rods.len()];
     if let Some(f) = &sc.fruit {
         if f.free {
-            w.bodies
-                .push(Body3::new(&f.name, f.shape.clone(), f.density, f.centre)?);
+            let mut b = Body3::new(&f.name, f.shape.clone(), f.density, f.centre)?;
+            b.material = f.material.clone();
+            w.bodies.push(b);
         } else {
             w.obstacles.push(Obstacle3::new(
                 &f.name,
                 f.shape.clone(),
                 Pose3::at(f.centre),
             ));
+            w.materials.push(f.material.clone());
         }
     }
     w.obstacles.extend(sc.obstacles.iter().cloned());
@@ -220,11 +313,21 @@ pub fn worst_penetration(w: &World3) -> f64 {
                 }
                 let x = V3::new(q[pos(i)], q[pos(i) + 1], q[pos(i) + 2]);
                 let most = contact.unwrap_or(reach);
-                for o in w
+                // A compliant fruit is indented, not penetrated (its indentation is reported
+                // with the contact pressure).
+                let rigid = w
                     .obstacles
                     .iter()
-                    .chain(w.bodies.iter().map(|b| &b.obstacle))
-                {
+                    .enumerate()
+                    .filter(|&(k, _)| w.material(Surface3::Obstacle(k)).is_none())
+                    .map(|(_, o)| o)
+                    .chain(
+                        w.bodies
+                            .iter()
+                            .filter(|b| b.material.is_none())
+                            .map(|b| &b.obstacle),
+                    );
+                for o in rigid {
                     if most - o.lower_bound(&x) <= worst {
                         continue;
                     }
@@ -434,8 +537,14 @@ fn run_loop<E: Observer>(
         worst_penetration: f64::NEG_INFINITY,
         max_twist: 0.0,
         grasp: None,
+        contact_pressure: None,
     };
     let mut grasp = GraspLive::new(sc, w);
+    let mut pressure = sc
+        .fruit
+        .as_ref()
+        .and_then(|f| f.material.as_ref())
+        .map(|m| Pressure3::new(m.bruise_pressure, sc.expect.bruised));
     if let Some(f) = csv.as_deref_mut() {
         csv_rows(f, w, 0).map_err(|e| e.to_string())?;
     }
@@ -474,6 +583,9 @@ fn run_loop<E: Observer>(
         if let Some(g) = grasp.as_mut() {
             g.step(w, s.steps);
         }
+        if let Some(p) = pressure.as_mut() {
+            p.step(w);
+        }
         if let Some(f) = csv.as_deref_mut() {
             csv_rows(f, w, s.steps)
                 .and_then(|()| f.rows_end())
@@ -481,6 +593,7 @@ fn run_loop<E: Observer>(
         }
     }
     s.grasp = grasp.map(GraspLive::finish);
+    s.contact_pressure = pressure;
     if sc.t_end.is_none() && !g.done() {
         return Err(format!(
             "the hand's moves did not end within {limit} steps (t = {:e} s): give solve.t_end, \

@@ -20,6 +20,7 @@ use super::symband::SymBand;
 use super::system::{
     solve_bordered, BlockFactor, Border, Dense, KineticRow, Kkt, RodBlock, Weight,
 };
+use crate::contact::compliant::Material;
 use crate::contact::friction::FrictionTable;
 use crate::obstacle3::{Obstacle3, Proximity3, V3};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector6};
@@ -91,6 +92,12 @@ pub struct World3 {
     /// Reaction on every contact node at the end of the last step (world, zero elsewhere).
     pub reactions: Vec<Vec<V3>>,
     pub body_contacts: Vec<BodyContact3>,
+    /// Per fixed obstacle, its compliant material (None or missing: rigid); a body's is on
+    /// the body ([`Body3::material`]).
+    pub materials: Vec<Option<Material>>,
+    /// Per rod, (1 − ν²)/E of its material (its part of 1/E* on a compliant fruit; missing:
+    /// a rigid prong).
+    pub prong_compliance: Vec<f64>,
     /// Newton converges when every free residual is at most `force_tol` × the force scale
     /// (the largest of EI/L², the loads and weights), or when an update is at most
     /// `step_tol` × the rod length: the planar solver's criteria and defaults.
@@ -146,6 +153,8 @@ impl World3 {
             contacts: Vec::new(),
             reactions: Vec::new(),
             body_contacts: Vec::new(),
+            materials: Vec::new(),
+            prong_compliance: Vec::new(),
             force_tol: 1e-9,
             step_tol: 1e-12,
             max_iterations: 40,
@@ -273,6 +282,7 @@ impl World3 {
             coulomb,
             switches: 0,
             locked: false,
+            law: self.law_at(r, i, s, prox),
         }
     }
 
@@ -299,12 +309,20 @@ impl World3 {
         (lever, target, coulomb)
     }
 
-    /// Where node i must be: projected onto its constraint at the current body displacement.
+    /// Where node i must be: projected onto its constraint at the current body displacement
+    /// (on a compliant fruit only its held tangential coordinates: the normal is free).
     fn project(c: &Contact3, x: &V3, dx: &Vector6<f64>) -> V3 {
         let g = lever_map(&c.lever) * dx;
-        match c.grip {
-            Grip3::Stick { anchor } => anchor + g,
-            Grip3::Slide { .. } => x + c.normal * (c.target + c.normal.dot(&g) - c.normal.dot(x)),
+        match (c.grip, c.law.is_some()) {
+            (Grip3::Stick { anchor }, false) => anchor + g,
+            (Grip3::Slide { .. }, false) => {
+                x + c.normal * (c.target + c.normal.dot(&g) - c.normal.dot(x))
+            }
+            (Grip3::Stick { anchor }, true) => {
+                let d = anchor + g - x;
+                x + d - c.normal * c.normal.dot(&d)
+            }
+            (Grip3::Slide { .. }, true) => *x,
         }
     }
 
@@ -417,8 +435,11 @@ impl World3 {
     }
 }
 
+mod compliant3;
 mod edges3;
 mod newton3;
 mod start3;
 pub use start3::Overlap3;
 mod update3;
+
+pub use compliant3::Pressed3;

@@ -26,6 +26,41 @@ pub fn parse(
     shape: &Obstacle,
     free: bool,
 ) -> Result<Option<Material>, ScenarioError> {
+    let Some((m, v)) = read(r)? else {
+        return Ok(None);
+    };
+    match shape {
+        Obstacle::Circle(_) => {}
+        Obstacle::Plane(_) | Obstacle::Sine(_) => {
+            return Err(r.err_hint(
+                "material",
+                Some(v),
+                format!(
+                    "a {} is an open surface, not a fruit: it cannot carry a material",
+                    shape.kind()
+                ),
+                "put the material on the fruit (a circle); a table stays rigid",
+            ))
+        }
+        _ => {
+            return Err(r.err_hint(
+                "material",
+                Some(v),
+                format!(
+                    "a compliant material is implemented for circles only (this is a {}{}): \
+                     the line-contact law needs the fruit's radius",
+                    if free { "free " } else { "" },
+                    shape.kind()
+                ),
+                "give the fruit as a circle, or remove `material` (rigid)",
+            ))
+        }
+    }
+    Ok(Some(m))
+}
+
+/// A table's `material` value (None: absent or `"rigid"`), with the value for messages.
+fn read<'a>(r: &'a TableReader) -> Result<Option<(Material, &'a Value)>, ScenarioError> {
     let Some(v) = r.get("material") else {
         return Ok(None);
     };
@@ -82,34 +117,35 @@ pub fn parse(
             ))
         }
     };
-    match shape {
-        Obstacle::Circle(_) => {}
-        Obstacle::Plane(_) | Obstacle::Sine(_) => {
-            return Err(r.err_hint(
-                "material",
-                Some(v),
-                format!(
-                    "a {} is an open surface, not a fruit: it cannot carry a material",
-                    shape.kind()
-                ),
-                "put the material on the fruit (a circle); a table stays rigid",
-            ))
-        }
-        _ => {
-            return Err(r.err_hint(
-                "material",
-                Some(v),
-                format!(
-                    "a compliant material is implemented for circles only (this is a {}{}): \
-                     the line-contact law needs the fruit's radius",
-                    if free { "free " } else { "" },
-                    shape.kind()
-                ),
-                "give the fruit as a circle, or remove `material` (rigid)",
-            ))
-        }
-    }
-    Ok(Some(m))
+    Ok(Some((m, v)))
+}
+
+/// Read a 3D fruit's `material` (None: rigid). The Hertz point contact needs the fruit's
+/// curvatures: a sphere or an ellipsoid; a box or a mesh is refused.
+pub fn parse3(
+    r: &TableReader,
+    shape: &crate::obstacle3::Shape3,
+) -> Result<Option<Material>, ScenarioError> {
+    use crate::obstacle3::Shape3;
+    let Some((m, v)) = read(r)? else {
+        return Ok(None);
+    };
+    let kind = match shape {
+        Shape3::Sphere { .. } | Shape3::Ellipsoid { .. } => return Ok(Some(m)),
+        Shape3::Box { .. } => "box",
+        Shape3::Mesh(_) => "mesh",
+        Shape3::Plane => "plane",
+    };
+    Err(r.err_hint(
+        "material",
+        Some(v),
+        format!(
+            "a compliant material is implemented for spheres and ellipsoids only (this is a \
+             {kind}): the Hertz point contact needs the fruit's principal curvatures, which a \
+             {kind} does not have"
+        ),
+        "give the fruit as a sphere or an ellipsoid, or remove `material` (rigid)",
+    ))
 }
 
 fn preset(r: &TableReader, key: &str, v: &Value, name: &str) -> Result<Material, ScenarioError> {

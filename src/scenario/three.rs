@@ -119,6 +119,7 @@ const FRUIT: &[&str] = &[
     "density",
     "free",
     "hold_tolerance",
+    "material",
 ];
 const OBSTACLE: &[&str] = &["name", "shape", "at", "normal"];
 const MOVE: &[&str] = &[
@@ -148,6 +149,8 @@ pub struct Fruit3 {
     /// How far the fruit may move in the gripper during the lift (m): the grasp rule's
     /// tolerance (default 0.1 × its bounding radius, as a planar free body's).
     pub hold_tolerance: f64,
+    /// A compliant fruit's material (None: rigid; src/scenario/material.rs).
+    pub material: Option<crate::contact::compliant::Material>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -385,7 +388,19 @@ impl Scenario3 {
         let friction = parse_friction(&top)?;
         let fruit = match top.opt_table("fruit", FRUIT)? {
             None => None,
-            Some(f) => Some(parse_fruit(&f, dir)?),
+            Some(f) => {
+                let fruit = parse_fruit(&f, dir)?;
+                if fruit.material.is_some() && points == ContactPoints::Edges {
+                    return Err(f.err_hint(
+                        "material",
+                        f.get("material"),
+                        "a compliant fruit is held at the prongs' nodes only: edge contact \
+                         ([contact] points = \"edges\") has no compliant law in 3D",
+                        "remove [contact] points = \"edges\", or the fruit's material",
+                    ));
+                }
+                Some(fruit)
+            }
         };
         let obstacles = parse_obstacles(&top, dir)?;
         unique_names(&top, fingers, fruit.as_ref(), &obstacles)?;
@@ -903,11 +918,12 @@ fn parse_fruit(f: &TableReader<'_>, dir: &std::path::Path) -> Result<Fruit3, Sce
     }
     let fruit = Fruit3 {
         name: object_name(f)?.unwrap_or_else(|| "fruit".into()),
-        shape,
+        shape: shape.clone(),
         centre: vec3(f, "centre")?,
         density: f.positive("density")?,
         free: f.opt_bool("free")?.unwrap_or(true),
         hold_tolerance: 0.0,
+        material: super::material::parse3(f, &shape)?,
     };
     let radius = match &fruit.shape {
         Shape3::Sphere { radius } => *radius,

@@ -7,6 +7,7 @@ mod bad_input;
 mod bad_recordings;
 mod bench;
 mod common;
+mod compliant3d;
 mod contact3d;
 mod contact_geometry;
 mod edge3d;

@@ -65,8 +65,9 @@ impl World3 {
         contact_bases(w, contacts, &mut self.reactions[r], jac);
         body_rows(w, contacts, s, fb, jac);
         kinetic_rows(w, contacts, jac);
+        super::compliant3::law_rows(w, contacts, &self.bodies, jac);
         for &(i, _) in &w.bases {
-            for a in 0..contacts[i].as_ref().unwrap().held() {
+            for a in contacts[i].as_ref().unwrap().held_axes() {
                 let j = pos(i) + a;
                 if jac {
                     let rows = band_range(w.rhs.len(), j);
@@ -112,12 +113,16 @@ impl World3 {
         kkt.clear();
         for bc in &self.body_contacts {
             let g = lever_map(&bc.lever);
+            let dx = self.bodies[bc.body].dx;
+            let at = 6 * bc.body;
+            if bc.law.is_some() {
+                super::compliant3::body_law_rows(bc, &dx, s, fb, forces, kkt);
+                continue;
+            }
             let f = g.transpose() * bc.force;
             for e in 0..6 {
                 forces[6 * bc.body + e] += f[e];
             }
-            let dx = self.bodies[bc.body].dx;
-            let at = 6 * bc.body;
             match bc.stuck {
                 Some(mv) => {
                     let now = g * dx;
@@ -249,7 +254,7 @@ fn contact_bases(w: &mut Work3, contacts: &[Option<Contact3>], reactions: &mut [
         }
         let rl = -(q * rw);
         w.rhs[k0..k0 + 3].copy_from_slice(rl.as_slice());
-        for a in 0..ct.held() {
+        for a in ct.held_axes() {
             w.elim[k0 + a] = true;
             w.follow[k0 + a] = World3::follow(ct, &q, a);
         }
@@ -323,8 +328,10 @@ fn kinetic_rows(w: &mut Work3, contacts: &[Option<Contact3>], jac: bool) {
         w.kinetic_pool.extend(w.kinetic.drain(..).map(|k| k.n));
     }
     for &(i, _) in &w.bases {
-        let mu = contacts[i].as_ref().unwrap().kinetic();
-        if mu <= 0.0 {
+        let ct = contacts[i].as_ref().unwrap();
+        let mu = ct.kinetic();
+        // A compliant contact's kinetic force is the law's (src/rod3d/world/compliant3.rs).
+        if mu <= 0.0 || ct.law.is_some() {
             continue;
         }
         let k0 = pos(i);
@@ -435,6 +442,18 @@ impl World3 {
         self.update_edge_forces(dx);
         let mut k = 0;
         for bc in &mut self.body_contacts {
+            if let Some(law) = bc.law {
+                // The law's normal force at the new displacement, with the held tangential
+                // multipliers (stuck) or the kinetic force (sliding).
+                let (f, _) = law.force(bc.indentation(&self.bodies[bc.body].dx));
+                bc.force = (bc.normal - bc.dir * bc.coulomb.mu_k) * f;
+                if bc.stuck.is_some() {
+                    let t = bc.tangents();
+                    bc.force = bc.normal * f + t[0] * lam[k] + t[1] * lam[k + 1];
+                    k += 2;
+                }
+                continue;
+            }
             if bc.stuck.is_some() {
                 bc.force = V3::new(lam[k], lam[k + 1], lam[k + 2]);
                 k += 3;

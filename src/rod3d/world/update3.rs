@@ -39,7 +39,13 @@ impl World3 {
         let moved = lever_map(&c.lever) * self.body_dx(c.surface);
         let v_rel = (x - x0 - moved) / dt;
         let v_rel = v_rel - c.normal * c.normal.dot(&v_rel);
-        match decide(&c, &self.reactions[r][i], &v_rel) {
+        // A compliant contact whose indentation has gone carries no force: released.
+        let change = if self.law_released(r, i, &c) {
+            Some(Change3::Release)
+        } else {
+            decide(&c, &self.reactions[r][i], &v_rel)
+        };
+        match change {
             None => return 0,
             Some(Change3::Release) => {
                 self.contacts[r][i] = None;
@@ -123,7 +129,9 @@ impl World3 {
                 None => (false, bc.dir.dot(&slip)),
             };
             let cone = decide_cone(bc.coulomb, stuck, bc.switches, fn_, ft.norm(), slip_along);
-            if fn_ < 0.0 && cone != Some(Cone::Slide) {
+            // A compliant contact whose indentation has gone carries no force: released.
+            let gone = bc.law.is_some() && bc.indentation(&self.bodies[bc.body].dx) <= 0.0;
+            if gone || (fn_ < 0.0 && cone != Some(Cone::Slide)) {
                 report.released += 1;
                 changed += 1;
                 return false;
@@ -180,6 +188,7 @@ impl World3 {
                         coulomb,
                         switches: 0,
                         force: V3::zeros(),
+                        law: self.table_law(b, k, &pw, &prox.normal),
                     });
                     report.added += 1;
                     changed += 1;
