@@ -332,6 +332,7 @@ const TOP_KEYS: &[&str] = &[
     "expect",
     "contact",
     "joint",
+    "dimension",
 ];
 const SOLVE_KEYS: &[&str] = &[
     "mode",
@@ -539,6 +540,13 @@ pub(crate) fn scenario_name(top: &TableReader) -> Result<String, ScenarioError> 
 fn parse_root(root: &toml::Table, file: &str) -> Result<Scenario, ScenarioError> {
     let top = TableReader::new(file, String::new(), root, TOP_KEYS);
     let name = scenario_name(&top)?;
+    // `dimension = 2` says what the default is; any other value goes to the 3D reader
+    // (`three::is_3d`), which explains it.
+    if let Some(d) = top.get("dimension") {
+        if d.as_integer() != Some(2) {
+            return Err(top.err("dimension", Some(d), "a planar scenario has dimension = 2"));
+        }
+    }
     let description = top.opt_str("description")?.unwrap_or("").to_string();
     let solve = parse_solve(&top.table("solve", SOLVE_KEYS)?)?;
 

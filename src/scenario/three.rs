@@ -199,20 +199,21 @@ pub fn file_is_3d(path: &std::path::Path) -> bool {
     }
 }
 
-/// A text with a `dimension` key of any type or value is read by the 3D reader, which says
-/// what is wrong with one that is not the integer 3 (`3.0`, `"3"`): the planar reader has no
-/// such key and would report the 3D keys instead.
+/// A text with a `dimension` key of any type or value but the integer 2 (the planar default,
+/// read by the planar reader) is read by the 3D reader, which says what is wrong with one that
+/// is not the integer 3 (`3.0`, `"3"`): the planar reader would report the 3D keys instead.
 pub fn is_3d(text: &str) -> bool {
-    text.parse::<toml::Table>()
-        .ok()
-        .is_some_and(|t| t.contains_key("dimension"))
+    text.parse::<toml::Table>().ok().is_some_and(|t| {
+        t.get("dimension")
+            .is_some_and(|d| d.as_integer() != Some(2))
+    })
 }
 
 /// `dimension` is the integer 3 here; anything else (3.0, "3") is a type error that says so.
 fn dimension_error(top: &TableReader<'_>, dim: &Value) -> ScenarioError {
     let message = match dim {
         Value::Integer(_) => {
-            "a 3D scenario says dimension = 3 (a planar one has no dimension key)".to_string()
+            "a 3D scenario says dimension = 3 (a planar one dimension = 2, the default)".to_string()
         }
         other => format!(
             "expected the integer 3, found {} {}",
@@ -224,8 +225,8 @@ fn dimension_error(top: &TableReader<'_>, dim: &Value) -> ScenarioError {
         "dimension",
         Some(dim),
         message,
-        "write dimension = 3 (no quotes, no decimal point) for a 3D scenario, or no dimension \
-         key for a planar one",
+        "write dimension = 3 (no quotes, no decimal point) for a 3D scenario, or dimension = 2 \
+         (or no dimension key) for a planar one",
     )
 }
 

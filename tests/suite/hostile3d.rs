@@ -103,6 +103,21 @@ fn names_in_3d_are_checked() {
     );
 }
 
+/// `dimension = 2` is the planar default said aloud: a planar scenario that says it reads as
+/// one that does not.
+#[test]
+fn a_planar_scenario_may_say_dimension_2() {
+    let d = tempfile::tempdir().unwrap();
+    let s = d.path().join("jaw.toml");
+    let t = std::fs::read_to_string(Path::new(ROOT).join("scenarios/jaw-grasp-hold.toml")).unwrap();
+    std::fs::write(&s, format!("dimension = 2\n{t}")).unwrap();
+    let out = gripsim().arg("validate").arg(&s).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    std::fs::write(&s, format!("dimension = 2.0\n{t}")).unwrap();
+    let out = gripsim().arg("validate").arg(&s).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+}
+
 /// Item 18: `dimension` of another type is a type error of the 3D reader, not planar noise.
 #[test]
 fn a_dimension_of_another_type_says_so() {
@@ -119,8 +134,8 @@ fn a_dimension_of_another_type_says_so() {
             vec!["key `dimension` = \"3\"", "found a string \"3\""],
         ),
         (
-            "dimension = 2",
-            vec!["key `dimension` = 2", "a planar one has no dimension key"],
+            "dimension = 4",
+            vec!["key `dimension` = 4", "a planar one dimension = 2"],
         ),
     ] {
         let d = tempfile::tempdir().unwrap();
