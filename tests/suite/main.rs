@@ -35,6 +35,7 @@ mod rod3d;
 mod rrd_view;
 mod static_contact;
 mod stepping;
+mod summary_schema;
 mod sweep;
 mod verification;
 mod window;
