@@ -700,7 +700,14 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
     assert!(f(&flags[0]["slip_m"]) > tol);
     // The lift starts after the squeeze and its 0.05 s hold and lasts 0.5 s: the slip is
     // flagged within it, at the step of its time.
-    let lift = f(&slip_sum["squeezed_at"]) + 0.05;
+    let squeeze = slip_sum["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "squeeze")
+        .unwrap();
+    assert_eq!(squeeze["reason"], "grip_force", "{squeeze}");
+    let lift = f(&squeeze["end_s"]) + 0.05;
     assert!(
         t > lift && t < lift + 0.5,
         "slip at t = {t}, lift from {lift}"
