@@ -32,7 +32,7 @@ impl Summary {
                 .collect();
             let _ = writeln!(
                 o,
-                "grip force      {} N per finger at the end",
+                "finger forces   {} N (contact normal forces at the end)",
                 forces.join(", ")
             );
         }
