@@ -828,7 +828,7 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         uncommitted(&mut files);
     }
     if !quiet {
-        print_summary(&summary);
+        say_part!("{}", summary.to_text());
         print_recordings(&files, opts, auto_stats);
     }
     let mut check_code = 0u8;
@@ -934,124 +934,6 @@ fn print_recordings(files: &[(&str, Finished)], opts: RecordOptions, auto: Optio
             }
         );
     }
-}
-
-fn print_grasp(g: &gripsim::record::grasp::GraspSummary) {
-    let verdict = match (g.lift_start_time_s, g.held, g.dropped) {
-        (None, ..) => "no lift".to_string(),
-        (Some(_), true, _) => "HELD".to_string(),
-        (Some(_), _, true) => "DROPPED".to_string(),
-        (Some(_), false, false) => format!("SLIPPED beyond {:.3e} m", g.hold_tolerance_m),
-    };
-    say!(
-        "fruit           {:?} ({:.4} kg): {verdict}",
-        g.fruit,
-        g.fruit_mass_kg
-    );
-    say!(
-        "grip force      {:.4} N peak per prong, {:.4} N peak total",
-        g.peak_grip_force_n,
-        g.peak_total_grip_force_n
-    );
-    let opt = |x: Option<f64>| x.map_or("-".to_string(), |m| format!("{m:.4}"));
-    say!(
-        "safety margin   {} at lift, {} min during the lift (mu_s * sum N / m g)",
-        opt(g.safety_margin_at_lift),
-        opt(g.min_safety_margin)
-    );
-    say!(
-        "slip            {:.3e} m max relative to the gripper, first slip {}",
-        g.max_slip_m,
-        g.first_slip_time_s
-            .map_or("never".to_string(), |t| format!("at t = {t:.6} s"))
-    );
-}
-
-/// The printed summary of a 3D run, laid out as a planar run's (`print_summary`).
-fn print_summary3(s: &gripsim::rod3d::run3::Summary3, wall: f64) {
-    use gripsim::scenario::expect::GraspOutcome;
-    // Below the printed precision a coordinate is 0 (not "-0.000000").
-    let z = |x: f64| if x.abs() < 5e-7 { 0.0 } else { x };
-    let v3 = |p: [f64; 3]| format!("({:.6}, {:.6}, {:.6})", z(p[0]), z(p[1]), z(p[2]));
-    println!("scenario        {} (3D)", s.name);
-    println!(
-        "steps           {} ({} Newton iterations, {} contact passes)",
-        s.steps, s.newton_iterations, s.contact_passes
-    );
-    println!("simulated       {:.6} s", s.t_end);
-    println!("wall time       {wall:.3} s");
-    if let Some(g) = &s.grasp {
-        let verdict = match g.verdict {
-            None => "no lift".to_string(),
-            Some(GraspOutcome::Held) => "HELD".to_string(),
-            Some(GraspOutcome::Dropped) => "DROPPED".to_string(),
-            Some(GraspOutcome::Slipped) => {
-                format!("SLIPPED beyond {:.3e} m", g.hold_tolerance_m)
-            }
-        };
-        println!(
-            "fruit           {:?} ({:.4} kg): {verdict}",
-            g.fruit, g.fruit_mass_kg
-        );
-        let opt = |x: Option<f64>| x.map_or("-".to_string(), |m| format!("{m:.4}"));
-        println!(
-            "safety margin   {} at lift, {} min during the lift (mu_s * sum N / m g)",
-            opt(g.safety_margin_at_lift),
-            opt(g.min_safety_margin)
-        );
-        println!(
-            "slip            {:.3e} m max relative to the gripper during the lift",
-            g.max_slip_m
-        );
-    }
-    let forces: Vec<String> = s.finger_forces.iter().map(|f| format!("{f:.4}")).collect();
-    println!(
-        "grip force      {} N per finger at the end, {:.4} N peak (mean of the fingers)",
-        forces.join(", "),
-        s.max_grip_force
-    );
-    if let (Some(a), Some(b)) = (s.fruit_start, s.fruit_end) {
-        println!("fruit moved     from {} to {} m", v3(a), v3(b));
-    }
-    if s.worst_penetration.is_finite() {
-        println!(
-            "penetration     {:.3e} m max after the corrector",
-            s.worst_penetration.max(0.0)
-        );
-    } else {
-        println!("penetration     none (no contact: no fruit or obstacle)");
-    }
-    println!("twist           {:.3e} rad max", s.max_twist);
-    if let Some(p) = &s.contact_pressure {
-        print_pressure3(p);
-    }
-}
-
-/// A 3D compliant fruit's contact: the planar pressure block's words, with the contact
-/// ellipse's two semi-axes.
-fn print_pressure3(p: &gripsim::rod3d::run3::Pressure3) {
-    println!(
-        "fruit contact   peak force {:.4} N (the contact law's), peak pressure {:.4e} Pa at rod {:?} node {} (t = {:.6} s, half-width {:.3e} x {:.3e} m), deepest indentation {:.3e} m",
-        p.peak_contact_force_n,
-        p.max_pressure_pa,
-        p.max_pressure_node.rod,
-        p.max_pressure_node.node,
-        p.max_pressure_time_s,
-        p.half_width_at_max_m,
-        p.half_width_minor_at_max_m,
-        p.max_indentation_m
-    );
-    let expected = match (p.bruised, p.bruise_expected) {
-        (true, true) => " (as the scenario expects)",
-        (false, true) => " (the scenario expects a bruise: [expect] bruised = true)",
-        _ => "",
-    };
-    println!(
-        "bruise          {}: peak pressure {:.3} x the bruise pressure {:.4e} Pa{expected}",
-        if p.bruised { "BRUISED" } else { "not bruised" },
-        p.bruise_ratio,
-        p.bruise_pressure_pa,
-    );
 }
 
 /// `gripsim run` on a `dimension = 3` scenario (src/scenario/three.rs): CSV, summary, `.rrd`
@@ -1162,8 +1044,9 @@ fn run3(
         eprintln!("error: {e}");
         return ExitCode::from(1);
     }
+    let summary = s.to_summary(start.elapsed().as_secs_f64());
     if let Some(p) = &out.summary {
-        let text = serde_json::to_string_pretty(&s).expect("summary serialises");
+        let text = serde_json::to_string_pretty(&summary).expect("summary serialises");
         if let Err(e) = gripsim::record::write_atomic(p, (text + "\n").as_bytes()) {
             eprintln!("error: cannot write the summary to {}: {e}", p.display());
             return ExitCode::from(2);
@@ -1189,7 +1072,7 @@ fn run3(
         return ExitCode::from(2);
     }
     if !quiet {
-        print_summary3(&s, start.elapsed().as_secs_f64());
+        say_part!("{}", summary.to_text());
         for (format, p, how) in [
             ("rerun", &out.rrd, "open: rerun FILE"),
             ("mcap", &out.mcap, "open in Foxglove: 3D panel on /scene"),
@@ -1255,112 +1138,6 @@ fn run3_failed(
         kept.join(", ")
     );
     ExitCode::from(2)
-}
-
-fn print_summary(s: &gripsim::record::summary::Summary) {
-    say!("scenario        {}", s.scenario);
-    say!(
-        "steps           {} ({} Newton iterations, {} corrector passes, {} dt back-offs)",
-        s.steps,
-        s.newton_iterations,
-        s.contact_passes,
-        s.dt_backoffs
-    );
-    say!(
-        "simulated       {:.6} s{}",
-        s.simulated_time_s,
-        if s.mode == "static" {
-            " (load factor)"
-        } else {
-            ""
-        }
-    );
-    say!("wall time       {:.3} s", s.wall_time_s);
-    match &s.peak_reaction_node {
-        Some(n) if s.mode == "static" => say!(
-            "peak reaction   {:.4} N at rod {:?} node {} (load factor {:.6}; the equilibrium contact force)",
-            s.peak_reaction_force_n,
-            n.rod,
-            n.node,
-            s.peak_reaction_time_s.unwrap_or(0.0)
-        ),
-        Some(n) => say!(
-            "peak reaction   {:.4} N at rod {:?} node {} (t = {:.6} s; eq. 2, the seed's figure)",
-            s.peak_reaction_force_n,
-            n.rod,
-            n.node,
-            s.peak_reaction_time_s.unwrap_or(0.0)
-        ),
-        None => say!("peak reaction   none (no contact)"),
-    }
-    if let Some(t) = s.contact_onset_time_s {
-        say!("first contact   t = {t:.6} s");
-    }
-    if let Some(g) = &s.grasp {
-        print_grasp(g);
-    }
-    if let Some(p) = &s.contact_pressure {
-        print_pressure(p);
-    }
-    say!(
-        "penetration     {:.3e} m max after the corrector",
-        s.max_penetration_m
-    );
-    if let Some(n) = &s.max_bending_stress_node {
-        say!(
-            "bending stress  {:.4e} Pa max at rod {:?} node {}",
-            s.max_bending_stress_pa,
-            n.rod,
-            n.node
-        );
-    }
-    for r in &s.rods {
-        let tip = r.final_positions.last().copied().unwrap_or([0.0; 2]);
-        let busiest = r
-            .contact_steps_per_node
-            .iter()
-            .enumerate()
-            .max_by_key(|(i, c)| (**c, std::cmp::Reverse(*i)))
-            .filter(|(_, c)| **c > 0);
-        say_part!(
-            "rod {:<11} tip at ({:.6}, {:.6}) m",
-            format!("{:?}", r.name),
-            tip[0],
-            tip[1]
-        );
-        if let Some((i, c)) = busiest {
-            say_part!(", most contact steps: node {i} ({c})");
-        }
-        say!();
-    }
-}
-
-/// A compliant fruit's contact: force of the contact law, Hertz pressure, bruise verdict.
-fn print_pressure(p: &gripsim::record::summary::PressureSummary) {
-    say!(
-        "fruit contact   peak force {:.4} N (the contact law's), peak pressure {:.4e} Pa at rod {:?} node {} (t = {:.6} s, half-width {:.3e} m), deepest indentation {:.3e} m",
-        p.peak_contact_force_n,
-        p.max_pressure_pa,
-        p.max_pressure_node.rod,
-        p.max_pressure_node.node,
-        p.max_pressure_time_s,
-        p.half_width_at_max_m,
-        p.max_indentation_m
-    );
-    say!(
-        "bruise          {}: peak pressure {:.3} x the bruise pressure {:.4e} Pa{}",
-        if p.bruised { "BRUISED" } else { "not bruised" },
-        p.bruise_ratio,
-        p.bruise_pressure_pa,
-        if p.bruised {
-            format!(
-                ", up to {:.3e} m of the contact above it",
-                p.max_bruise_width_m
-            )
-        } else {
-            String::new()
-        }
-    );
 }
 
 fn list_scenarios(dir: &Path) -> ExitCode {

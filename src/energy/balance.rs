@@ -10,7 +10,7 @@
 //! the remainder (and the closure zero by construction).
 
 /// Cumulative energy terms (J) of all rods.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, schemars::JsonSchema)]
 pub struct Balance {
     /// Kinetic energy of the free nodes now.
     pub kinetic_j: f64,

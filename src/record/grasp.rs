@@ -16,10 +16,50 @@
 //!   minimum over the lift (≥ 1 is needed to hold a fruit at rest).
 
 use crate::events::{xy, ContactView, Event, RodStepView};
+use schemars::JsonSchema;
 use serde::Serialize;
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+/// How a grasp ended.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// The lift happened and the fruit ended it within its hold tolerance, touching a prong.
+    Held,
+    /// The lift happened and the fruit moved beyond its hold tolerance but still touches.
+    Slipped,
+    /// The lift happened and the fruit touches no prong at its end.
+    Dropped,
+    /// The gripper never lifted.
+    NoLift,
+}
+
+impl Verdict {
+    /// From a lift (or none) and the held and dropped flags.
+    pub fn of(lifted: bool, held: bool, dropped: bool) -> Verdict {
+        match (lifted, held, dropped) {
+            (false, ..) => Verdict::NoLift,
+            (true, true, _) => Verdict::Held,
+            (true, _, true) => Verdict::Dropped,
+            (true, false, false) => Verdict::Slipped,
+        }
+    }
+
+    /// The word printed for it: HELD, SLIPPED, DROPPED or "no lift".
+    pub fn word(self) -> &'static str {
+        match self {
+            Verdict::Held => "HELD",
+            Verdict::Slipped => "SLIPPED",
+            Verdict::Dropped => "DROPPED",
+            Verdict::NoLift => "no lift",
+        }
+    }
+}
+
+/// Grip, slip and drop of the first free body.
+#[derive(Debug, Clone, Serialize, PartialEq, JsonSchema)]
 pub struct GraspSummary {
+    /// `held`, `slipped`, `dropped`, or `no_lift` when the gripper never lifted.
+    pub verdict: Verdict,
     pub fruit: String,
     pub fruit_mass_kg: f64,
     /// True when the fruit ends the lift where it sat in the gripper (within hold_tolerance_m).
@@ -39,13 +79,18 @@ pub struct GraspSummary {
     pub safety_margin_at_lift: Option<f64>,
     /// Largest displacement of the fruit relative to the gripper during the lift (m).
     pub max_slip_m: f64,
-    /// First stick → slip of a prong contact on the fruit (s).
+    /// First stick → slip of a prong contact on the fruit (s); null in 3D until the 3D run
+    /// reports stick ↔ slip switches.
     pub first_slip_time_s: Option<f64>,
-    /// Largest friction utilisation |R_t| / (μ_s R_n) of a prong contact on the fruit.
+    /// Largest friction utilisation |R_t| / (μ_s R_n) of a prong contact on the fruit; 0 in
+    /// 3D until the 3D run reports it.
     pub max_friction_utilisation: f64,
-    /// The fruit at the end of the lift (see `held`).
-    pub final_position_m: [f64; 2],
-    pub final_velocity_m_s: [f64; 2],
+    /// The fruit's centroid at the start of the run (m), `dimension` components.
+    pub initial_position_m: Vec<f64>,
+    /// The fruit at the end of the lift (see `held`; in 3D at the end of the run),
+    /// `dimension` components.
+    pub final_position_m: Vec<f64>,
+    pub final_velocity_m_s: Vec<f64>,
 }
 
 /// Collects a [`GraspSummary`].
@@ -83,6 +128,7 @@ impl GraspTracker {
                     )
                 });
                 self.out = self.fruit.as_ref().map(|f| GraspSummary {
+                    verdict: Verdict::NoLift,
                     fruit: f.0.clone(),
                     fruit_mass_kg: f.2,
                     held: false,
@@ -96,8 +142,9 @@ impl GraspTracker {
                     max_slip_m: 0.0,
                     first_slip_time_s: None,
                     max_friction_utilisation: 0.0,
-                    final_position_m: [0.0; 2],
-                    final_velocity_m_s: [0.0; 2],
+                    initial_position_m: info.bodies[0].centroid.to_vec(),
+                    final_position_m: vec![0.0; 2],
+                    final_velocity_m_s: vec![0.0; 2],
                 });
             }
             Event::FrictionChanged(f) => {
@@ -191,8 +238,8 @@ impl GraspTracker {
             o.min_safety_margin = Some(o.min_safety_margin.map_or(margin, |m| m.min(margin)));
             o.max_slip_m = o.max_slip_m.max((rel[0] - r0[0]).hypot(rel[1] - r0[1]));
         }
-        o.final_position_m = pos;
-        o.final_velocity_m_s = vel;
+        o.final_position_m.copy_from_slice(&pos);
+        o.final_velocity_m_s.copy_from_slice(&vel);
         self.last_rel = rel;
         self.last_touching = self.touching;
     }
@@ -204,6 +251,7 @@ impl GraspTracker {
             o.held = self.last_touching && d <= o.hold_tolerance_m;
             o.dropped = !self.last_touching;
         }
+        o.verdict = Verdict::of(self.rel_ref.is_some(), o.held, o.dropped);
     }
 
     pub fn summary(&self) -> Option<GraspSummary> {

@@ -26,6 +26,7 @@ pub mod rerun;
 pub mod rerun3;
 pub mod shape3;
 pub mod summary;
+pub mod summary_text;
 
 use crate::events::{Observer, RodStepView};
 use crate::obstacle::Obstacle;

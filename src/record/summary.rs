@@ -1,19 +1,32 @@
-//! The run summary: peak reactions and where they act, contact counts, final state.
+//! The run summary: peak reactions and where they act, contact counts, final state. One
+//! shape for both dimensions (docs/summary.schema.json, written from these types by
+//! `GRIPSIM_BLESS=1 cargo test --release --test suite summary_schema_is_current`): a key that
+//! does not apply to a run is `null` (or an empty list), never absent, and every vector has
+//! `dimension` components.
 
 use crate::events::{Event, Observer};
+use schemars::JsonSchema;
 use serde::Serialize;
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+/// The version of the summary's shape; it changes when a key is renamed, removed or changes
+/// meaning (adding a key keeps it).
+pub const SUMMARY_VERSION: u32 = 2;
+
+/// A node of a rod (or, for a free body's own contact, of the obstacle it presses).
+#[derive(Debug, Clone, Serialize, PartialEq, JsonSchema)]
 pub struct NodeRef {
     pub rod: String,
     pub node: usize,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+/// What one rod did over the run.
+#[derive(Debug, Clone, Serialize, PartialEq, JsonSchema)]
 pub struct RodSummary {
     pub name: String,
-    pub final_positions: Vec<[f64; 2]>,
-    pub final_velocities: Vec<[f64; 2]>,
+    /// Node positions at the end (m), `dimension` components each.
+    pub final_positions: Vec<Vec<f64>>,
+    /// Node velocities at the end (m/s), `dimension` components each.
+    pub final_velocities: Vec<Vec<f64>>,
     /// Peak eq. 2 reaction magnitude per node (N).
     pub peak_reaction_per_node_n: Vec<f64>,
     /// Steps at whose end the node was constrained.
@@ -21,14 +34,21 @@ pub struct RodSummary {
     /// Σ |R| dt per node (N·s).
     pub total_impulse_per_node_ns: Vec<f64>,
     /// Peak impulse-consistent force per node (N): the contact impulse over a sliding window
-    /// of `force_window_s` divided by the window, a force that converges under dt refinement.
+    /// of `force_window_s` divided by the window, a force that converges under dt refinement;
+    /// zeros in 3D until the 3D run sends the shared events.
     pub peak_impulse_consistent_force_per_node_n: Vec<f64>,
-    /// Peak bending stress per node (Pa).
+    /// Peak bending stress per node (Pa); zeros in 3D until the 3D run reports stresses.
     pub peak_bending_stress_per_node_pa: Vec<f64>,
+    /// Peak twist (shear) stress per node (Pa); empty in 2D (a planar rod does not twist),
+    /// and in 3D until the 3D run reports stresses.
+    pub peak_twist_stress_per_node_pa: Vec<f64>,
     /// First time the node was constrained (s), null if never.
     pub first_contact_time_s: Vec<Option<f64>>,
-    /// Force of the drive on the clamped nodes at the end (N, sum over clamped nodes).
-    pub final_drive_force_n: [f64; 2],
+    /// Force of the drive on the clamped nodes at the end (N, sum over clamped nodes),
+    /// `dimension` components; zeros in 3D until the 3D run reports drive forces.
+    pub final_drive_force_n: Vec<f64>,
+    /// Sum of the normal forces of the rod's contacts at the end (N).
+    pub final_contact_force_n: f64,
     /// The tip: the last node, or node 0 when the last node is clamped and node 0 is not.
     pub tip_node: usize,
     /// Max over time of the tip's deflection from the rigidly driven shape (m):
@@ -38,8 +58,13 @@ pub struct RodSummary {
     pub max_tip_deflection_m: f64,
 }
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+/// The summary of one run (`gripsim run --summary FILE`).
+#[derive(Debug, Clone, Serialize, PartialEq, JsonSchema)]
 pub struct Summary {
+    /// The version of this shape ([`SUMMARY_VERSION`]).
+    pub summary_version: u32,
+    /// 2 (planar) or 3: the number of components of every vector below.
+    pub dimension: u8,
     pub scenario: String,
     pub gripsim_version: String,
     pub mode: String,
@@ -58,46 +83,78 @@ pub struct Summary {
     /// Steps split at a time of impact or of release (a contact-state change located inside
     /// the step).
     pub split_steps: u64,
-    /// Jacobians the per-rod Newton solves factorised (BDF2's chord steps reuse one).
+    /// Jacobians the per-rod Newton solves factorised (BDF2's chord steps reuse one); 0 in
+    /// 3D (not counted there).
     pub jacobian_factorizations: u64,
+    /// Contacts that began, contacts that ended, and stick ↔ slip switches over the run, as
+    /// the summary received them (`gripsim run`: accepted steps only).
+    pub contacts_added: u64,
+    pub contacts_released: u64,
+    pub friction_switches: u64,
     pub simulated_time_s: f64,
     pub wall_time_s: f64,
     pub peak_reaction_force_n: f64,
     pub peak_reaction_node: Option<NodeRef>,
     pub peak_reaction_time_s: Option<f64>,
-    /// Window (s) of the impulse-consistent force.
+    /// Window (s) of the impulse-consistent force; 0 in 3D (not computed there yet, and the
+    /// two keys after it 0 and null).
     pub force_window_s: f64,
     pub peak_impulse_consistent_force_n: f64,
     pub peak_impulse_consistent_node: Option<NodeRef>,
     pub contact_onset_time_s: Option<f64>,
     pub max_penetration_m: f64,
+    /// Largest bending stress (Pa) and where; 0 and null in 3D until the 3D run reports
+    /// stresses.
     pub max_bending_stress_pa: f64,
     pub max_bending_stress_node: Option<NodeRef>,
+    /// Largest twist of an edge from its rest twist (rad); null in 2D.
+    pub max_twist_rad: Option<f64>,
+    /// Largest twist (shear) stress (Pa) and where; null in 2D, and in 3D until the 3D run
+    /// reports stresses.
+    pub max_twist_stress_pa: Option<f64>,
+    pub max_twist_stress_node: Option<NodeRef>,
     pub rods: Vec<RodSummary>,
-    /// Grip, slip and drop of the first free body (absent without one).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// The actuation phases in the order they ended (a phase still running at the end last,
+    /// with `end_s` null).
+    pub phases: Vec<PhaseSummary>,
+    /// Grip, slip and drop of the first free body (null without one).
     pub grasp: Option<super::grasp::GraspSummary>,
     /// Dynamic mode: the rods' energy balance (J) — kinetic, elastic, gravity, dissipated by
-    /// damping and by the integrator, work of the drives and the contacts.
-    pub energy: crate::energy::balance::Balance,
-    /// What the balance misses, relative to its largest term.
-    pub energy_closure_rel: f64,
+    /// damping and by the integrator, work of the drives and the contacts; null in 3D until
+    /// the 3D run computes it.
+    pub energy: Option<crate::energy::balance::Balance>,
+    /// What the balance misses, relative to its largest term (null with `energy`).
+    pub energy_closure_rel: Option<f64>,
     /// Static mode: the smallest free-DOF Hessian eigenvalue at the end (N/m), and whether
     /// the equilibrium is unstable (negative).
     pub min_eigenvalue: Option<f64>,
     pub unstable_equilibrium: bool,
-    /// Contact pressure on a compliant fruit and the bruise verdict (absent when no contact
-    /// with a compliant fruit happened).
-    #[serde(skip_serializing_if = "Option::is_none")]
+    /// Contact pressure on a compliant fruit and the bruise verdict (null when no contact
+    /// with a compliant fruit happened, and in 3D until the 3D run reports pressures).
     pub contact_pressure: Option<PressureSummary>,
-    /// Per `[[joint]]`: the largest force and moment it carried and the last (absent without
+    /// Per `[[joint]]`: the largest force and moment it carried and the last (empty without
     /// joints).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub joints: Vec<JointSummary>,
 }
 
+/// One phase of an actuation program: when it ran and why it ended.
+#[derive(Debug, Clone, Serialize, PartialEq, JsonSchema)]
+pub struct PhaseSummary {
+    /// The actuator (index: the `[[actuator]]` tables in order, then the rods' own drives).
+    pub actuator: usize,
+    /// The phase's index in its program.
+    pub phase: usize,
+    /// The phase's name (null when unnamed).
+    pub name: Option<String>,
+    /// When it began and ended (s); `end_s` null when the run ended in it.
+    pub start_s: f64,
+    pub end_s: Option<f64>,
+    /// Which end condition ended it (null when the run ended in it).
+    pub reason: Option<String>,
+}
+
 /// What one joint carried over the run.
-#[derive(Debug, Clone, Serialize, PartialEq, Default)]
+#[derive(Debug, Clone, Serialize, PartialEq, Default, JsonSchema)]
 pub struct JointSummary {
     /// The members (rod names) and their joined nodes.
     pub rods: [String; 2],
@@ -115,17 +172,21 @@ pub struct JointSummary {
 /// What a compliant fruit felt over the run (Hertz line contact, docs/model.md): the solved
 /// contact force of the law (it converges as dt → 0, unlike eq. 2's impact peak), the peak
 /// pressure with where and when, the deepest indentation and the bruise verdict.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq, JsonSchema)]
 pub struct PressureSummary {
     /// Largest normal force of one contact on a compliant fruit (N).
     pub peak_contact_force_n: f64,
     /// Largest Hertz peak pressure p₀ (Pa), where (rod, node, contact point) and when.
     pub max_pressure_pa: f64,
     pub max_pressure_node: NodeRef,
-    pub max_pressure_point: [f64; 2],
+    /// The contact point (m), `dimension` components.
+    pub max_pressure_point: Vec<f64>,
     pub max_pressure_time_s: f64,
     /// The contact half-width a at that moment (m).
     pub half_width_at_max_m: f64,
+    /// The contact's minor half-width at that moment (m): an elliptical 3D contact's b ≤ a;
+    /// a planar line contact's equals `half_width_at_max_m`.
+    pub half_width_minor_at_max_m: f64,
     /// Deepest indentation of the fruit (m).
     pub max_indentation_m: f64,
     /// The fruit's bruise threshold (Pa) and whether the pressure went above it.
@@ -229,6 +290,88 @@ pub struct SummaryCollector {
     /// The obstacles' names (a body's own contact is named by the obstacle it presses).
     obstacles: Vec<String>,
     joints: Vec<JointSummary>,
+    /// Contacts added, released and stick ↔ slip switches seen.
+    changes: [u64; 3],
+    phases: Phases,
+}
+
+/// The actuation phases from `PhaseChanged` events: the finished ones, and per actuator the
+/// phase running now (index, name, start).
+#[derive(Debug, Default)]
+struct Phases {
+    done: Vec<PhaseSummary>,
+    running: Vec<Option<(usize, Option<String>, f64)>>,
+    /// Per `[[actuator]]` table of the scenario: the name of its first phase (no event names
+    /// it: a phase's name comes with the event that starts it).
+    first_names: Vec<Option<String>>,
+}
+
+impl Phases {
+    fn start(&mut self, text: &str) {
+        let doc: Option<toml::Table> = text.parse().ok();
+        self.first_names = doc
+            .as_ref()
+            .and_then(|d| d.get("actuator"))
+            .and_then(toml::Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .map(|act| {
+                        let first = act.get("phase").and_then(|p| p.get(0));
+                        first
+                            .and_then(|p| p.get("name"))
+                            .and_then(toml::Value::as_str)
+                            .map(str::to_string)
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+    }
+
+    fn changed(
+        &mut self,
+        t: f64,
+        actuator: usize,
+        from: usize,
+        to: Option<usize>,
+        e: (&str, &str),
+    ) {
+        if self.running.len() <= actuator {
+            self.running.resize(actuator + 1, None);
+        }
+        let (name, start) = match self.running[actuator].take() {
+            Some((_, name, start)) => (name, start),
+            None if from == 0 => (self.first_names.get(actuator).cloned().flatten(), 0.0),
+            None => (None, 0.0),
+        };
+        self.done.push(PhaseSummary {
+            actuator,
+            phase: from,
+            name,
+            start_s: start,
+            end_s: Some(t),
+            reason: Some(e.1.to_string()),
+        });
+        // The event names the phase it starts as `'name'`, or `(unnamed)`.
+        let label = e.0.strip_prefix('\'').and_then(|n| n.strip_suffix('\''));
+        self.running[actuator] = to.map(|k| (k, label.map(str::to_string), t));
+    }
+
+    fn summary(&self) -> Vec<PhaseSummary> {
+        let mut out = self.done.clone();
+        for (a, r) in self.running.iter().enumerate() {
+            if let Some((k, name, start)) = r {
+                out.push(PhaseSummary {
+                    actuator: a,
+                    phase: *k,
+                    name: name.clone(),
+                    start_s: *start,
+                    end_s: None,
+                    reason: None,
+                });
+            }
+        }
+        out
+    }
 }
 
 impl SummaryCollector {
@@ -277,6 +420,9 @@ impl SummaryCollector {
             node: n,
         };
         Summary {
+            summary_version: SUMMARY_VERSION,
+            // The planar run's events (the 3D run builds its summary in rod3d::run3).
+            dimension: 2,
             scenario: self.scenario.clone(),
             gripsim_version: env!("CARGO_PKG_VERSION").to_string(),
             mode: self.mode.clone(),
@@ -290,6 +436,9 @@ impl SummaryCollector {
             first_order_node_steps: stats.first_order_node_steps,
             split_steps: stats.split_steps,
             jacobian_factorizations: stats.jacobian_factorizations,
+            contacts_added: self.changes[0],
+            contacts_released: self.changes[1],
+            friction_switches: self.changes[2],
             simulated_time_s: stats.t,
             wall_time_s,
             peak_reaction_force_n: self.peak,
@@ -302,10 +451,14 @@ impl SummaryCollector {
             max_penetration_m: stats.max_penetration,
             max_bending_stress_pa: self.stress,
             max_bending_stress_node: self.stress_at.map(node),
+            max_twist_rad: None,
+            max_twist_stress_pa: None,
+            max_twist_stress_node: None,
             rods: self.rods.clone(),
+            phases: self.phases.summary(),
             grasp: self.grasp.summary(),
-            energy: stats.energy.clone(),
-            energy_closure_rel: stats.energy.closure_rel(),
+            energy: Some(stats.energy.clone()),
+            energy_closure_rel: Some(stats.energy.closure_rel()),
             min_eigenvalue: stats.min_eigenvalue,
             unstable_equilibrium: stats.unstable_equilibrium,
             contact_pressure: self.pressure.clone(),
@@ -323,9 +476,10 @@ impl SummaryCollector {
                     rod: String::new(),
                     node: 0,
                 },
-                max_pressure_point: [0.0; 2],
+                max_pressure_point: vec![0.0; 2],
                 max_pressure_time_s: 0.0,
                 half_width_at_max_m: 0.0,
+                half_width_minor_at_max_m: 0.0,
                 max_indentation_m: 0.0,
                 bruise_pressure_pa: c.bruise_pressure,
                 bruised: false,
@@ -343,9 +497,11 @@ impl SummaryCollector {
                     None => self.obstacles.get(c.obstacle).cloned().unwrap_or_default(),
                 };
                 p.max_pressure_node = NodeRef { rod, node: c.node };
-                p.max_pressure_point = crate::events::xy(c.point);
+                p.max_pressure_point
+                    .copy_from_slice(&crate::events::xy(c.point));
                 p.max_pressure_time_s = t;
                 p.half_width_at_max_m = c.half_width;
+                p.half_width_minor_at_max_m = c.half_width;
                 p.bruise_pressure_pa = c.bruise_pressure;
                 p.bruise_ratio = if c.bruise_pressure > 0.0 {
                     c.peak_pressure / c.bruise_pressure
@@ -393,20 +549,23 @@ impl Observer for SummaryCollector {
                 self.mode = format!("{:?}", info.mode).to_lowercase();
                 self.names = info.rods.iter().map(|r| r.name.clone()).collect();
                 self.obstacles = info.obstacle_names.to_vec();
+                self.phases.start(info.scenario_text);
                 self.rods = info
                     .rods
                     .iter()
                     .map(|r| RodSummary {
                         name: r.name.clone(),
-                        final_positions: vec![[0.0; 2]; r.nodes],
-                        final_velocities: vec![[0.0; 2]; r.nodes],
+                        final_positions: vec![vec![0.0; 2]; r.nodes],
+                        final_velocities: vec![vec![0.0; 2]; r.nodes],
                         peak_reaction_per_node_n: vec![0.0; r.nodes],
                         contact_steps_per_node: vec![0; r.nodes],
                         total_impulse_per_node_ns: vec![0.0; r.nodes],
                         peak_impulse_consistent_force_per_node_n: vec![0.0; r.nodes],
                         peak_bending_stress_per_node_pa: vec![0.0; r.nodes],
+                        peak_twist_stress_per_node_pa: Vec::new(),
                         first_contact_time_s: vec![None; r.nodes],
-                        final_drive_force_n: [0.0; 2],
+                        final_drive_force_n: vec![0.0; 2],
+                        final_contact_force_n: 0.0,
                         tip_node: tip_node(&r.clamped),
                         max_tip_deflection_m: 0.0,
                     })
@@ -447,8 +606,8 @@ impl Observer for SummaryCollector {
                     // The stride of the per-node vectors (3D: x and y here, |·| of all three).
                     let d = usize::from(v.dim.max(2));
                     for i in 0..s.final_positions.len() {
-                        s.final_positions[i] = [v.q[d * i], v.q[d * i + 1]];
-                        s.final_velocities[i] = [v.u[d * i], v.u[d * i + 1]];
+                        s.final_positions[i].copy_from_slice(&v.q[d * i..d * i + 2]);
+                        s.final_velocities[i].copy_from_slice(&v.u[d * i..d * i + 2]);
                         drive[0] += v.drive_force[d * i];
                         drive[1] += v.drive_force[d * i + 1];
                         // A node with no reaction and no impulse, now or before, has
@@ -502,7 +661,12 @@ impl Observer for SummaryCollector {
                             self.stress_at = Some((ri, i));
                         }
                     }
-                    s.final_drive_force_n = drive;
+                    s.final_drive_force_n.copy_from_slice(&drive);
+                    s.final_contact_force_n = contacts
+                        .iter()
+                        .filter(|c| c.rod == ri)
+                        .map(|c| c.normal_force)
+                        .sum();
                     let (tip, base, start) = &mut self.tips[ri];
                     let at = |k: usize| [v.q[d * k], v.q[d * k + 1]];
                     let b = base.map(at).unwrap_or([0.0; 2]);
@@ -518,6 +682,20 @@ impl Observer for SummaryCollector {
                     self.static_contacts(*t, contacts);
                 }
             }
+            Event::ConstraintAdded(_) => self.changes[0] += 1,
+            Event::ConstraintReleased(..) => self.changes[1] += 1,
+            Event::FrictionChanged(_) => self.changes[2] += 1,
+            Event::PhaseChanged {
+                t,
+                actuator,
+                from,
+                to,
+                name,
+                reason,
+                ..
+            } => self
+                .phases
+                .changed(*t, *actuator, *from, *to, (name, reason)),
             Event::RunEnd { error, .. } => {
                 self.ended = true;
                 self.error = error.map(|e| e.to_string());

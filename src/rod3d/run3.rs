@@ -5,12 +5,17 @@
 use super::body3::Body3;
 use super::contact3::Surface3;
 use super::events::{Emit3, NullObserver3, Observer3};
-use super::gripper::{radial, Gripper3};
+use super::gripper::{radial, Gripper3, Move3};
 use super::rod::{angle, pos};
 use super::spatial::Spatial;
 use super::world::World3;
+use crate::actuation::phase;
 use crate::events::{NullObserver, Observer};
 use crate::obstacle3::{Obstacle3, Pose3, V3};
+use crate::record::grasp::{GraspSummary, Verdict};
+use crate::record::summary::{
+    tip_node, NodeRef, PhaseSummary, RodSummary, Summary, SUMMARY_VERSION,
+};
 use crate::replay::grasp::GraspRule;
 use crate::scenario::expect::GraspOutcome;
 use crate::scenario::three::Scenario3;
@@ -44,6 +49,9 @@ pub struct Summary3 {
     pub grasp: Option<Grasp3>,
     /// A compliant fruit's contact pressure and bruise verdict (None: a rigid fruit).
     pub contact_pressure: Option<Pressure3>,
+    /// The per-rod and per-node figures of the one summary ([`Summary3::to_summary`]).
+    #[serde(skip)]
+    pub tally: Tally3,
 }
 
 /// A compliant fruit's contacts over the run, with the planar summary's key names
@@ -72,6 +80,9 @@ pub struct Pressure3 {
     pub bruise_ratio: f64,
     /// The scenario expects the fruit to bruise (`[expect] bruised`).
     pub bruise_expected: bool,
+    /// Widest part of one contact above the threshold (m, the full width 2 a √(1 − (p_b/p₀)²)
+    /// along the ellipse's major axis).
+    pub max_bruise_width_m: f64,
 }
 
 impl Pressure3 {
@@ -92,42 +103,285 @@ impl Pressure3 {
             bruised: false,
             bruise_ratio: 0.0,
             bruise_expected: expected,
+            max_bruise_width_m: 0.0,
         }
     }
 
-    /// Take in the compliant contacts at the end of a step.
+    /// Take in the compliant contacts at the end of a step: the prongs' on the fruit, then the
+    /// fruit's on the obstacles it rests on (the table: named by the obstacle, node 0).
     fn step(&mut self, w: &World3) {
         for p in w.pressed() {
-            self.peak_contact_force_n = self.peak_contact_force_n.max(p.force);
-            self.max_indentation_m = self.max_indentation_m.max(p.indentation);
-            if p.pressure > self.max_pressure_pa {
-                self.max_pressure_pa = p.pressure;
-                self.max_pressure_node = crate::record::summary::NodeRef {
-                    rod: w.rod_names[p.rod].clone(),
-                    node: p.node,
-                };
-                self.max_pressure_point = p.point.into();
-                self.max_pressure_time_s = w.time;
-                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
-            }
+            self.take(&p, &w.rod_names[p.rod], p.node, w.time);
         }
-        // The fruit on the obstacles it rests on (the table): named by the obstacle, node 0.
         for p in w.pressed_on_obstacles() {
-            self.peak_contact_force_n = self.peak_contact_force_n.max(p.force);
-            self.max_indentation_m = self.max_indentation_m.max(p.indentation);
-            if p.pressure > self.max_pressure_pa {
-                self.max_pressure_pa = p.pressure;
-                self.max_pressure_node = crate::record::summary::NodeRef {
-                    rod: w.surface_name(p.surface).to_string(),
-                    node: 0,
-                };
-                self.max_pressure_point = p.point.into();
-                self.max_pressure_time_s = w.time;
-                (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
-            }
+            self.take(&p, w.surface_name(p.surface), 0, w.time);
         }
         self.bruise_ratio = self.max_pressure_pa / self.bruise_pressure_pa;
         self.bruised = self.max_pressure_pa >= self.bruise_pressure_pa;
+    }
+
+    fn take(&mut self, p: &super::world::Pressed3, name: &str, node: usize, t: f64) {
+        self.peak_contact_force_n = self.peak_contact_force_n.max(p.force);
+        self.max_indentation_m = self.max_indentation_m.max(p.indentation);
+        // The full width of the ellipse's major axis where p > the threshold:
+        // 2 a √(1 − (p_b/p₀)²) (Hertz: p = p₀ √(1 − (x/a)²) along it).
+        if p.pressure > self.bruise_pressure_pa {
+            let r = self.bruise_pressure_pa / p.pressure;
+            let w = 2.0 * p.radii.0 * (1.0 - r * r).sqrt();
+            self.max_bruise_width_m = self.max_bruise_width_m.max(w);
+        }
+        if p.pressure > self.max_pressure_pa {
+            self.max_pressure_pa = p.pressure;
+            self.max_pressure_node = crate::record::summary::NodeRef {
+                rod: name.to_string(),
+                node,
+            };
+            self.max_pressure_point = p.point.into();
+            self.max_pressure_time_s = t;
+            (self.half_width_at_max_m, self.half_width_minor_at_max_m) = p.radii;
+        }
+    }
+
+    /// In the one summary's terms.
+    fn to_summary(&self) -> crate::record::summary::PressureSummary {
+        crate::record::summary::PressureSummary {
+            peak_contact_force_n: self.peak_contact_force_n,
+            max_pressure_pa: self.max_pressure_pa,
+            max_pressure_node: self.max_pressure_node.clone(),
+            max_pressure_point: self.max_pressure_point.to_vec(),
+            max_pressure_time_s: self.max_pressure_time_s,
+            half_width_at_max_m: self.half_width_at_max_m,
+            half_width_minor_at_max_m: self.half_width_minor_at_max_m,
+            max_indentation_m: self.max_indentation_m,
+            bruise_pressure_pa: self.bruise_pressure_pa,
+            bruised: self.bruised,
+            bruise_ratio: self.bruise_ratio,
+            max_bruise_width_m: self.max_bruise_width_m,
+        }
+    }
+}
+
+/// Per-rod and per-node figures of a 3D run, in the one summary's terms
+/// ([`crate::record::summary::RodSummary`]), gathered after every step.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Tally3 {
+    pub rods: Vec<RodSummary>,
+    /// Per rod: the tip, the first clamped node, and their positions at the start.
+    tips: Vec<(usize, Option<usize>, V3, V3)>,
+    /// Largest node reaction (N) with its rod, node and time; the first contact's time.
+    peak: f64,
+    peak_at: Option<(usize, usize, f64)>,
+    onset: Option<f64>,
+    /// The hand's moves: (index, kind, start, end, reason).
+    phases: Vec<PhaseSummary>,
+}
+
+impl Tally3 {
+    fn new(w: &World3) -> Tally3 {
+        let mut t = Tally3::default();
+        for (r, sim) in w.rods.iter().enumerate() {
+            let n = sim.rod.n;
+            let clamped: Vec<bool> = (0..n).map(|i| sim.fixed[pos(i)]).collect();
+            let tip = tip_node(&clamped);
+            let base = clamped.iter().position(|c| *c);
+            let at = |i: usize| V3::new(sim.q[pos(i)], sim.q[pos(i) + 1], sim.q[pos(i) + 2]);
+            t.tips
+                .push((tip, base, at(tip), base.map_or(V3::zeros(), at)));
+            t.rods.push(RodSummary {
+                name: w.rod_names[r].clone(),
+                final_positions: vec![vec![0.0; 3]; n],
+                final_velocities: vec![vec![0.0; 3]; n],
+                peak_reaction_per_node_n: vec![0.0; n],
+                contact_steps_per_node: vec![0; n],
+                total_impulse_per_node_ns: vec![0.0; n],
+                peak_impulse_consistent_force_per_node_n: vec![0.0; n],
+                peak_bending_stress_per_node_pa: vec![0.0; n],
+                peak_twist_stress_per_node_pa: Vec::new(),
+                first_contact_time_s: vec![None; n],
+                final_drive_force_n: vec![0.0; 3],
+                final_contact_force_n: 0.0,
+                tip_node: tip,
+                max_tip_deflection_m: 0.0,
+            });
+        }
+        t.step(w, 0.0);
+        t
+    }
+
+    /// Fold the state after a step of `dt` into the figures.
+    fn step(&mut self, w: &World3, dt: f64) {
+        for (r, sim) in w.rods.iter().enumerate() {
+            let s = &mut self.rods[r];
+            for i in 0..sim.rod.n {
+                s.final_positions[i].copy_from_slice(&sim.q[pos(i)..pos(i) + 3]);
+                s.final_velocities[i].copy_from_slice(&sim.v[pos(i)..pos(i) + 3]);
+                if w.contacts[r][i].is_none() {
+                    continue;
+                }
+                let f = w.reactions[r][i].norm();
+                s.peak_reaction_per_node_n[i] = s.peak_reaction_per_node_n[i].max(f);
+                s.total_impulse_per_node_ns[i] += f * dt;
+                if f > self.peak {
+                    self.peak = f;
+                    self.peak_at = Some((r, i, w.time));
+                }
+                s.contact_steps_per_node[i] += u64::from(dt > 0.0);
+                s.first_contact_time_s[i].get_or_insert(w.time);
+                self.onset.get_or_insert(w.time);
+            }
+            let (tip, base, tip0, base0) = self.tips[r];
+            let at = |i: usize| V3::new(sim.q[pos(i)], sim.q[pos(i) + 1], sim.q[pos(i) + 2]);
+            let b = base.map_or(V3::zeros(), at);
+            let d = (at(tip) - tip0 - (b - base0)).norm();
+            s.max_tip_deflection_m = s.max_tip_deflection_m.max(d);
+        }
+    }
+
+    /// Record the moves that ended when the hand advanced to `t1` (from move `from` on).
+    fn moves(&mut self, g: &Gripper3, from: usize, start: f64, t1: f64) {
+        for k in from..g.current {
+            let m = &g.moves[k];
+            let reason = match m {
+                Move3::Squeeze { .. } if g.travel >= max_travel(m) => phase::TRAVEL,
+                Move3::Squeeze { .. } => phase::GRIP_FORCE,
+                _ => phase::DURATION,
+            };
+            let name = move_name(m);
+            self.phases.push(PhaseSummary {
+                actuator: 0,
+                phase: k,
+                name: Some(name.to_string()),
+                start_s: if k == from { start } else { t1 },
+                end_s: Some(t1),
+                reason: Some(reason.to_string()),
+            });
+        }
+    }
+}
+
+impl Tally3 {
+    /// The move the run ended in, if any (no end, no reason).
+    fn running(&mut self, g: &Gripper3) {
+        if let Some(m) = g.moves.get(g.current) {
+            self.phases.push(PhaseSummary {
+                actuator: 0,
+                phase: g.current,
+                name: Some(move_name(m).to_string()),
+                start_s: g.move_start,
+                end_s: None,
+                reason: None,
+            });
+        }
+    }
+}
+
+fn move_name(m: &Move3) -> &'static str {
+    match m {
+        Move3::Squeeze { .. } => "squeeze",
+        Move3::Close { .. } => "close",
+        Move3::Hold { .. } => "hold",
+        Move3::Translate { .. } => "translate",
+        Move3::Lift { .. } => "lift",
+        Move3::Rotate { .. } => "rotate",
+    }
+}
+
+fn max_travel(m: &Move3) -> f64 {
+    match m {
+        Move3::Squeeze { max_travel, .. } => *max_travel,
+        _ => f64::INFINITY,
+    }
+}
+
+impl Summary3 {
+    /// The one summary of both dimensions (`record::summary::Summary`, dimension 3). Until
+    /// the 3D run sends the shared event stream, what it does not compute is 0 or null, each
+    /// said in its key's description: impulse-consistent forces, bending and twist stresses,
+    /// drive forces, the energy balance, first slip and friction utilisation, and contact
+    /// pressure. The counters a 3D run does not have (back-offs, rejected and split steps) are
+    /// 0: its dt is fixed.
+    pub fn to_summary(&self, wall_time_s: f64) -> Summary {
+        let t = &self.tally;
+        let node = |(r, n): (usize, usize)| NodeRef {
+            rod: t.rods[r].name.clone(),
+            node: n,
+        };
+        let mut rods = t.rods.clone();
+        for (r, f) in rods.iter_mut().zip(&self.finger_forces) {
+            r.final_contact_force_n = *f;
+        }
+        Summary {
+            summary_version: SUMMARY_VERSION,
+            dimension: 3,
+            scenario: self.name.clone(),
+            gripsim_version: env!("CARGO_PKG_VERSION").to_string(),
+            mode: "dynamic".to_string(),
+            completed: true,
+            error: None,
+            steps: self.steps,
+            newton_iterations: self.newton_iterations,
+            contact_passes: self.contact_passes,
+            dt_backoffs: 0,
+            rejected_steps: 0,
+            first_order_node_steps: 0,
+            split_steps: 0,
+            jacobian_factorizations: 0,
+            contacts_added: self.contacts_added,
+            contacts_released: self.contacts_released,
+            friction_switches: self.friction_switches,
+            simulated_time_s: self.t_end,
+            wall_time_s,
+            peak_reaction_force_n: t.peak,
+            peak_reaction_node: t.peak_at.map(|(r, n, _)| node((r, n))),
+            peak_reaction_time_s: t.peak_at.map(|(_, _, t)| t),
+            force_window_s: 0.0,
+            peak_impulse_consistent_force_n: 0.0,
+            peak_impulse_consistent_node: None,
+            contact_onset_time_s: t.onset,
+            max_penetration_m: self.worst_penetration.max(0.0),
+            max_bending_stress_pa: 0.0,
+            max_bending_stress_node: None,
+            max_twist_rad: Some(self.max_twist),
+            max_twist_stress_pa: None,
+            max_twist_stress_node: None,
+            rods,
+            phases: t.phases.clone(),
+            grasp: self.grasp.as_ref().map(|g| self.grasp_summary(g)),
+            energy: None,
+            energy_closure_rel: None,
+            min_eigenvalue: None,
+            unstable_equilibrium: false,
+            contact_pressure: self.contact_pressure.as_ref().map(Pressure3::to_summary),
+            joints: Vec::new(),
+        }
+    }
+
+    fn grasp_summary(&self, g: &Grasp3) -> GraspSummary {
+        let v = |p: Option<[f64; 3]>| p.map_or(vec![0.0; 3], |p| p.to_vec());
+        GraspSummary {
+            verdict: match g.verdict {
+                None => Verdict::NoLift,
+                Some(GraspOutcome::Held) => Verdict::Held,
+                Some(GraspOutcome::Slipped) => Verdict::Slipped,
+                Some(GraspOutcome::Dropped) => Verdict::Dropped,
+            },
+            fruit: g.fruit.clone(),
+            fruit_mass_kg: g.fruit_mass_kg,
+            held: g.held,
+            dropped: g.dropped,
+            hold_tolerance_m: g.hold_tolerance_m,
+            lift_start_time_s: g.lift_start_time_s,
+            peak_grip_force_n: g.peak_grip_force_n,
+            peak_total_grip_force_n: g.peak_total_grip_force_n,
+            min_safety_margin: g.min_safety_margin,
+            safety_margin_at_lift: g.safety_margin_at_lift,
+            max_slip_m: g.max_slip_m,
+            first_slip_time_s: None,
+            max_friction_utilisation: 0.0,
+            initial_position_m: v(self.fruit_start),
+            final_position_m: v(self.fruit_end),
+            final_velocity_m_s: g.final_velocity_m_s.to_vec(),
+        }
     }
 }
 
@@ -151,6 +405,10 @@ pub struct Grasp3 {
     pub max_slip_m: f64,
     /// Largest total normal force of one finger on the fruit (N).
     pub peak_grip_force_n: f64,
+    /// Largest total normal force on the fruit from all fingers (N).
+    pub peak_total_grip_force_n: f64,
+    /// The fruit's velocity at the end of the run (m/s).
+    pub final_velocity_m_s: [f64; 3],
 }
 
 /// The live grasp: the rule and the margins.
@@ -186,13 +444,15 @@ impl GraspLive {
                 min_safety_margin: None,
                 max_slip_m: 0.0,
                 peak_grip_force_n: 0.0,
+                peak_total_grip_force_n: 0.0,
+                final_velocity_m_s: [0.0; 3],
             },
         })
     }
 
     fn step(&mut self, w: &World3, step: u64) {
         let on = |s: Surface3| s == Surface3::Body(0);
-        let (mut mu_n, mut touching) = (0.0, false);
+        let (mut mu_n, mut touching, mut total) = (0.0, false, 0.0);
         for r in 0..w.rods.len() {
             let mut finger = 0.0;
             for (c, re) in w.contacts[r].iter().zip(&w.reactions[r]) {
@@ -208,11 +468,14 @@ impl GraspLive {
                 touching = true;
             }
             self.out.peak_grip_force_n = self.out.peak_grip_force_n.max(finger);
+            total += finger;
             let q = &w.rods[r].q;
             for (i, x) in self.x[r].chunks_exact_mut(3).enumerate() {
                 x.copy_from_slice(&q[pos(i)..pos(i) + 3]);
             }
         }
+        self.out.peak_total_grip_force_n = self.out.peak_total_grip_force_n.max(total);
+        self.out.final_velocity_m_s = w.bodies[0].v.into();
         let c = w.bodies[0].centre();
         let xs: Vec<&[f64]> = self.x.iter().map(Vec::as_slice).collect();
         let was = self.rule.lifted();
@@ -538,6 +801,7 @@ fn run_loop<E: Observer>(
         max_twist: 0.0,
         grasp: None,
         contact_pressure: None,
+        tally: Tally3::new(w),
     };
     let mut grasp = GraspLive::new(sc, w);
     let mut pressure = sc
@@ -554,10 +818,12 @@ fn run_loop<E: Observer>(
             return Err(format!("{INTERRUPTED} {}", s.steps));
         }
         let t1 = (s.steps + 1) as f64 * sc.dt;
+        let (was, since) = (g.current, g.move_start);
         g.drive(w, t1, sc.dt);
         if let Some((sp, o)) = ev.as_mut() {
             sp.before_step(w, *o);
         }
+        s.tally.moves(g, was, since, t1);
         let rep = w
             .step_observed(sc.dt, &mut emit, obs)
             .map_err(|e| format!("step {} (t = {t1:e} s): {e}", s.steps + 1))?;
@@ -586,6 +852,7 @@ fn run_loop<E: Observer>(
         if let Some(p) = pressure.as_mut() {
             p.step(w);
         }
+        s.tally.step(w, sc.dt);
         if let Some(f) = csv.as_deref_mut() {
             csv_rows(f, w, s.steps)
                 .and_then(|()| f.rows_end())
@@ -605,6 +872,7 @@ fn run_loop<E: Observer>(
     s.t_end = w.time;
     s.finger_forces = g.finger_forces(w);
     s.squeezed_at = g.squeezed_at;
+    s.tally.running(g);
     s.fruit_end = w.bodies.first().map(|b| b.centre().into());
     Ok(s)
 }

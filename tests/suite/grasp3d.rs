@@ -42,7 +42,7 @@ fn a_3d_lift_says_held_or_slipped_with_its_margin() {
     );
     assert!(!text.contains("Some("), "no debug formatting: {text}");
     // The fruit rose with the hand: 3 cm.
-    let end = v["fruit_end"][2].as_f64().unwrap();
+    let end = v["grasp"]["final_position_m"][2].as_f64().unwrap();
     assert!((end + 0.06 - 0.03).abs() < 1e-3, "{end}");
 
     // A fifth of the friction: the margin at the lift falls below 1 and the fingers slide up
@@ -55,7 +55,7 @@ fn a_3d_lift_says_held_or_slipped_with_its_margin() {
     let m = g["safety_margin_at_lift"].as_f64().unwrap();
     assert!(m < 1.0, "{m}");
     assert!(g["max_slip_m"].as_f64().unwrap() > 0.025);
-    let end = v["fruit_end"][2].as_f64().unwrap();
+    let end = v["grasp"]["final_position_m"][2].as_f64().unwrap();
     assert!((end + 0.06).abs() < 1e-3, "on the table: {end}");
     assert!(text.contains("SLIPPED beyond 5.000e-3 m"), "{text}");
 }

@@ -39,6 +39,7 @@ mod rod3d;
 mod rrd_view;
 mod static_contact;
 mod stepping;
+mod summary_schema;
 mod sweep;
 mod verification;
 mod window;

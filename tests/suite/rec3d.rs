@@ -65,9 +65,14 @@ fn a_3d_grasp_recorded_as_rrd_and_mcap_agrees_with_csv_and_summary() {
             .args(["--set", "solve.dt=1e-3", "-q", "--summary"])
             .arg(d.join("plain.json")),
     );
+    let without_wall = |p: &Path| {
+        let mut v = json(p);
+        v.as_object_mut().unwrap().remove("wall_time_s");
+        v
+    };
     assert_eq!(
-        std::fs::read(d.join("g.json")).unwrap(),
-        std::fs::read(d.join("plain.json")).unwrap(),
+        without_wall(&d.join("g.json")),
+        without_wall(&d.join("plain.json")),
         "recording changed the run"
     );
     verify_rrd(&d.join("g.rrd"));
@@ -108,12 +113,15 @@ fn a_3d_grasp_recorded_as_rrd_and_mcap_agrees_with_csv_and_summary() {
         (first["step"].as_u64(), f(&first["t"]), f(&first["dt"])),
         (Some(0), 0.0, 0.0)
     );
-    assert_eq!(first["bodies"][0]["position"], s["fruit_start"]);
+    assert_eq!(
+        first["bodies"][0]["position"],
+        s["grasp"]["initial_position_m"]
+    );
     assert_eq!(r["topics"]["/sim/event"]["messages"].as_u64(), Some(1));
     let end = &r["last_event"];
     assert_eq!(end["kind"], "run_end");
     assert_eq!(end["step"].as_u64(), Some(steps));
-    assert_eq!(f(&end["t"]), f(&s["t_end"]));
+    assert_eq!(f(&end["t"]), f(&s["simulated_time_s"]));
     assert_eq!(end["completed"], true);
     // /scene is protobuf foxglove.SceneUpdate (3D format 3), decoded by Google's library from
     // the file's descriptor: each sampled step's centre lines are its /sim/step positions in
@@ -176,17 +184,17 @@ fn a_3d_grasp_recorded_as_rrd_and_mcap_agrees_with_csv_and_summary() {
     );
     let last = &r["last_step3"];
     assert_eq!(last["step"].as_u64(), Some(steps));
-    assert_eq!(f(&last["t"]), f(&s["t_end"]));
+    assert_eq!(f(&last["t"]), f(&s["simulated_time_s"]));
     // Finger forces: the summed normal reactions per rod, as the summary has them.
     let mut forces = [0.0f64; 2];
     for c in last["contacts"].as_array().unwrap() {
         forces[c["rod"].as_u64().unwrap() as usize] += f(&c["normal_force"]);
     }
-    let want: Vec<f64> = s["finger_forces"]
+    let want: Vec<f64> = s["rods"]
         .as_array()
         .unwrap()
         .iter()
-        .map(f)
+        .map(|r| f(&r["final_contact_force_n"]))
         .collect();
     println!("3D MCAP: {steps} steps, finger forces {forces:?} N (summary {want:?})");
     assert_eq!(forces.to_vec(), want);
@@ -197,7 +205,12 @@ fn a_3d_grasp_recorded_as_rrd_and_mcap_agrees_with_csv_and_summary() {
         .iter()
         .map(f)
         .collect();
-    let fruit_end: Vec<f64> = s["fruit_end"].as_array().unwrap().iter().map(f).collect();
+    let fruit_end: Vec<f64> = s["grasp"]["final_position_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(f)
+        .collect();
     assert_eq!(fruit, fruit_end);
     // The CSV's last step: every node of every finger where /sim/step has it.
     let csv = std::fs::read_to_string(d.join("g.csv")).unwrap();
@@ -670,7 +683,9 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
     let (held, held_sum) = &reports[0];
     assert_eq!(held["flagged"], false, "{held:#}");
     assert!(held.get("grasp").is_none(), "{held:#}");
-    let rise = |s: &serde_json::Value| f(&s["fruit_end"][2]) - f(&s["fruit_start"][2]);
+    let rise = |s: &serde_json::Value| {
+        f(&s["grasp"]["final_position_m"][2]) - f(&s["grasp"]["initial_position_m"][2])
+    };
     assert!(
         rise(held_sum) > 0.025,
         "held: the fruit rises {}",
@@ -685,7 +700,14 @@ fn grasp_rules_on_3d_lifts_live_and_replayed() {
     assert!(f(&flags[0]["slip_m"]) > tol);
     // The lift starts after the squeeze and its 0.05 s hold and lasts 0.5 s: the slip is
     // flagged within it, at the step of its time.
-    let lift = f(&slip_sum["squeezed_at"]) + 0.05;
+    let squeeze = slip_sum["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "squeeze")
+        .unwrap();
+    assert_eq!(squeeze["reason"], "grip_force", "{squeeze}");
+    let lift = f(&squeeze["end_s"]) + 0.05;
     assert!(
         t > lift && t < lift + 0.5,
         "slip at t = {t}, lift from {lift}"
