@@ -13,6 +13,7 @@ mod edge3d;
 mod edge_friction;
 mod faults;
 mod fin_ray;
+mod fin_ray_roller;
 mod first_contact;
 mod friction_bodies;
 mod friction_pull;
