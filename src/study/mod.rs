@@ -12,6 +12,7 @@
 //! `--vary` key applied, in that order, exactly as `gripsim run SCENARIO --set … --set KEY=VALUE`
 //! would: the case's `summary.json` is the one `run --summary` writes.
 
+pub mod indent;
 pub mod plots;
 pub mod sweep;
 pub mod window;

@@ -15,6 +15,7 @@ mod edge_friction;
 mod events_dim;
 mod faults;
 mod fin_ray;
+mod fin_ray_roller;
 mod first_contact;
 mod friction_bodies;
 mod friction_pull;
