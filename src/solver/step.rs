@@ -439,22 +439,16 @@ impl Simulation {
     /// Rods holding any node or segment against a free body join the body group; a network
     /// joins it whole (its joints are solved with the bodies).
     fn update_members(&mut self) {
-        let mut wanted: Vec<bool> = (0..self.rods.len())
-            .map(|r| {
-                let w = &self.work[r];
-                w.contact
+        for r in 0..self.rods.len() {
+            // A rod joins when it touches a body or a rod of its network does (no buffer:
+            // the step loop allocates nothing).
+            let m = match self.joints.network_of.get(r) {
+                Some(&id) if id != usize::MAX => self.joints.networks[id]
+                    .rods
                     .iter()
-                    .any(|c| c.is_some_and(|c| c.body.is_some()))
-                    || w.edges.iter().any(|e| e.body.is_some())
-                    || self.presses_body(r)
-            })
-            .collect();
-        for net in &self.joints.networks {
-            if net.rods.iter().any(|&r| wanted[r]) {
-                net.rods.iter().for_each(|&r| wanted[r] = true);
-            }
-        }
-        for (r, &m) in wanted.iter().enumerate() {
+                    .any(|&q| self.touches_body(q)),
+                _ => self.touches_body(r),
+            };
             if m != self.is_member[r] {
                 self.is_member[r] = m;
                 self.group_dirty = true;
@@ -463,6 +457,16 @@ impl Simulation {
                 self.group_dirty = true;
             }
         }
+    }
+
+    /// Rod `r` holds a node or a segment against a free body, or presses one (compliant).
+    fn touches_body(&self, r: usize) -> bool {
+        let w = &self.work[r];
+        w.contact
+            .iter()
+            .any(|c| c.is_some_and(|c| c.body.is_some()))
+            || w.edges.iter().any(|e| e.body.is_some())
+            || self.presses_body(r)
     }
 
     /// After the predictor: keep its positions for the recordings; split the step at the time

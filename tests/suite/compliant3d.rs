@@ -349,3 +349,27 @@ fn a_material_on_a_box_or_mesh_fruit_is_refused_naming_the_key() {
         );
     }
 }
+
+/// A compliant fruit may start at rest on its table, sunk by its Hertz indentation under its
+/// weight (3d-apple: 2.770e-4 m), but not deeper: 1 mm in is an overlap, refused with the depth.
+#[test]
+fn a_compliant_fruit_may_start_resting_in_its_table_but_not_deeper() {
+    let ok = gripsim()
+        .arg("validate")
+        .arg(scenario("3d-apple"))
+        .output()
+        .unwrap();
+    assert_eq!(ok.status.code(), Some(0), "{}", text(&ok));
+    let deep = gripsim()
+        .arg("validate")
+        .arg(scenario("3d-apple"))
+        .args(["--set", "obstacle.0.at=[0.0, 0.0, -0.0965]"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&deep.stderr);
+    assert_eq!(deep.status.code(), Some(2), "{}", text(&deep));
+    assert!(
+        err.contains("fruit.centre") && err.contains("starts 1.000e-3 m inside"),
+        "{err}"
+    );
+}
