@@ -263,6 +263,37 @@ pub struct ContactView {
     pub dim: u8,
 }
 
+impl ContactView {
+    /// A planar view with nothing in it: no rod, obstacle or body, zero forces, no compliant
+    /// contact, no segment (the defaults a builder fills in with `..BLANK`).
+    pub const BLANK: ContactView = ContactView {
+        rod: usize::MAX,
+        node: 0,
+        obstacle: usize::MAX,
+        body: usize::MAX,
+        point: [0.0; 3],
+        normal: [0.0; 3],
+        tangent: [0.0; 3],
+        normal_force: 0.0,
+        friction_force: 0.0,
+        slip_velocity: 0.0,
+        stuck: false,
+        utilisation: 0.0,
+        mu_s: 0.0,
+        indentation: 0.0,
+        half_width: 0.0,
+        half_width_minor: 0.0,
+        peak_pressure: 0.0,
+        bruise_pressure: 0.0,
+        bruise_half_width: 0.0,
+        segment: usize::MAX,
+        weight: 0.0,
+        first: usize::MAX,
+        last: usize::MAX,
+        dim: 2,
+    };
+}
+
 impl serde::Serialize for ContactView {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         use serde::ser::SerializeStruct;

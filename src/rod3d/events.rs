@@ -265,6 +265,21 @@ pub struct Emit3 {
 }
 
 impl World3 {
+    /// The fixed obstacles, then the free bodies, as drawn: name, shape, pose at start, free.
+    pub fn shape_infos(&self) -> Vec<Shape3Info> {
+        self.obstacles
+            .iter()
+            .map(|o| (o, false))
+            .chain(self.bodies.iter().map(|b| (&b.obstacle, true)))
+            .map(|(o, free)| Shape3Info {
+                name: o.name.clone(),
+                shape: o.shape.clone(),
+                pose: o.pose,
+                free,
+            })
+            .collect()
+    }
+
     /// The rods' static facts and the world's shapes: [`Event3::Start`] then [`Event3::Scene`].
     pub fn start_observed<O: Observer3>(&self, emit: &mut Emit3, obs: &mut O) {
         let rods: Vec<Rod3Info> = self
@@ -275,18 +290,7 @@ impl World3 {
             .map(|((sim, name), sec)| sim.info(name, half_extents(sec)))
             .collect();
         obs.on_event(&Event3::Start { rods: &rods });
-        let shapes: Vec<Shape3Info> = self
-            .obstacles
-            .iter()
-            .map(|o| (o, false))
-            .chain(self.bodies.iter().map(|b| (&b.obstacle, true)))
-            .map(|(o, free)| Shape3Info {
-                name: o.name.clone(),
-                shape: o.shape.clone(),
-                pose: o.pose,
-                free,
-            })
-            .collect();
+        let shapes = self.shape_infos();
         obs.on_event(&Event3::Scene { shapes: &shapes });
         emit.before = self.contacts.iter().map(|c| vec![false; c.len()]).collect();
         for (r, cs) in self.contacts.iter().enumerate() {

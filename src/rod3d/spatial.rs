@@ -4,7 +4,7 @@
 //!
 //! * `RunStart`: dimension 3, the rods' facts, [`Scene::Spatial`] with the obstacles' and the
 //!   bodies' shapes and start poses (obstacle index k, body b at `obstacles + b`, as in
-//!   [`Shape3Info`]).
+//!   [`Shape3Info`](super::events::Shape3Info)).
 //! * `StepEnd`: per rod, stride 3, the nodes' positions and velocities gathered from the DOFs
 //!   x₀ θ₀ x₁ …; the contact reaction on each node (its node contact's plus its shares of
 //!   edge contacts), the step's impulse (reaction × dt), the drive force at clamped nodes
@@ -26,7 +26,7 @@
 use super::body3::lever_map;
 use super::contact3::{Grip3, Surface3};
 use super::energy::{material_frame, strains, EdgeFrame};
-use super::events::{half_extents, Shape3Info};
+use super::events::half_extents;
 use super::rod::{angle, pos};
 use super::section::Section3;
 use super::solver::{assemble, damping_into};
@@ -124,18 +124,7 @@ impl Spatial {
         self.body_held.clear();
         self.remember(w);
         let infos: Vec<RodInfo> = (0..w.rods.len()).map(|r| rod_info(w, r)).collect();
-        let shapes: Vec<Shape3Info> = w
-            .obstacles
-            .iter()
-            .map(|o| (o, false))
-            .chain(w.bodies.iter().map(|b| (&b.obstacle, true)))
-            .map(|(o, free)| Shape3Info {
-                name: o.name.clone(),
-                shape: o.shape.clone(),
-                pose: o.pose,
-                free,
-            })
-            .collect();
+        let shapes = w.shape_infos();
         self.names = shapes.iter().map(|s| s.name.clone()).collect();
         let bodies = body_specs(w);
         obs.on_event(&Event::RunStart(&RunInfo {
@@ -281,16 +270,10 @@ fn view_of(n: V3, f: V3, mu_s: f64, stuck: bool) -> ContactView {
     let fm = ft.norm();
     let t = if fm > 0.0 { ft / fm } else { V3::zeros() };
     ContactView {
-        rod: usize::MAX,
-        node: 0,
-        obstacle: usize::MAX,
-        body: usize::MAX,
-        point: [0.0; 3],
         normal: n.into(),
         tangent: t.into(),
         normal_force: rn,
         friction_force: fm,
-        slip_velocity: 0.0,
         stuck,
         utilisation: if mu_s > 0.0 && rn > 0.0 {
             fm / (mu_s * rn)
@@ -298,17 +281,8 @@ fn view_of(n: V3, f: V3, mu_s: f64, stuck: bool) -> ContactView {
             0.0
         },
         mu_s,
-        indentation: 0.0,
-        half_width: 0.0,
-        half_width_minor: 0.0,
-        peak_pressure: 0.0,
-        bruise_pressure: 0.0,
-        bruise_half_width: 0.0,
-        segment: usize::MAX,
-        weight: 0.0,
-        first: usize::MAX,
-        last: usize::MAX,
         dim: 3,
+        ..ContactView::BLANK
     }
 }
 

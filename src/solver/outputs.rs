@@ -575,32 +575,7 @@ impl Simulation {
 }
 
 /// The fields of a rigid contact that a compliant one adds (and the defaults of the rest).
-const RIGID: ContactView = ContactView {
-    rod: usize::MAX,
-    node: 0,
-    obstacle: usize::MAX,
-    body: usize::MAX,
-    point: [0.0; 3],
-    normal: [0.0; 3],
-    tangent: [0.0; 3],
-    normal_force: 0.0,
-    friction_force: 0.0,
-    slip_velocity: 0.0,
-    stuck: false,
-    utilisation: 0.0,
-    mu_s: 0.0,
-    indentation: 0.0,
-    half_width: 0.0,
-    half_width_minor: 0.0,
-    peak_pressure: 0.0,
-    bruise_pressure: 0.0,
-    bruise_half_width: 0.0,
-    segment: usize::MAX,
-    weight: 0.0,
-    first: usize::MAX,
-    last: usize::MAX,
-    dim: 2,
-};
+const RIGID: ContactView = ContactView::BLANK;
 
 /// A free node's contact force at the end of a step: its eq. 2 reaction `r` when a constraint
 /// (its own or an edge's) holds it (the residual keeps its own contact's part; its shares of
