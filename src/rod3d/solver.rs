@@ -18,15 +18,26 @@ pub struct Solve3Error {
     pub residual: f64,
     pub iterations: u32,
     pub reason: &'static str,
+    /// Where the largest residual was: the finger's name and the node (None: not a rod's, or
+    /// not known).
+    pub at: Option<(String, usize)>,
 }
 
 impl std::fmt::Display for Solve3Error {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "3D rod: {} (residual {:e} N after {} iterations)",
-            self.reason, self.residual, self.iterations
-        )
+        match &self.at {
+            Some((rod, node)) => write!(
+                f,
+                "rod {rod:?} node {node}: {} (residual {:e} N after {} iterations; the \
+                 largest rod residual at that node)",
+                self.reason, self.residual, self.iterations
+            ),
+            None => write!(
+                f,
+                "3D rod: {} (residual {:e} N after {} iterations)",
+                self.reason, self.residual, self.iterations
+            ),
+        }
     }
 }
 
@@ -307,6 +318,7 @@ fn fail(residual: f64, iterations: u32, reason: &'static str) -> Solve3Error {
         residual,
         iterations,
         reason,
+        at: None,
     }
 }
 

@@ -411,6 +411,7 @@ impl World3 {
                     residual: 0.0,
                     iterations: report.newton_iterations,
                     reason: "the contact set did not settle",
+                    at: None,
                 });
             }
         }

@@ -513,3 +513,22 @@ fn a_replay_refuses_a_different_mesh_beside_the_recording() {
         "{err}"
     );
 }
+
+/// Item 18: a 3D run that does not converge names the finger and the node, as planar does.
+#[test]
+fn a_3d_divergence_names_the_finger_and_node() {
+    let out = gripsim()
+        .args(["run", "scenarios/3d-lift.toml", "--no-record", "-q"])
+        .args(["--set", "solve.max_newton_iterations=1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(
+        err.contains("step 1 ")
+            && err.contains("rod \"finger")
+            && err.contains(" node ")
+            && err.contains("Newton did not converge"),
+        "{err}"
+    );
+}

@@ -172,18 +172,20 @@ impl World3 {
         loop {
             let res = self.linearise(dt, it == 0);
             if !res.is_finite() {
-                return Err(fail(res, it, "non-finite residual"));
+                return Err(self.located(fail(res, it, "non-finite residual")));
             }
             if res <= tol && (it > 0 || (self.sys.kkt.is_empty() && self.edge_count() == 0)) {
                 return Ok(it);
             }
             if it >= self.max_iterations {
-                return Err(fail(res, it, "Newton did not converge"));
+                return Err(self.located(fail(res, it, "Newton did not converge")));
             }
             if it > 0 {
                 self.linearise(dt, true);
             }
-            let upd = self.solve_and_update().map_err(|m| fail(res, it, m))?;
+            let upd = self
+                .solve_and_update()
+                .map_err(|m| self.located(fail(res, it, m)))?;
             it += 1;
             if upd <= floor {
                 // At the round-off floor: accept, with the reactions of the final iterate.
@@ -191,6 +193,25 @@ impl World3 {
                 return Ok(it);
             }
         }
+    }
+}
+
+impl World3 {
+    /// `e` with the finger and node of the largest free rod residual of the last
+    /// linearisation (a NaN counts as the largest).
+    fn located(&self, mut e: Solve3Error) -> Solve3Error {
+        let mut worst: Option<(usize, usize, f64)> = None;
+        for (r, w) in self.work.iter().enumerate() {
+            for (k, v) in w.rhs.iter().enumerate() {
+                let a = if v.is_nan() { f64::INFINITY } else { v.abs() };
+                if !w.elim[k] && worst.is_none_or(|(_, _, m)| a > m) {
+                    // DOFs x₀ θ₀ x₁ θ₁ …: 4 per node (θ_e with its first node).
+                    worst = Some((r, k / 4, a));
+                }
+            }
+        }
+        e.at = worst.map(|(r, node, _)| (self.rod_names[r].clone(), node));
+        e
     }
 }
 
@@ -471,5 +492,6 @@ fn fail(residual: f64, iterations: u32, reason: &'static str) -> Solve3Error {
         residual,
         iterations,
         reason,
+        at: None,
     }
 }
