@@ -5,6 +5,7 @@
 //! dt/2 and with twice the nodes; a material on a box or mesh fruit is refused.
 
 use crate::common::{gripsim, scenario, text};
+use crate::contact3d::line;
 use gripsim::contact::compliant::{Material, PointContact};
 use gripsim::contact::friction::{Coulomb, FrictionTable};
 use gripsim::obstacle3::{Obstacle3, Pose3, Shape3};
@@ -13,19 +14,6 @@ use gripsim::rod3d::rod::pos;
 use gripsim::rod3d::run3::run;
 use gripsim::rod3d::{Rod3, Rod3Spec, Section3, Sim3, World3};
 use gripsim::scenario::three::Scenario3;
-
-fn line(n: usize, from: [f64; 3], to: [f64; 3]) -> Vec<[f64; 3]> {
-    (0..n)
-        .map(|i| {
-            let s = i as f64 / (n - 1) as f64;
-            [
-                from[0] + s * (to[0] - from[0]),
-                from[1] + s * (to[1] - from[1]),
-                from[2] + s * (to[2] - from[2]),
-            ]
-        })
-        .collect()
-}
 
 fn spec(points: Vec<[f64; 3]>, director: [f64; 3], section: Section3) -> Rod3Spec {
     Rod3Spec {

@@ -10,7 +10,8 @@ use gripsim::rod3d::gripper::{radial, Move3};
 use gripsim::rod3d::rod::pos;
 use gripsim::rod3d::{Rod3, Rod3Spec, Section3, Sim3, World3};
 
-fn line(n: usize, from: [f64; 3], to: [f64; 3]) -> Vec<[f64; 3]> {
+/// `n` points evenly from `from` to `to` (also used by compliant3d).
+pub(crate) fn line(n: usize, from: [f64; 3], to: [f64; 3]) -> Vec<[f64; 3]> {
     (0..n)
         .map(|i| {
             let s = i as f64 / (n - 1) as f64;

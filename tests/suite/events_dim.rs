@@ -20,17 +20,8 @@ fn contact(dim: u8) -> ContactView {
         stuck: true,
         utilisation: 0.5,
         mu_s: 0.5,
-        indentation: 0.0,
-        half_width: 0.0,
-        half_width_minor: 0.0,
-        peak_pressure: 0.0,
-        bruise_pressure: 0.0,
-        bruise_half_width: 0.0,
-        segment: usize::MAX,
-        weight: 0.0,
-        first: usize::MAX,
-        last: usize::MAX,
         dim,
+        ..ContactView::BLANK
     }
 }
 
