@@ -25,6 +25,7 @@ pub mod obstacle3;
 pub mod record;
 pub mod replay;
 pub mod rod3d;
+pub mod run;
 pub mod scenario;
 pub mod solver;
 pub mod study;

@@ -9,6 +9,7 @@ use gripsim::record::mcap::McapSink;
 use gripsim::record::rerun::RerunSink;
 use gripsim::record::summary::SummaryCollector;
 use gripsim::record::{AutoRule, Detail, Finished, RecordOptions, Recording};
+use gripsim::run::AnyScenario;
 use gripsim::{Scenario, Simulation};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -478,48 +479,36 @@ fn file_name(name: &str) -> String {
         .collect()
 }
 
-/// A scenario read once (a pipe or FIFO too: process substitution) and parsed as what its
-/// text says it is.
-enum Loaded {
-    Planar(Box<Scenario>),
-    Three(Box<gripsim::scenario::three::Scenario3>),
-}
-
-/// Read the scenario at `path` once and parse it with the `--set` overrides; also returns
-/// its text (the recordings store it, and the plan of the outputs reads the files it names).
+/// Read the scenario at `path` once (a pipe or FIFO too: process substitution) and parse it
+/// as what its text says it is, with the `--set` overrides; also returns its text (the
+/// recordings store it, and the plan of the outputs reads the files it names).
 /// `perturb`: `run --perturb` (its `solve.imperfection` is in `sets`), planar only.
 fn load(
     path: &Path,
     sets: &[String],
     perturb: bool,
-) -> Result<(String, Loaded), gripsim::scenario::ScenarioError> {
+) -> Result<(String, AnyScenario), gripsim::scenario::ScenarioError> {
     let text = gripsim::scenario::input::read_text(path)?;
     let file = path.display().to_string();
-    let loaded = if gripsim::scenario::three::is_3d(&text) {
-        if perturb {
-            return Err(gripsim::scenario::ScenarioError {
-                file,
-                key: String::new(),
-                value: String::new(),
-                message: "--perturb (a static solve's imperfection) is not yet available in 3D \
-                          (dimension = 3): drop the option"
-                    .into(),
-                hint: None,
-            });
-        }
-        let dir = path.parent().unwrap_or(Path::new("."));
-        Loaded::Three(Box::new(
-            gripsim::scenario::three::Scenario3::from_str_with(&text, &file, dir, sets)?,
-        ))
-    } else {
-        Loaded::Planar(Box::new(Scenario::from_str(&text, &file, sets)?))
-    };
-    Ok((text, loaded))
+    if perturb && gripsim::scenario::three::is_3d(&text) {
+        return Err(gripsim::scenario::ScenarioError {
+            file,
+            key: String::new(),
+            value: String::new(),
+            message: "--perturb (a static solve's imperfection) is not yet available in 3D \
+                      (dimension = 3): drop the option"
+                .into(),
+            hint: None,
+        });
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let sc = AnyScenario::parse(&text, &file, dir, sets)?;
+    Ok((text, sc))
 }
 
 fn validate(path: &Path, sets: &[String]) -> ExitCode {
     match load(path, sets, false) {
-        Ok((_, Loaded::Three(sc))) => {
+        Ok((_, AnyScenario::Spatial(sc))) => {
             for w in sc.warnings() {
                 eprintln!("warning: {}: {w}", path.display());
             }
@@ -534,7 +523,7 @@ fn validate(path: &Path, sets: &[String]) -> ExitCode {
             );
             ExitCode::SUCCESS
         }
-        Ok((_, Loaded::Planar(sc))) => {
+        Ok((_, AnyScenario::Planar(sc))) => {
             for w in sc.warnings() {
                 eprintln!("warning: {}: {w}", path.display());
             }
@@ -595,8 +584,8 @@ fn uncommitted(files: &mut [(&str, Finished)]) {
 
 fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: bool) -> ExitCode {
     let (text, sc) = match load(path, sets, out.perturb) {
-        Ok((text, Loaded::Planar(sc))) => (text, *sc),
-        Ok((text, Loaded::Three(sc))) => {
+        Ok((text, AnyScenario::Planar(sc))) => (text, *sc),
+        Ok((text, AnyScenario::Spatial(sc))) => {
             return run3(path, &text, *sc, out, no_record, sets, quiet)
         }
         Err(e) => {

@@ -715,6 +715,19 @@ pub fn run_both<O: Observer3, E: Observer>(
     events: &mut Events<'_, E>,
     stop: &dyn Fn() -> bool,
 ) -> Result<Summary3, String> {
+    let (s, result) = run_full(sc, csv, obs, events, stop)?;
+    result.map(|()| s)
+}
+
+/// [`run_both`], keeping the summary of a run that stopped (an error or `stop`) as far as it
+/// went: `Err` only when the run could not start (its world or its CSV file).
+pub fn run_full<O: Observer3, E: Observer>(
+    sc: &Scenario3,
+    csv: Option<&std::path::Path>,
+    obs: &mut O,
+    events: &mut Events<'_, E>,
+    stop: &dyn Fn() -> bool,
+) -> Result<(Summary3, Result<(), String>), String> {
     let (mut w, mut g) = build(sc)?;
     let out = csv.map(crate::record::OutputFile::new);
     let mut file = match &out {
@@ -733,7 +746,17 @@ pub fn run_both<O: Observer3, E: Observer>(
         sp.start(&w, &sc.name, events.text, events.obs);
     }
     let mut ev = live.then_some((&mut sp, &mut *events.obs));
-    let result = run_loop(sc, &mut w, &mut g, file.as_mut(), obs, &mut ev, stop);
+    let mut s = new_summary(sc, &w);
+    let result = run_loop(
+        sc,
+        &mut w,
+        &mut g,
+        file.as_mut(),
+        obs,
+        &mut ev,
+        stop,
+        &mut s,
+    );
     if let Err(e) = &result {
         // The sinks close their files with the error as the run's end.
         w.fail_observed(obs, e);
@@ -749,7 +772,7 @@ pub fn run_both<O: Observer3, E: Observer>(
         }
         o.settle(result.is_ok()).map_err(|e| e.to_string())?;
     }
-    result
+    Ok((s, result))
 }
 
 /// The one event stream's buffers and observer, while someone listens to it.
@@ -766,24 +789,10 @@ fn move_names(g: &Gripper3) -> Vec<String> {
         .collect()
 }
 
-fn run_loop<E: Observer>(
-    sc: &Scenario3,
-    w: &mut World3,
-    g: &mut Gripper3,
-    mut csv: Option<&mut crate::record::csv::PagedRows<std::fs::File>>,
-    obs: &mut impl Observer3,
-    ev: &mut Live<'_, E>,
-    stop: &dyn Fn() -> bool,
-) -> Result<Summary3, String> {
-    let mut emit = Emit3::default();
-    w.start_observed(&mut emit, obs);
-    w.initial_observed(&mut emit, obs);
-    let names = move_names(g);
-    if let Some((sp, o)) = ev.as_mut() {
-        sp.step_end(w, 0.0, 0, 0, *o);
-    }
+/// The summary of a run of `w` before its first step.
+fn new_summary(sc: &Scenario3, w: &World3) -> Summary3 {
     let fruit_start = w.bodies.first().map(|b| b.centre().into());
-    let mut s = Summary3 {
+    Summary3 {
         name: sc.name.clone(),
         steps: 0,
         t_end: 0.0,
@@ -802,7 +811,48 @@ fn run_loop<E: Observer>(
         grasp: None,
         contact_pressure: None,
         tally: Tally3::new(w),
-    };
+    }
+}
+
+/// Run the world to its end, counting into `s`. A run that stops early leaves in `s` what
+/// it counted, with its time and the fruit's position at the last accepted step.
+#[allow(clippy::too_many_arguments)]
+fn run_loop<E: Observer>(
+    sc: &Scenario3,
+    w: &mut World3,
+    g: &mut Gripper3,
+    csv: Option<&mut crate::record::csv::PagedRows<std::fs::File>>,
+    obs: &mut impl Observer3,
+    ev: &mut Live<'_, E>,
+    stop: &dyn Fn() -> bool,
+    s: &mut Summary3,
+) -> Result<(), String> {
+    let result = run_steps(sc, w, g, csv, obs, ev, stop, s);
+    s.t_end = w.time;
+    s.fruit_end = w.bodies.first().map(|b| b.centre().into());
+    s.finger_forces = g.finger_forces(w);
+    s.squeezed_at = g.squeezed_at;
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_steps<E: Observer>(
+    sc: &Scenario3,
+    w: &mut World3,
+    g: &mut Gripper3,
+    mut csv: Option<&mut crate::record::csv::PagedRows<std::fs::File>>,
+    obs: &mut impl Observer3,
+    ev: &mut Live<'_, E>,
+    stop: &dyn Fn() -> bool,
+    s: &mut Summary3,
+) -> Result<(), String> {
+    let mut emit = Emit3::default();
+    w.start_observed(&mut emit, obs);
+    w.initial_observed(&mut emit, obs);
+    let names = move_names(g);
+    if let Some((sp, o)) = ev.as_mut() {
+        sp.step_end(w, 0.0, 0, 0, *o);
+    }
     let mut grasp = GraspLive::new(sc, w);
     let mut pressure = sc
         .fruit
@@ -869,10 +919,6 @@ fn run_loop<E: Observer>(
         ));
     }
     w.end_observed(obs);
-    s.t_end = w.time;
-    s.finger_forces = g.finger_forces(w);
-    s.squeezed_at = g.squeezed_at;
     s.tally.running(g);
-    s.fruit_end = w.bodies.first().map(|b| b.centre().into());
-    Ok(s)
+    Ok(())
 }

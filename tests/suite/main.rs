@@ -38,6 +38,7 @@ mod replay;
 mod replay_guard;
 mod rod3d;
 mod rrd_view;
+mod run_api;
 mod static_contact;
 mod stepping;
 mod summary_schema;
