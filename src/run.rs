@@ -201,17 +201,16 @@ fn run_spatial<O: Observer>(
             let detector = crate::replay::three::Detector3::new(sc, th).map_err(failed)?;
             let mut spikes = crate::replay::three::Detect3Observer { detector };
             let mut bruise = crate::replay::bruise::BruiseObserver::new(sc.expect.bruised);
-            let mut fan = Fanout::new();
-            fan.push(&mut bruise as &mut dyn Observer);
-            fan.push(obs as &mut dyn Observer);
-            let mut events = run3::Events {
-                text,
-                obs: &mut fan,
+            let (s, r) = {
+                let mut fan = Fanout::new();
+                fan.push(&mut bruise as &mut dyn Observer);
+                fan.push(obs as &mut dyn Observer);
+                let mut events = run3::Events {
+                    text,
+                    obs: &mut fan,
+                };
+                run3::run_full(sc, None, &mut spikes, &mut events, &asked).map_err(failed)?
             };
-            let (s, r) =
-                run3::run_full(sc, None, &mut spikes, &mut events, &asked).map_err(failed)?;
-            drop(events);
-            drop(fan);
             let rep = spikes.detector.finish("", &sc.name);
             (
                 s,
