@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use crate::events::{Fanout, Observer};
 use crate::record::summary::{Summary, SummaryCollector};
+use crate::replay::detect::{Counts, Thresholds};
 use crate::scenario::three::Scenario3;
 use crate::scenario::{Scenario, ScenarioError};
 use crate::solver::{SimError, Simulation};
@@ -100,6 +101,10 @@ impl RunError {
 pub struct Outcome {
     pub summary: Summary,
     pub error: Option<RunError>,
+    /// What `gripsim replay check` would find on the run's recording (spikes, sticking, grasp
+    /// and bruise flags), found while it ran: [`run_with`] with thresholds gives it, [`run`]
+    /// leaves it None.
+    pub check: Option<Counts>,
 }
 
 /// Run `sc` (whose text is `text`: the `RunStart` event carries it) to its end, sending the
@@ -111,28 +116,57 @@ pub fn run<O: Observer>(
     obs: &mut O,
     stop: Option<Stop>,
 ) -> Result<Outcome, RunError> {
+    run_with(sc, text, obs, stop, None)
+}
+
+/// [`run`], and with `check` the replay check's rules (those thresholds; `Default` for
+/// `replay check`'s own) run on the live run in either dimension: [`Outcome::check`] holds
+/// what they found. `Err` also when the thresholds are not valid.
+pub fn run_with<O: Observer>(
+    sc: &AnyScenario,
+    text: &str,
+    obs: &mut O,
+    stop: Option<Stop>,
+    check: Option<&Thresholds>,
+) -> Result<Outcome, RunError> {
+    if let Some(th) = check {
+        th.validate().map_err(|message| RunError::Spatial {
+            message,
+            interrupted: false,
+        })?;
+    }
     match sc {
-        AnyScenario::Planar(sc) => Ok(run_planar(sc, obs, stop)),
-        AnyScenario::Spatial(sc) => run_spatial(sc, text, obs, stop),
+        AnyScenario::Planar(sc) => Ok(run_planar(sc, obs, stop, check)),
+        AnyScenario::Spatial(sc) => run_spatial(sc, text, obs, stop, check),
     }
 }
 
-fn run_planar<O: Observer>(sc: &Scenario, obs: &mut O, stop: Option<Stop>) -> Outcome {
+fn run_planar<O: Observer>(
+    sc: &Scenario,
+    obs: &mut O,
+    stop: Option<Stop>,
+    check: Option<&Thresholds>,
+) -> Outcome {
     let start = Instant::now();
     let mut sim = Simulation::new(sc);
     if let Some(stop) = stop {
         sim.interrupt = Some(Box::new(move || stop()));
     }
     let mut collector = SummaryCollector::new();
+    let mut detector = check.map(|th| crate::replay::detect::DetectObserver::new(sc, th));
     let result = {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);
+        if let Some(d) = detector.as_mut() {
+            fan.push(d as &mut dyn Observer);
+        }
         fan.push(obs as &mut dyn Observer);
         sim.run(&mut crate::record::accepted::AcceptedContacts::new(fan))
     };
     Outcome {
         summary: collector.finish(&sim.stats, start.elapsed().as_secs_f64()),
         error: result.err().map(RunError::Planar),
+        check: detector.map(|d| d.detector.finish().counts()),
     }
 }
 
@@ -141,22 +175,50 @@ fn run_spatial<O: Observer>(
     text: &str,
     obs: &mut O,
     stop: Option<Stop>,
+    check: Option<&Thresholds>,
 ) -> Result<Outcome, RunError> {
     use crate::rod3d::run3;
     let start = Instant::now();
     let asked = || stop.as_ref().is_some_and(|s| s());
-    let mut events = run3::Events { text, obs };
-    let (s, result) = run3::run_full(
-        sc,
-        None,
-        &mut crate::rod3d::events::NullObserver3,
-        &mut events,
-        &asked,
-    )
-    .map_err(|message| RunError::Spatial {
+    let failed = |message| RunError::Spatial {
         message,
         interrupted: false,
-    })?;
+    };
+    let (s, result, found) = match check {
+        None => {
+            let mut events = run3::Events { text, obs };
+            let (s, r) = run3::run_full(
+                sc,
+                None,
+                &mut crate::rod3d::events::NullObserver3,
+                &mut events,
+                &asked,
+            )
+            .map_err(failed)?;
+            (s, r, None)
+        }
+        Some(th) => {
+            let detector = crate::replay::three::Detector3::new(sc, th).map_err(failed)?;
+            let mut spikes = crate::replay::three::Detect3Observer { detector };
+            let mut bruise = crate::replay::bruise::BruiseObserver::new(sc.expect.bruised);
+            let (s, r) = {
+                let mut fan = Fanout::new();
+                fan.push(&mut bruise as &mut dyn Observer);
+                fan.push(obs as &mut dyn Observer);
+                let mut events = run3::Events {
+                    text,
+                    obs: &mut fan,
+                };
+                run3::run_full(sc, None, &mut spikes, &mut events, &asked).map_err(failed)?
+            };
+            let rep = spikes.detector.finish("", &sc.name);
+            (
+                s,
+                r,
+                Some(crate::replay::three::counts(&rep, bruise.count())),
+            )
+        }
+    };
     let mut summary = s.to_summary(start.elapsed().as_secs_f64());
     let error = result.err().map(|message| RunError::Spatial {
         interrupted: message.starts_with(run3::INTERRUPTED),
@@ -166,5 +228,9 @@ fn run_spatial<O: Observer>(
         summary.completed = false;
         summary.error = Some(e.to_string());
     }
-    Ok(Outcome { summary, error })
+    Ok(Outcome {
+        summary,
+        error,
+        check: found,
+    })
 }

@@ -169,6 +169,79 @@ impl BruiseRule {
     }
 }
 
+/// The bruise rule on a live run's one event stream (either dimension): the compliant
+/// contacts of every accepted step, named by the run's rods and obstacles.
+#[derive(Debug, Default)]
+pub struct BruiseObserver {
+    rule: BruiseRule,
+    rods: Vec<String>,
+    obstacles: Vec<String>,
+    /// The scenario expects the fruit to bruise (`[expect] bruised`): a bruise is then not
+    /// flagged, its absence is.
+    expected: bool,
+    samples: Vec<PressureSample>,
+}
+
+impl BruiseObserver {
+    pub fn new(expected: bool) -> BruiseObserver {
+        BruiseObserver {
+            expected,
+            ..BruiseObserver::default()
+        }
+    }
+
+    /// The flags `replay check` counts as `bruise`: every stretch above the threshold, or,
+    /// where the scenario expects a bruise, 1 when there was none.
+    pub fn count(&self) -> usize {
+        let found = self.rule.flags.len() + self.rule.open.len();
+        if self.expected {
+            usize::from(found == 0)
+        } else {
+            found
+        }
+    }
+
+    /// Everything found, in time order.
+    pub fn finish(self) -> Vec<BruiseFlag> {
+        self.rule.finish()
+    }
+}
+
+impl crate::events::Observer for BruiseObserver {
+    fn on_event(&mut self, event: &crate::events::Event<'_>) {
+        use crate::events::Event;
+        match event {
+            Event::RunStart(info) => {
+                self.rods = info.rods.iter().map(|r| r.name.clone()).collect();
+                self.obstacles = info.obstacle_names.to_vec();
+            }
+            Event::StepEnd {
+                step, t, contacts, ..
+            } => {
+                self.samples.clear();
+                self.samples
+                    .extend(contacts.iter().filter(|c| c.peak_pressure > 0.0).map(|c| {
+                        PressureSample {
+                            rod: c.rod,
+                            node: c.node,
+                            obstacle: c.obstacle,
+                            peak_pressure: c.peak_pressure,
+                            bruise_pressure: c.bruise_pressure,
+                            bruise_half_width: c.bruise_half_width,
+                        }
+                    }));
+                let places = Places {
+                    rods: &self.rods,
+                    obstacles: &self.obstacles,
+                    bodies: &[],
+                };
+                self.rule.step(*step, *t, &self.samples, &places);
+            }
+            _ => {}
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

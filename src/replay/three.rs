@@ -447,6 +447,25 @@ impl Detector3 {
     }
 }
 
+/// The counts of a 3D check, in the planar check's terms, with `bruise` flags found on the
+/// live run's contact pressures ([`super::bruise::BruiseObserver`]; a 3D recording does not
+/// keep them).
+pub fn counts(r: &Check3Report, bruise: usize) -> super::detect::Counts {
+    let s = |k: &str| r.spikes.iter().filter(|x| x.kind == k).count();
+    let g = |k: &str| r.grasp.iter().filter(|x| x.kind == k).count();
+    super::detect::Counts {
+        spikes: r.spikes.len(),
+        impact: s("impact"),
+        unexplained: s("unexplained"),
+        sticking: r.sticking.len(),
+        toggling: r.sticking.iter().filter(|x| x.rule == "toggling").count(),
+        slip: g("slip"),
+        drop: g("drop"),
+        held: g("held"),
+        bruise,
+    }
+}
+
 /// The tangential part of `r` beyond `cone` (the Coulomb cone of the contact).
 fn within_cone(r: [f64; 3], n: [f64; 3], cone: f64) -> [f64; 3] {
     if !(cone > 0.0) {

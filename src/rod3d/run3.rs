@@ -741,6 +741,11 @@ pub fn run_full<O: Observer3, E: Observer>(
         None => None,
     };
     let mut sp = Spatial::default();
+    sp.bruise_pressure = sc
+        .fruit
+        .as_ref()
+        .and_then(|f| f.material.as_ref())
+        .map_or(0.0, |m| m.bruise_pressure);
     let live = events.obs.wants_steps();
     if live {
         sp.start(&w, &sc.name, events.text, events.obs);

@@ -108,6 +108,9 @@ pub struct Spatial {
     body_held: Vec<(usize, usize, V3, bool)>,
     names: Vec<String>,
     move_index: usize,
+    /// The compliant fruit's bruise threshold (Pa; 0 without one): the contact views of its
+    /// Hertz contacts carry it beside their peak pressure.
+    pub bruise_pressure: f64,
 }
 
 impl Spatial {
@@ -253,6 +256,46 @@ impl Spatial {
                 v.slip_velocity = V3::from(v.tangent).dot(&slip);
             }
             self.contacts.push(v);
+        }
+        self.pressures(w);
+    }
+
+    /// A compliant fruit's Hertz contacts into their views: the prongs' node contacts, then
+    /// the fruit's own on the obstacles it rests on (as [`World3::pressed`] gives them).
+    fn pressures(&mut self, w: &World3) {
+        let pb = self.bruise_pressure;
+        let fill = |v: &mut ContactView, p: &super::world::Pressed3| {
+            v.indentation = p.indentation;
+            (v.half_width, v.half_width_minor) = p.radii;
+            v.peak_pressure = p.pressure;
+            v.bruise_pressure = pb;
+            if pb > 0.0 && p.pressure > pb {
+                let r = pb / p.pressure;
+                v.bruise_half_width = p.radii.0 * (1.0 - r * r).sqrt();
+            }
+        };
+        for p in w.pressed() {
+            let at = self
+                .contacts
+                .iter_mut()
+                .find(|v| v.rod == p.rod && v.node == p.node && v.segment == usize::MAX);
+            if let Some(v) = at {
+                fill(v, &p);
+            }
+        }
+        let on_table = w.pressed_on_obstacles();
+        let mut k = 0;
+        for (bc, v) in w
+            .body_contacts
+            .iter()
+            .zip(self.contacts.iter_mut().filter(|v| v.rod == usize::MAX))
+        {
+            if bc.law.is_some() {
+                if let Some(p) = on_table.get(k) {
+                    fill(v, p);
+                }
+                k += 1;
+            }
         }
     }
 }

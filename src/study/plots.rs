@@ -68,19 +68,81 @@ pub struct Trace {
     /// Whether the time series are kept (false: only the warnings and releases, for a sweep
     /// that draws no figures).
     series: bool,
+    /// The run's dimension: a 3D frame keeps each node's (x, z).
+    dim: usize,
+}
+
+/// The time a 3D scenario runs to: its `t_end`, or (the hand's moves end it) the sum of the
+/// moves' durations with a squeeze's longest (its travel at its speed).
+fn horizon3(sc: &crate::scenario::three::Scenario3) -> f64 {
+    use crate::rod3d::gripper::Move3;
+    if let Some(t) = sc.t_end {
+        return t;
+    }
+    sc.moves
+        .iter()
+        .map(|m| match *m {
+            Move3::Squeeze {
+                speed, max_travel, ..
+            } if speed > 0.0 => max_travel / speed,
+            Move3::Squeeze { .. } => 0.0,
+            Move3::Close { duration, .. }
+            | Move3::Hold { duration }
+            | Move3::Translate { duration, .. }
+            | Move3::Lift { duration, .. }
+            | Move3::Rotate { duration, .. } => duration,
+        })
+        .sum()
 }
 
 impl Trace {
+    /// A trace of a scenario of either dimension. A 3D rod's shape is kept projected onto the
+    /// gripper's closing plane (x–z), where the shape figure draws it.
+    pub fn of(sc: &crate::run::AnyScenario) -> Self {
+        match sc {
+            crate::run::AnyScenario::Planar(sc) => Self::new(sc),
+            crate::run::AnyScenario::Spatial(sc) => {
+                Self::blank(horizon3(sc), false, sc.name.clone(), Vec::new(), 3)
+            }
+        }
+    }
+
+    /// A trace that keeps only the warnings and the releases, of either dimension.
+    pub fn counts_of(sc: &crate::run::AnyScenario) -> Self {
+        Self {
+            series: false,
+            ..Self::of(sc)
+        }
+    }
+
     pub fn new(sc: &Scenario) -> Self {
         let static_mode = sc.solve.mode == Mode::Static;
-        Self {
-            horizon: if static_mode { 1.0 } else { sc.solve.t_end },
+        let horizon = if static_mode { 1.0 } else { sc.solve.t_end };
+        Self::blank(
+            horizon,
             static_mode,
-            scenario: sc.name.clone(),
+            sc.name.clone(),
+            sc.obstacles.clone(),
+            2,
+        )
+    }
+
+    fn blank(
+        horizon: f64,
+        static_mode: bool,
+        scenario: String,
+        obstacles: Vec<Obstacle>,
+        dim: usize,
+    ) -> Self {
+        Self {
+            dim,
+            horizon,
+            static_mode,
+            scenario,
             names: Vec::new(),
             nodes: Vec::new(),
             clamped: Vec::new(),
-            obstacles: sc.obstacles.clone(),
+            obstacles,
             times: Vec::new(),
             reaction: Vec::new(),
             ic: Vec::new(),
@@ -120,10 +182,13 @@ impl Observer for Trace {
                 self.reaction = vec![Vec::new(); k];
                 self.ic = vec![Vec::new(); k];
                 self.stress = vec![Vec::new(); k];
+                // In 3D a node has two windows: (x, y) and (z, 0) (their magnitudes add
+                // in quadrature to the 3-vector's).
+                let per = if self.dim == 3 { 2 } else { 1 };
                 self.windows = info
                     .rods
                     .iter()
-                    .map(|r| vec![Window::default(); r.nodes])
+                    .map(|r| vec![Window::default(); per * r.nodes])
                     .collect();
                 self.ic_now = info.rods.iter().map(|r| vec![0.0; r.nodes]).collect();
             }
@@ -147,9 +212,10 @@ impl Observer for Trace {
                         self.ic[r].extend(std::iter::repeat_n(0.0, *n));
                         self.stress[r].extend(std::iter::repeat_n(0.0, *n));
                     }
+                    let dim = self.dim;
                     self.frames.push(Frame {
                         t,
-                        q: rods.iter().map(|v| v.q.to_vec()).collect(),
+                        q: rods.iter().map(|v| planar(v.q, dim)).collect(),
                         ic: self.ic_now.clone(),
                     });
                 }
@@ -157,30 +223,31 @@ impl Observer for Trace {
                 self.times[s] = t;
                 let mut step_peak = 0.0f64;
                 let mut contact = false;
+                let d = self.dim;
                 for (r, v) in rods.iter().enumerate() {
                     let n = self.nodes[r];
                     for i in 0..n {
                         let k = s * n + i;
+                        let reaction = &v.reaction[d * i..d * i + d];
+                        let impulse = &v.impulse[d * i..d * i + d];
                         // A node that never had a reaction or an impulse adds nothing
                         // (its window would give exactly 0).
-                        let idle = v.reaction[2 * i] == 0.0
-                            && v.reaction[2 * i + 1] == 0.0
-                            && v.impulse[2 * i] == 0.0
-                            && v.impulse[2 * i + 1] == 0.0
+                        let idle = reaction.iter().chain(impulse).all(|x| *x == 0.0)
                             && self.windows[r][i].is_empty();
                         let rm = if idle {
                             0.0
                         } else {
-                            v.reaction[2 * i].hypot(v.reaction[2 * i + 1])
+                            reaction.iter().map(|x| x * x).sum::<f64>().sqrt()
                         };
                         let f = if dt > 0.0 && !idle {
-                            self.windows[r][i].push(
-                                t - dt,
-                                t,
-                                v.impulse[2 * i],
-                                v.impulse[2 * i + 1],
-                                FORCE_WINDOW,
-                            )
+                            let w = &mut self.windows[r];
+                            let a = w[i].push(t - dt, t, impulse[0], impulse[1], FORCE_WINDOW);
+                            if d == 3 {
+                                let b = w[n + i].push(t - dt, t, impulse[2], 0.0, FORCE_WINDOW);
+                                a.hypot(b)
+                            } else {
+                                a
+                            }
                         } else {
                             0.0
                         };
@@ -195,7 +262,11 @@ impl Observer for Trace {
                 let frame = self.frames.last_mut().expect("a span is open");
                 frame.t = t;
                 for (r, v) in rods.iter().enumerate() {
-                    frame.q[r].copy_from_slice(v.q);
+                    if self.dim == 3 {
+                        frame.q[r] = planar(v.q, 3);
+                    } else {
+                        frame.q[r].copy_from_slice(v.q);
+                    }
                     frame.ic[r].copy_from_slice(&self.ic_now[r]);
                 }
                 // Copied only when it is kept (not in every step).
@@ -212,6 +283,16 @@ impl Observer for Trace {
             }
             _ => {}
         }
+    }
+}
+
+/// Interleaved positions of stride `dim` as planar ones: a 3D node's (x, z), its place in
+/// the gripper's closing plane.
+fn planar(q: &[f64], dim: usize) -> Vec<f64> {
+    if dim == 3 {
+        q.chunks_exact(3).flat_map(|p| [p[0], p[2]]).collect()
+    } else {
+        q.to_vec()
     }
 }
 
@@ -485,8 +566,13 @@ pub fn draw_shapes(
     let rows = snaps.len().div_ceil(cols);
     let size = (340 * cols as u32, 340 * rows as u32 + 110);
     let title = format!(
-        "{}: nodes coloured by impulse-consistent force",
-        titled(&summary.scenario, label)
+        "{}: nodes coloured by impulse-consistent force{}",
+        titled(&summary.scenario, label),
+        if trace.dim == 3 {
+            " (3D: x–z projection, fruit not drawn)"
+        } else {
+            ""
+        }
     );
     let png = base.with_extension("png");
     let svg = base.with_extension("svg");

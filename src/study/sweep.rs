@@ -21,10 +21,8 @@
 
 use super::plots::{self, Trace};
 use super::{case_id, io_err, Shard, StudyError, Vary};
-use crate::events::{Fanout, Observer};
-use crate::record::summary::{Summary, SummaryCollector};
-use crate::solver::SimError;
-use crate::{Scenario, Simulation};
+use crate::record::summary::Summary;
+use crate::run::AnyScenario;
 use serde::{Deserialize, Serialize};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -190,6 +188,10 @@ pub struct Metrics {
     /// The grasp of the first free body (empty columns without one): held, dropped, peak grip
     /// force per prong (N), minimum safety margin μ_s ΣN/(m g) during the lift, largest slip
     /// relative to the gripper (m), first stick → slip of a prong contact (s).
+    /// The grasp's verdict: `held`, `slipped`, `dropped` or `no_lift` (empty without a free
+    /// body).
+    #[serde(default)]
+    pub verdict: Option<String>,
     #[serde(default)]
     pub held: Option<bool>,
     #[serde(default)]
@@ -221,6 +223,10 @@ pub struct Metrics {
     #[serde(default)]
     pub bruise: usize,
     pub wall_time_s: f64,
+    /// 2 or 3 (0 in records written before it: planar). A 3D run does not measure the
+    /// impulse-consistent force, bending stress or first slip: their columns are empty.
+    #[serde(default)]
+    pub dimension: u8,
 }
 
 impl Metrics {
@@ -279,6 +285,11 @@ impl Metrics {
             warnings,
             spikes: 0,
             sticking: 0,
+            verdict: s.grasp.as_ref().and_then(|g| {
+                serde_json::to_value(g.verdict)
+                    .ok()
+                    .and_then(|v| v.as_str().map(String::from))
+            }),
             held: s.grasp.as_ref().map(|g| g.held),
             dropped: s.grasp.as_ref().map(|g| g.dropped),
             peak_grip_force_n: s.grasp.as_ref().map(|g| g.peak_grip_force_n),
@@ -293,6 +304,7 @@ impl Metrics {
             max_bruise_width_m: s.contact_pressure.as_ref().map(|p| p.max_bruise_width_m),
             bruise: 0,
             wall_time_s: s.wall_time_s,
+            dimension: s.dimension,
         }
     }
 }
@@ -349,7 +361,46 @@ pub const MAX_CASES: usize = 100_000;
 struct Base {
     text: String,
     file: String,
-    first: Scenario,
+    /// The folder a 3D scenario's mesh files are relative to.
+    dir: PathBuf,
+    /// The first case's rods (the manifest's per-prong columns).
+    rods: Vec<String>,
+}
+
+/// A case's scenario of either dimension with the text it runs (every assignment applied:
+/// what the case folder's `scenario.toml` holds and its hash is taken of).
+pub struct Loaded {
+    pub scenario: AnyScenario,
+    pub text: String,
+}
+
+/// Read `text` (named `file`; a 3D mesh's `file` relative to `dir`) with `sets` applied.
+pub fn load(
+    text: &str,
+    file: &str,
+    dir: &Path,
+    sets: &[String],
+) -> Result<Loaded, crate::scenario::ScenarioError> {
+    let scenario = AnyScenario::parse(text, file, dir, sets)?;
+    let text = match &scenario {
+        AnyScenario::Planar(s) => s.text.clone(),
+        AnyScenario::Spatial(_) if sets.is_empty() => text.to_string(),
+        AnyScenario::Spatial(_) => {
+            // As the 3D reader applies them (it read this text, so it parses and serialises).
+            let mut root: toml::Table = text.parse().unwrap_or_default();
+            crate::scenario::apply_sets(&mut root, sets, file)?;
+            toml::to_string(&root).unwrap_or_else(|_| text.to_string())
+        }
+    };
+    Ok(Loaded { scenario, text })
+}
+
+/// The rods' names of a scenario (3D: of the world it builds).
+pub(crate) fn rod_names(sc: &AnyScenario) -> Result<Vec<String>, String> {
+    Ok(match sc {
+        AnyScenario::Planar(s) => s.rods.iter().map(|r| r.name.clone()).collect(),
+        AnyScenario::Spatial(s) => crate::rod3d::run3::build(s)?.0.rod_names,
+    })
 }
 
 fn hash_text(text: &str) -> String {
@@ -394,13 +445,6 @@ fn build_cases(
     jobs: usize,
     text: String,
 ) -> Result<Option<(Base, Vec<Case>)>, StudyError> {
-    if crate::scenario::three::is_3d(&text) {
-        return Err(StudyError::Usage(format!(
-            "{}: a sweep is not yet available in 3D (dimension = 3): run each case with \
-             `gripsim run --set KEY=VALUE`",
-            opts.scenario.display()
-        )));
-    }
     if opts.vary.is_empty() {
         return Err(StudyError::Usage(
             "a sweep needs at least one --vary KEY=V1,V2,...".into(),
@@ -425,12 +469,13 @@ fn build_cases(
         }
     }
     let file = opts.scenario.display().to_string();
+    let dir = scenario_dir(&opts.scenario);
     let stopped = || opts.stop.as_ref().is_some_and(|s| s());
-    let check = |index: usize| -> Result<(Case, Scenario), StudyError> {
+    let check = |index: usize| -> Result<(Case, AnyScenario), StudyError> {
         let values = grid_values(&opts.vary, index);
         let mut sets = opts.sets.clone();
         sets.extend(keys.iter().zip(&values).map(|(k, v)| format!("{k}={v}")));
-        let scenario = Scenario::from_str(&text, &file, &sets).map_err(|e| {
+        let loaded = load(&text, &file, &dir, &sets).map_err(|e| {
             let what: Vec<String> = keys
                 .iter()
                 .zip(&values)
@@ -441,11 +486,11 @@ fn build_cases(
         let hash = match &opts.window {
             // The knob, range and tolerance are part of what a design's result depends on.
             Some(w) => {
-                w.check_design(&scenario)
+                w.check_design(&loaded.text, &file)
                     .map_err(|e| StudyError::Scenario(format!("case {index}: {e}")))?;
-                hash_text(&format!("{}\n# window {}", scenario.text, w.canonical()))
+                hash_text(&format!("{}\n# window {}", loaded.text, w.canonical()))
             }
-            None => hash_text(&scenario.text),
+            None => hash_text(&loaded.text),
         };
         let case = Case {
             index,
@@ -454,7 +499,7 @@ fn build_cases(
             values,
             sets,
         };
-        Ok((case, scenario))
+        Ok((case, loaded.scenario))
     };
     // The first case at once: a scenario that does not read fails before any waiting.
     let (first_case, first) = check(0)?;
@@ -550,7 +595,17 @@ fn build_cases(
             )));
         }
     }
-    Ok(Some((Base { text, file, first }, cases)))
+    let rods =
+        rod_names(&first).map_err(|e| StudyError::Scenario(format!("{file}: case 0: {e}")))?;
+    Ok(Some((
+        Base {
+            text,
+            file,
+            dir,
+            rods,
+        },
+        cases,
+    )))
 }
 
 pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(
@@ -685,43 +740,36 @@ impl CaseRun {
     }
 }
 
-/// Run `scenario` to its end (or until `stop` says so: then None).
+/// The folder a scenario's relative file names (a 3D mesh) are read from.
+pub(crate) fn scenario_dir(path: &Path) -> PathBuf {
+    path.parent().unwrap_or(Path::new(".")).to_path_buf()
+}
+
+/// Run `scenario` of either dimension (whose text, every assignment applied, is `text`) to
+/// its end through [`crate::run::run_with`], with the replay check's default rules (or until
+/// `stop` says so: then None). `Err`: a 3D world that cannot be built from the scenario.
 pub(crate) fn run_scenario(
-    scenario: &Scenario,
+    scenario: &AnyScenario,
+    text: &str,
     stop: Option<&Arc<dyn Fn() -> bool + Send + Sync>>,
     series: bool,
-) -> Option<CaseRun> {
-    let mut sim = Simulation::new(scenario);
-    if let Some(stop) = stop {
-        let stop = stop.clone();
-        sim.interrupt = Some(Box::new(move || stop()));
-    }
-    let mut collector = SummaryCollector::new();
+) -> Result<Option<CaseRun>, StudyError> {
     let mut trace = if series {
-        Trace::new(scenario)
+        Trace::of(scenario)
     } else {
-        Trace::counts_only(scenario)
+        Trace::counts_of(scenario)
     };
-    let mut detector = crate::replay::detect::DetectObserver::new(scenario, &Default::default());
-    let start = Instant::now();
-    let result = {
-        let mut fan = Fanout::new();
-        fan.push(&mut collector as &mut dyn Observer);
-        fan.push(&mut trace as &mut dyn Observer);
-        fan.push(&mut detector as &mut dyn Observer);
-        sim.run(&mut crate::record::accepted::AcceptedContacts::new(fan))
-    };
-    let found = detector.detector.finish().counts();
-    let wall = start.elapsed().as_secs_f64();
-    if matches!(result, Err(SimError::Interrupted { .. })) {
-        return None;
+    let th = crate::replay::detect::Thresholds::default();
+    let out = crate::run::run_with(scenario, text, &mut trace, stop.cloned(), Some(&th));
+    let out = out.map_err(|e| StudyError::Scenario(format!("{}: {e}", scenario.name())))?;
+    if out.error.as_ref().is_some_and(|e| e.interrupted()) {
+        return Ok(None);
     }
-    let summary = collector.finish(&sim.stats, wall);
-    Some(CaseRun {
-        summary,
+    Ok(Some(CaseRun {
+        summary: out.summary,
         trace,
-        found,
-    })
+        found: out.check.unwrap_or_default(),
+    }))
 }
 
 /// Whether a case carries something a person should look at: it stopped with an error, a
@@ -735,7 +783,7 @@ pub fn flagged(m: &Metrics) -> bool {
 /// deterministic: the same numbers), so unflagged cases cost what `--no-plots` costs.
 fn case_figures(
     case: &Case,
-    scenario: &Scenario,
+    scenario: &Loaded,
     run: &CaseRun,
     opts: &SweepOptions,
     keys: &[String],
@@ -758,7 +806,11 @@ fn case_figures(
     let series = if opts.case_plots == CasePlots::All {
         run
     } else {
-        again = run_scenario(scenario, opts.stop.as_ref(), true).ok_or(())?;
+        again = match run_scenario(&scenario.scenario, &scenario.text, opts.stop.as_ref(), true) {
+            Ok(Some(r)) => r,
+            Ok(None) => return Err(()),
+            Err(e) => return Ok(Some(e.to_string())),
+        };
         &again
     };
     Ok(plots::draw_case(&series.trace, &series.summary, &label.join(", "), dir).err())
@@ -774,7 +826,7 @@ fn run_case(
     inner_jobs: usize,
 ) -> Result<Outcome, StudyError> {
     // Read again (it was checked when the grid was built; only the hash was kept).
-    let scenario = Scenario::from_str(&base.text, &base.file, &case.sets)
+    let scenario = load(&base.text, &base.file, &base.dir, &case.sets)
         .map_err(|e| StudyError::Scenario(format!("case {}: {e}", case.index)))?;
     let tmp = cases_dir.join(format!(".tmp-{}", case.id));
     let _ = std::fs::remove_dir_all(&tmp);
@@ -789,6 +841,7 @@ fn run_case(
             let Some(result) = super::window::search(
                 &base.text,
                 &base.file,
+                &base.dir,
                 &case.sets,
                 w,
                 inner_jobs,
@@ -803,7 +856,13 @@ fn run_case(
         }
         None => {
             let series = opts.case_plots == CasePlots::All;
-            let Some(run) = run_scenario(&scenario, opts.stop.as_ref(), series) else {
+            let Some(run) = run_scenario(
+                &scenario.scenario,
+                &scenario.text,
+                opts.stop.as_ref(),
+                series,
+            )?
+            else {
                 return interrupted();
             };
             // On one line: the same JSON as `gripsim run --summary` writes, in a third less
@@ -923,8 +982,23 @@ fn case_line(rec: &CaseRecord, ran: usize, total: usize) -> (String, bool) {
     let Some(m) = &rec.metrics else {
         return (format!("[{ran}/{total}] {}", rec.id), false);
     };
+    // A 3D run has a grasp verdict where a planar one has its impulse-consistent force.
+    let second = if m.dimension == 3 {
+        m.verdict
+            .as_ref()
+            .map(|v| format!(", grasp {v}"))
+            .unwrap_or_default()
+    } else {
+        format!(
+            ", impulse-consistent {:.4} N{}",
+            m.peak_impulse_consistent_force_n,
+            m.peak_impulse_consistent_node
+                .map(|n| format!(" at node {n}"))
+                .unwrap_or_default()
+        )
+    };
     let line = format!(
-        "[{}/{}] {} {} in {:.2} s: peak eq. 2 (seed) {:.4} N{}, impulse-consistent {:.4} N{}{}{}",
+        "[{}/{}] {} {} in {:.2} s: peak eq. 2 (seed) {:.4} N{}{}{}{}",
         ran,
         total,
         rec.id,
@@ -934,10 +1008,7 @@ fn case_line(rec: &CaseRecord, ran: usize, total: usize) -> (String, bool) {
         m.peak_reaction_node
             .map(|n| format!(" at node {n}"))
             .unwrap_or_default(),
-        m.peak_impulse_consistent_force_n,
-        m.peak_impulse_consistent_node
-            .map(|n| format!(" at node {n}"))
-            .unwrap_or_default(),
+        second,
         if m.warnings > 0 {
             format!("; warning: {}", rec.warnings[0])
         } else {
@@ -980,7 +1051,7 @@ pub fn run_sweep(opts: &SweepOptions) -> Result<SweepReport, StudyError> {
         scenario: opts.scenario.display().to_string(),
         sets: opts.sets.clone(),
         vary: opts.vary.clone(),
-        rods: base.first.rods.iter().map(|r| r.name.clone()).collect(),
+        rods: base.rods.clone(),
         cases: cases
             .iter()
             .map(|c| CaseEntry {
@@ -1269,6 +1340,7 @@ fn csv_header(manifest: &Manifest) -> Vec<String> {
             "warnings",
             "spikes",
             "sticking",
+            "verdict",
             "held",
             "dropped",
             "peak_grip_force_n",
@@ -1304,6 +1376,14 @@ fn per_rod(manifest: &Manifest, m: &Metrics, values: &[f64], k: usize) -> Option
 fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     let multi = manifest.rods.len() > 1;
     let m = r.run_metrics();
+    // What a 3D run does not measure is an empty cell, not a 0.
+    let measured = |v: f64| {
+        if m.dimension == 3 {
+            String::new()
+        } else {
+            num(v)
+        }
+    };
     let mut row = vec![index.to_string(), r.id.clone()];
     row.extend(r.parameters.iter().map(|p| p.1.clone()));
     row.extend([
@@ -1318,7 +1398,7 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     row.extend([
         opt(&m.peak_reaction_node),
         m.peak_reaction_time_s.map(num).unwrap_or_default(),
-        num(m.peak_impulse_consistent_force_n),
+        measured(m.peak_impulse_consistent_force_n),
     ]);
     if multi {
         row.push(opt(&m.peak_impulse_consistent_rod));
@@ -1340,7 +1420,10 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
     if multi {
         row.push(opt(&m.first_contact_rod));
     }
-    row.extend([opt(&m.first_contact_node), num(m.max_bending_stress_pa)]);
+    row.extend([
+        opt(&m.first_contact_node),
+        measured(m.max_bending_stress_pa),
+    ]);
     if multi {
         row.push(opt(&m.max_bending_stress_rod));
     }
@@ -1356,6 +1439,7 @@ fn csv_row(manifest: &Manifest, index: usize, r: &CaseRecord) -> Vec<String> {
         m.warnings.to_string(),
         m.spikes.to_string(),
         m.sticking.to_string(),
+        opt(&m.verdict),
         opt(&m.held),
         opt(&m.dropped),
         m.peak_grip_force_n.map(num).unwrap_or_default(),
@@ -1412,12 +1496,12 @@ fn summary_md(manifest: &Manifest, records: &[&CaseRecord]) -> String {
     }
     s.push_str(
         " peak eq. 2 reaction (N) | node | peak impulse-consistent force (N) | node | most contact steps: node | \
-         contact onset (s) | first node | max bending stress (Pa) | node | max tip deflection (mm) | max penetration (m) | releases | warnings |\n|---|",
+         contact onset (s) | first node | max bending stress (Pa) | node | max tip deflection (mm) | max penetration (m) | releases | warnings | grasp |\n|---|",
     );
     for _ in &manifest.vary {
         s.push_str("---|");
     }
-    s.push_str("---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (i, r) in records.iter().enumerate() {
         let m = r.run_metrics();
         s.push_str(&format!("| {i} |"));
@@ -1429,11 +1513,19 @@ fn summary_md(manifest: &Manifest, records: &[&CaseRecord]) -> String {
             .iter()
             .cloned()
             .fold(0.0, f64::max);
+        // What a 3D run does not measure: "–", not 0.
+        let measured = |v: f64| {
+            if m.dimension == 3 {
+                "–".to_string()
+            } else {
+                fmt_g(v)
+            }
+        };
         s.push_str(&format!(
-            " {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            " {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             fmt_g(m.peak_reaction_n),
             node(&m.peak_reaction_rod, &m.peak_reaction_node),
-            fmt_g(m.peak_impulse_consistent_force_n),
+            measured(m.peak_impulse_consistent_force_n),
             node(
                 &m.peak_impulse_consistent_rod,
                 &m.peak_impulse_consistent_node
@@ -1450,7 +1542,7 @@ fn summary_md(manifest: &Manifest, records: &[&CaseRecord]) -> String {
                 .map(|t| format!("{t:.5}"))
                 .unwrap_or_else(|| "none".into()),
             node(&m.first_contact_rod, &m.first_contact_node),
-            fmt_g(m.max_bending_stress_pa),
+            measured(m.max_bending_stress_pa),
             node(&m.max_bending_stress_rod, &m.max_bending_stress_node),
             fmt_g(tip * 1e3),
             fmt_g(m.max_penetration_m),
@@ -1460,6 +1552,7 @@ fn summary_md(manifest: &Manifest, records: &[&CaseRecord]) -> String {
             } else {
                 format!("{} (stopped: {})", m.warnings, opt(&m.error))
             },
+            m.verdict.as_deref().unwrap_or("–"),
         ));
     }
     s

@@ -17,12 +17,16 @@
 //!    the bracket; a bracket that does not halve in two rounds is bisected. Both boundaries'
 //!    runs of a round run in parallel.
 //!
+//! A 3D scenario's grip target is the first squeeze move's `force` (`move.<j>.force`); see
+//! [`grip_target`]. Planar and 3D scenarios are read and run through [`crate::run`].
+//!
 //! A boundary is the verdict's side of its final bracket: g_hold is a value at which the fruit
 //! was held, and a value 1 + rtol below it was not.
 
 use super::sweep::{self, run_scenario, CaseRecord, Manifest};
 use super::{io_err, StudyError};
 use crate::actuation::{Movement, VectorLaw};
+use crate::run::AnyScenario;
 use crate::Scenario;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -69,9 +73,10 @@ impl Resolved {
         )
     }
 
-    /// The knob in a design: present and a number (a design may not drop it).
-    pub fn check_design(&self, sc: &Scenario) -> Result<(), StudyError> {
-        knob_value(sc, &self.knob).map(|_| ())
+    /// The knob in a design (its scenario `text`, every assignment applied, read from
+    /// `file`): present and a number (a design may not drop it).
+    pub fn check_design(&self, text: &str, file: &str) -> Result<(), StudyError> {
+        knob_value(text, file, &self.knob).map(|_| ())
     }
 
     /// A value with the knob's unit: "1.8 N".
@@ -160,9 +165,29 @@ pub fn parse_rtol(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The squeeze's grip target: the first phase (actuators in order, then phases) whose end has
-/// `grip_force` or `grip_torque`: (key, description, unit).
-fn grip_target(sc: &Scenario) -> Option<(String, String, String)> {
+/// The squeeze's grip target of a scenario of either dimension: (key, description, unit).
+/// Planar: the first phase (actuators in order, then phases) whose end has `grip_force` or
+/// `grip_torque`; 3D: the `force` of the first `[[move]] kind = "squeeze"`.
+pub fn grip_target(sc: &AnyScenario) -> Option<(String, String, String)> {
+    match sc {
+        AnyScenario::Planar(sc) => grip_target2(sc),
+        AnyScenario::Spatial(sc) => {
+            let j = sc
+                .moves
+                .iter()
+                .position(|m| matches!(m, crate::rod3d::gripper::Move3::Squeeze { .. }))?;
+            Some((
+                format!("move.{j}.force"),
+                format!(
+                    "the force of squeeze move {j}: the grip target each prong's sensor squeezes to"
+                ),
+                "N".to_string(),
+            ))
+        }
+    }
+}
+
+fn grip_target2(sc: &Scenario) -> Option<(String, String, String)> {
     for (i, a) in sc.actuators.iter().enumerate() {
         for (j, ph) in a.program.phases.iter().enumerate() {
             let (name, unit) = if ph.end.grip_force.is_some() {
@@ -201,16 +226,15 @@ pub fn unit_of(key: &str) -> String {
     .to_string()
 }
 
-/// The number at `key` in the scenario's text (its `--set` assignments applied).
-fn knob_value(sc: &Scenario, key: &str) -> Result<f64, StudyError> {
+/// The number at `key` in the scenario's text (its `--set` assignments applied), read from
+/// `file`.
+fn knob_value(text: &str, file: &str, key: &str) -> Result<f64, StudyError> {
     let not_in = |why: String| {
         StudyError::Usage(format!(
-            "{}: --knob {key}: {why} (the knob is a numeric key of the scenario, in the --set grammar, e.g. friction.pair.0.mu_s or actuator.0.phase.0.end.grip_force)",
-            sc.file
+            "{file}: --knob {key}: {why} (the knob is a numeric key of the scenario, in the --set grammar, e.g. friction.pair.0.mu_s or actuator.0.phase.0.end.grip_force)"
         ))
     };
-    let root: toml::Table = sc
-        .text
+    let root: toml::Table = text
         .parse()
         .map_err(|e| not_in(format!("the scenario does not read back: {e}")))?;
     let mut cur = toml::Value::Table(root);
@@ -239,33 +263,40 @@ fn knob_value(sc: &Scenario, key: &str) -> Result<f64, StudyError> {
         toml::Value::Float(v) if v.is_finite() => Ok(v),
         toml::Value::Integer(v) => Ok(v as f64),
         other => Err(StudyError::Usage(format!(
-            "{}: --knob {key} = {}: not a number (the knob must be a numeric key)",
-            sc.file,
+            "{file}: --knob {key} = {}: not a number (the knob must be a numeric key)",
             crate::scenario::reader::show(&other)
         ))),
     }
 }
 
-/// Resolve `spec` against a scenario (read with its `--set` assignments): the knob, its
-/// value, the range and the tolerance, each checked; the scenario must read at both ends.
-pub fn resolve(sc: &Scenario, spec: &WindowSpec) -> Result<Resolved, StudyError> {
+/// Resolve `spec` against a scenario of either dimension (`sc.text` with every `--set`
+/// assignment applied; its files relative to `dir`): the knob, its value, the range and the
+/// tolerance, each checked; the scenario must read at both ends.
+pub fn resolve(
+    sc: &sweep::Loaded,
+    file: &str,
+    dir: &Path,
+    spec: &WindowSpec,
+) -> Result<Resolved, StudyError> {
     let (knob, what, unit) = match &spec.knob {
         Some(k) => (k.clone(), format!("--knob {k}"), unit_of(k)),
-        None => grip_target(sc).ok_or_else(|| {
+        None => grip_target(&sc.scenario).ok_or_else(|| {
+            let none = match sc.scenario {
+                AnyScenario::Planar(_) => "no phase of an [[actuator]] ends on grip_force or grip_torque",
+                AnyScenario::Spatial(_) => "no [[move]] is a squeeze (kind = \"squeeze\", force = …)",
+            };
             StudyError::Usage(format!(
-                "{}: no phase of an [[actuator]] ends on grip_force or grip_torque, so there is no grip target to vary: name the knob with --knob KEY (a numeric scenario key, e.g. --knob friction.pair.0.mu_s)",
-                sc.file
+                "{file}: {none}, so there is no grip target to vary: name the knob with --knob KEY (a numeric scenario key, e.g. --knob friction.pair.0.mu_s)"
             ))
         })?,
     };
-    let value = knob_value(sc, &knob)?;
+    let value = knob_value(&sc.text, file, &knob)?;
     let (lo, hi, range_given) = match spec.range {
         Some((lo, hi)) => (lo, hi, true),
         None if value > 0.0 => (value / 8.0, value * 8.0, false),
         None => {
             return Err(StudyError::Usage(format!(
-                "{}: --knob {knob} is {value} in the scenario: the default range (value/8 to value*8) needs a value > 0; give --range LO:HI",
-                sc.file
+                "{file}: --knob {knob} is {value} in the scenario: the default range (value/8 to value*8) needs a value > 0; give --range LO:HI"
             )))
         }
     };
@@ -275,7 +306,7 @@ pub fn resolve(sc: &Scenario, spec: &WindowSpec) -> Result<Resolved, StudyError>
     }
     for v in [lo, hi] {
         let set = format!("{knob}={}", set_text(v));
-        Scenario::from_str(&sc.text, &sc.file, std::slice::from_ref(&set)).map_err(|e| {
+        sweep::load(&sc.text, file, dir, std::slice::from_ref(&set)).map_err(|e| {
             let range = if range_given {
                 "--range".to_string()
             } else {
@@ -300,6 +331,15 @@ pub fn resolve(sc: &Scenario, spec: &WindowSpec) -> Result<Resolved, StudyError>
         range_given,
         rtol: spec.rtol,
     })
+}
+
+/// The largest upward acceleration (m/s², against gravity) the hand imposes after its squeeze:
+/// the lift's. 0 without gravity, and 0 in 3D (a 3D `lift` moves at constant speed).
+pub fn lift_acceleration_any(sc: &AnyScenario) -> f64 {
+    match sc {
+        AnyScenario::Planar(sc) => lift_acceleration(sc),
+        AnyScenario::Spatial(_) => 0.0,
+    }
 }
 
 /// The largest upward acceleration (m/s², against gravity) the grippers' programs impose
@@ -790,6 +830,7 @@ type Outcome = Result<Option<Eval>, StudyError>;
 struct Ctx<'a> {
     text: &'a str,
     file: &'a str,
+    dir: &'a Path,
     sets: &'a [String],
     knob: &'a str,
     stop: Option<&'a Stop>,
@@ -799,9 +840,9 @@ impl Ctx<'_> {
     fn run(&self, v: f64) -> Result<Option<Eval>, StudyError> {
         let mut sets = self.sets.to_vec();
         sets.push(format!("{}={}", self.knob, set_text(v)));
-        let sc = Scenario::from_str(self.text, self.file, &sets)
+        let sc = sweep::load(self.text, self.file, self.dir, &sets)
             .map_err(|e| StudyError::Scenario(format!("{}={}: {e}", self.knob, set_text(v))))?;
-        Ok(run_scenario(&sc, self.stop, false).map(|r| Eval::of(v, &r)))
+        Ok(run_scenario(&sc.scenario, &sc.text, self.stop, false)?.map(|r| Eval::of(v, &r)))
     }
 
     /// Run the values on up to `jobs` threads; None when stopped.
@@ -853,25 +894,49 @@ pub type Progress<'a> = dyn Fn(&Eval) + Sync + 'a;
 /// The most runs one search does (a safeguard; a search to rtol 1e-6 needs far fewer).
 const MAX_RUNS: usize = 200;
 
-/// Search the window of the scenario `text` (read from `file`) with `sets` applied. None
-/// when `stop` interrupted it.
+/// What a window needs of a scenario of either dimension: whether it has a free fruit (a
+/// hold boundary), a compliant one (a bruise boundary), and its gravity's magnitude.
+fn fruit_of(sc: &AnyScenario) -> (bool, bool, f64) {
+    match sc {
+        AnyScenario::Planar(sc) => (
+            !sc.bodies.is_empty(),
+            sc.materials.iter().any(Option::is_some),
+            sc.solve.gravity[0].hypot(sc.solve.gravity[1]),
+        ),
+        AnyScenario::Spatial(sc) => {
+            let f = sc.fruit.as_ref();
+            let g = sc.gravity;
+            (
+                f.is_some_and(|f| f.free),
+                f.is_some_and(|f| f.material.is_some()),
+                (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt(),
+            )
+        }
+    }
+}
+
+/// Search the window of the scenario `text` (read from `file`; a 3D mesh relative to `dir`)
+/// with `sets` applied. None when `stop` interrupted it.
+#[allow(clippy::too_many_arguments)]
 pub fn search(
     text: &str,
     file: &str,
+    dir: &Path,
     sets: &[String],
     r: &Resolved,
     jobs: usize,
     stop: Option<&Stop>,
     progress: Option<&Progress<'_>>,
 ) -> Result<Option<WindowResult>, StudyError> {
-    let sc =
-        Scenario::from_str(text, file, sets).map_err(|e| StudyError::Scenario(e.to_string()))?;
-    let g = sc.solve.gravity[0].hypot(sc.solve.gravity[1]);
-    let lift = lift_acceleration(&sc);
+    let sc = AnyScenario::parse(text, file, dir, sets)
+        .map_err(|e| StudyError::Scenario(e.to_string()))?;
+    let (free, compliant, g) = fruit_of(&sc);
+    let lift = lift_acceleration_any(&sc);
     let margin_needed = if g > 0.0 { 1.0 + lift / g } else { 1.0 };
     let ctx = Ctx {
         text,
         file,
+        dir,
         sets,
         knob: &r.knob,
         stop,
@@ -879,10 +944,10 @@ pub fn search(
     let tau = (1.0 + r.rtol).ln();
     let mut runs = Runs { order: Vec::new() };
     let mut tracks = Vec::new();
-    if !sc.bodies.is_empty() {
+    if free {
         tracks.push(new_track(Which::Hold, margin_needed.ln()));
     }
-    if sc.materials.iter().any(Option::is_some) {
+    if compliant {
         tracks.push(new_track(Which::Bruise, 0.0));
     }
     let mut next = coarse_grid(r);
@@ -904,7 +969,8 @@ pub fn search(
         }
         next.sort_by(f64::total_cmp);
     }
-    Ok(Some(result(&sc, r, lift, margin_needed, runs.order, tau)))
+    let fruit = (file, free, compliant);
+    Ok(Some(result(fruit, r, lift, margin_needed, runs.order, tau)))
 }
 
 fn new_track(which: Which, threshold: f64) -> Track {
@@ -1062,8 +1128,9 @@ fn word(which: Which, yes: bool) -> &'static str {
     }
 }
 
+/// `(file, free, compliant)`: the scenario's file, and whether its fruit is free and compliant.
 fn result(
-    sc: &Scenario,
+    (file, free, compliant): (&str, bool, bool),
     r: &Resolved,
     lift: f64,
     margin_needed: f64,
@@ -1072,18 +1139,12 @@ fn result(
 ) -> WindowResult {
     let runs = Runs { order };
     let pts = runs.sorted();
-    let hold = boundary(Which::Hold, !sc.bodies.is_empty(), &pts, r, tau);
-    let bruise = boundary(
-        Which::Bruise,
-        sc.materials.iter().any(Option::is_some),
-        &pts,
-        r,
-        tau,
-    );
+    let hold = boundary(Which::Hold, free, &pts, r, tau);
+    let bruise = boundary(Which::Bruise, compliant, &pts, r, tau);
     let (ratio, at_least) = ratio(&hold, &bruise, r);
     let headline = headline(&hold, &bruise, ratio, at_least, r);
     WindowResult {
-        scenario: sc.file.clone(),
+        scenario: file.to_string(),
         knob: r.clone(),
         lift_acceleration_m_s2: lift,
         margin_needed,
@@ -1299,15 +1360,20 @@ pub struct WindowOptions {
     pub stop: Option<Stop>,
 }
 
-/// Read the scenario (with `sets`) and resolve the spec against it.
+/// Read the scenario of either dimension (with `sets`) and resolve the spec against it.
 pub fn resolve_file(
     path: &Path,
     sets: &[String],
     spec: &WindowSpec,
-) -> Result<(Scenario, Resolved), StudyError> {
-    let sc = Scenario::load(path, sets).map_err(|e| StudyError::Scenario(e.to_string()))?;
-    let r = resolve(&sc, spec)?;
-    Ok((sc, r))
+) -> Result<(AnyScenario, Resolved), StudyError> {
+    let text =
+        crate::scenario::input::read_text(path).map_err(|e| StudyError::Scenario(e.to_string()))?;
+    let file = path.display().to_string();
+    let dir = sweep::scenario_dir(path);
+    let sc =
+        sweep::load(&text, &file, &dir, sets).map_err(|e| StudyError::Scenario(e.to_string()))?;
+    let r = resolve(&sc, &file, &dir, spec)?;
+    Ok((sc.scenario, r))
 }
 
 /// One window search of a scenario file (None when stopped).
@@ -1329,6 +1395,7 @@ pub fn run_window(
     search(
         &text,
         &opts.scenario.display().to_string(),
+        &sweep::scenario_dir(&opts.scenario),
         &opts.sets,
         &r,
         jobs,

@@ -155,30 +155,15 @@ fn a_dimension_of_another_type_says_so() {
     }
 }
 
-/// Item 18: what 3D does not have yet is refused as such, with nothing written.
+/// Item 18: what 3D does not have yet is refused as such, with nothing written. (A sweep
+/// runs 3D files: tests/suite/study3d.rs.)
 #[test]
-fn sweep_and_perturb_on_a_3d_file_are_not_yet_available() {
+fn perturb_on_a_3d_file_is_not_yet_available() {
     refused(
         &["run", "--perturb", "--csv", "o.csv"],
         &[],
         &["--perturb", "not yet available in 3D"],
     );
-    let d = tempfile::tempdir().unwrap();
-    let s = base(d.path());
-    let out = gripsim()
-        .args(["sweep", "--vary", "prong.E=1e6,2e6", "--out"])
-        .arg(d.path().join("study"))
-        .arg(&s)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
-    assert!(err.contains("not yet available in 3D"), "{err}");
-    assert!(
-        !err.contains("2D vector") && !err.contains("t_end"),
-        "{err}"
-    );
-    assert!(!d.path().join("study").exists());
 }
 
 /// A closed bipyramid of `2 n` triangles (counter-clockwise from outside), 2 cm across.

@@ -41,6 +41,7 @@ mod rrd_view;
 mod run_api;
 mod static_contact;
 mod stepping;
+mod study3d;
 mod summary_schema;
 mod sweep;
 mod verification;
