@@ -386,6 +386,7 @@ impl Scenario3 {
         let step_tol = solve.opt_positive("step_tol")?.unwrap_or(1e-12);
         let max_newton_iterations = super::positive_int(&solve, "max_newton_iterations", 40)?;
         let integrator = super::parse_integrator(&solve)?;
+        refuse_adaptive(&solve)?;
         solve.finish()?;
         let (prong, clamped_edges, damping_time) = parse_prong(&top.table("prong", PRONG)?)?;
         let (fingers, radius, centre, sensor_tau) = parse_gripper(&top)?;
@@ -1041,4 +1042,32 @@ fn parse_moves(top: &TableReader<'_>) -> Result<Vec<Move3>, ScenarioError> {
         ));
     }
     Ok(out)
+}
+
+/// The planar step-size keys: a 3D run takes fixed steps, so each is refused by name (not
+/// accepted and ignored).
+fn refuse_adaptive(solve: &TableReader<'_>) -> Result<(), ScenarioError> {
+    const KEYS: [&str; 8] = [
+        "stepping",
+        "rtol",
+        "atol",
+        "dt_min",
+        "dt_max",
+        "time_of_impact",
+        "dt_near",
+        "near_distance",
+    ];
+    for key in KEYS {
+        if solve.has(key) {
+            return Err(solve.err_hint(
+                key,
+                solve.get(key),
+                "a 3D run takes fixed steps: adaptive stepping and time of impact are planar \
+                 only",
+                "remove the key; [solve] dt is the 3D step (integrator = \"bdf2\" or \
+                 \"tr_bdf2\" for second order)",
+            ));
+        }
+    }
+    Ok(())
 }

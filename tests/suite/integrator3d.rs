@@ -195,3 +195,43 @@ fn the_3d_lift_is_held_under_every_integrator() {
         assert!((margin - 4.02).abs() < 0.1, "{integrator}: margin {margin}");
     }
 }
+
+#[test]
+fn a_3d_file_refuses_the_planar_step_size_keys_by_name() {
+    let cases = [
+        (
+            "solve.stepping=\"adaptive\"",
+            "solve.stepping",
+            "fixed steps",
+        ),
+        ("solve.rtol=1e-3", "solve.rtol", "fixed steps"),
+        (
+            "solve.time_of_impact=true",
+            "solve.time_of_impact",
+            "fixed steps",
+        ),
+        ("solve.dt_max=1e-3", "solve.dt_max", "fixed steps"),
+        (
+            "solve.integrator=\"bdf3\"",
+            "solve.integrator",
+            "did you mean \"bdf2\"",
+        ),
+    ];
+    for (set, key, says) in cases {
+        let d = tempfile::tempdir().unwrap();
+        let json = d.path().join("s.json");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_gripsim"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["run", "scenarios/3d-lift.toml", "--no-record", "--summary"])
+            .arg(&json)
+            .args(["--set", set])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{set}: {err}");
+        assert!(err.contains("scenarios/3d-lift.toml"), "{err}");
+        assert!(err.contains(&format!("key `{key}`")), "{err}");
+        assert!(err.contains(says), "{err}");
+        assert!(!json.exists(), "{set}: nothing written");
+    }
+}
