@@ -1,5 +1,6 @@
 //! A 3D world: rods (prongs), fixed obstacles and free bodies (fruit), stepped together by
-//! implicit Euler + Newton with the modified mass method for contact ([`super::contact3`]).
+//! implicit Euler (or BDF2 / TR-BDF2, [`bdf3`]) + Newton with the modified mass method for
+//! contact ([`super::contact3`]).
 //!
 //! One step, in the order it happens: carried contacts are re-linearised at the start of the
 //! step; the predictor solves with them; detection adds the nodes that ended inside a surface
