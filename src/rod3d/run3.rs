@@ -516,6 +516,7 @@ pub fn build(sc: &Scenario3) -> Result<(World3, Gripper3), String> {
     w.force_tol = sc.force_tol;
     w.step_tol = sc.step_tol;
     w.max_iterations = sc.max_newton_iterations;
+    w.integrator = sc.integrator;
     let mut g = radial(
         &mut w,
         &sc.prong,

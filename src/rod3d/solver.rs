@@ -446,6 +446,26 @@ pub fn damping_into<S: BandSink>(
     dt: f64,
     tau: f64,
     grad: &mut [f64],
+    band: Option<&mut S>,
+    fixed: &[bool],
+) -> f64 {
+    let rate = |k: usize| (q[k] - q_prev[k], dt);
+    damping_rates_into(rod, frames, q, &rate, tau, grad, band, fixed)
+}
+
+/// [`damping_into`] with the velocity of every DOF given by `rate`: `rate(k)` = (d, b) with
+/// v_k = d / b (backward Euler: (q − q_prev, dt); a second-order integrator's row:
+/// (q − e, β), src/rod3d/world/bdf3.rs). The Jacobian of an element whose DOFs have
+/// different b takes √(b_a b_c) for the pair (a, c): symmetric, positive semi-definite, exact
+/// when they agree; Newton converges to the same step either way.
+#[allow(clippy::too_many_arguments)]
+pub fn damping_rates_into<S: BandSink>(
+    rod: &Rod3,
+    frames: &[EdgeFrame],
+    q: &[f64],
+    rate: &impl Fn(usize) -> (f64, f64),
+    tau: f64,
+    grad: &mut [f64],
     mut band: Option<&mut S>,
     fixed: &[bool],
 ) -> f64 {
@@ -468,7 +488,7 @@ pub fn damping_into<S: BandSink>(
             h7.iter_mut().for_each(|r| r.fill(0.0));
         }
         let tau_k = tau * rod.ea * rest;
-        power += viscous(&g, a, q, q_prev, dt, tau_k, &mut f7, jac.then_some(&mut h7));
+        power += viscous(&g, a, rate, tau_k, &mut f7, jac.then_some(&mut h7));
         scatter(a, &f7, &h7, grad, band.as_deref_mut(), &free);
     }
     let (mut f11, mut h11) = ([0.0; 11], [[0.0; 11]; 11]);
@@ -484,36 +504,42 @@ pub fn damping_into<S: BandSink>(
         }
         for (g, k) in gs.iter().zip([p.ei1, p.ei2, p.gj]) {
             let h = jac.then_some(&mut h11);
-            power += viscous(g, base, q, q_prev, dt, tau * k, &mut f11, h);
+            power += viscous(g, base, rate, tau * k, &mut f11, h);
         }
         scatter(base, &f11, &h11, grad, band.as_deref_mut(), &free);
     }
     power
 }
 
-/// Add one element's viscous force τk ṡ g (ṡ = g·v over the DOFs `base ..`) to `f` and with
-/// `h` its Jacobian τk g gᵀ/dt. Returns the power τk ṡ².
-#[allow(clippy::too_many_arguments)]
+/// Add one element's viscous force τk ṡ g (ṡ = g·v over the DOFs `base ..`, v from `vel`)
+/// to `f` and with `h` its Jacobian τk g gᵀ/b. Returns the power τk ṡ².
 fn viscous<const N: usize>(
     g: &[f64; N],
     base: usize,
-    q: &[f64],
-    q_prev: &[f64],
-    dt: f64,
+    vel: &impl Fn(usize) -> (f64, f64),
     tau_k: f64,
     f: &mut [f64; N],
     h: Option<&mut [[f64; N]; N]>,
 ) -> f64 {
     let rate: f64 = (0..N)
-        .map(|a| g[a] * (q[base + a] - q_prev[base + a]) / dt)
+        .map(|a| {
+            let (d, b) = vel(base + a);
+            g[a] * d / b
+        })
         .sum();
     for a in 0..N {
         f[a] += tau_k * rate * g[a];
     }
     if let Some(h) = h {
+        let bs: [f64; N] = std::array::from_fn(|a| vel(base + a).1);
         for a in 0..N {
             for c in 0..N {
-                h[a][c] += tau_k * g[a] * g[c] / dt;
+                let b = if bs[a] == bs[c] {
+                    bs[a]
+                } else {
+                    (bs[a] * bs[c]).sqrt()
+                };
+                h[a][c] += tau_k * g[a] * g[c] / b;
             }
         }
     }

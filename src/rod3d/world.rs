@@ -1,5 +1,6 @@
 //! A 3D world: rods (prongs), fixed obstacles and free bodies (fruit), stepped together by
-//! implicit Euler + Newton with the modified mass method for contact ([`super::contact3`]).
+//! implicit Euler (or BDF2 / TR-BDF2, [`bdf3`]) + Newton with the modified mass method for
+//! contact ([`super::contact3`]).
 //!
 //! One step, in the order it happens: carried contacts are re-linearised at the start of the
 //! step; the predictor solves with them; detection adds the nodes that ended inside a surface
@@ -71,6 +72,8 @@ struct Work3 {
     edge_released: Vec<(usize, Surface3)>,
     /// The pairs among them released because their normal force pulled.
     edge_pulled: Vec<(usize, Surface3)>,
+    /// The second-order integrators' history and rows ([`bdf3`]).
+    bdf: bdf3::Bdf3,
 }
 
 pub struct World3 {
@@ -104,6 +107,8 @@ pub struct World3 {
     pub force_tol: f64,
     pub step_tol: f64,
     pub max_iterations: u32,
+    /// The time integrator (`[solve] integrator`; default backward Euler).
+    pub integrator: crate::scenario::Integrator,
     pub time: f64,
     pub steps: u64,
     work: Vec<Work3>,
@@ -158,6 +163,7 @@ impl World3 {
             force_tol: 1e-9,
             step_tol: 1e-12,
             max_iterations: 40,
+            integrator: crate::scenario::Integrator::BackwardEuler,
             time: 0.0,
             steps: 0,
             work: Vec::new(),
@@ -190,6 +196,7 @@ impl World3 {
             released: vec![false; n],
             edge_released: Vec::new(),
             edge_pulled: Vec::new(),
+            bdf: bdf3::Bdf3::new(nd, n),
         });
         self.rods.push(sim);
         self.rod_names.push(name.to_string());
@@ -369,8 +376,22 @@ impl World3 {
         self.relinearise_edges();
     }
 
-    /// One implicit Euler step of size dt. Fixed DOFs end the step on their targets.
+    /// One step of size dt with the world's integrator ([`bdf3`]; backward Euler by
+    /// default). Fixed DOFs end the step on their targets.
     pub fn step(&mut self, dt: f64) -> Result<StepReport3, Solve3Error> {
+        use crate::scenario::Integrator;
+        let rep = match self.integrator {
+            Integrator::BackwardEuler => self.stage(dt, Stage3::Euler)?,
+            Integrator::Bdf2 => self.stage(dt, Stage3::Bdf2)?,
+            Integrator::TrBdf2 => self.tr_bdf2(dt)?,
+        };
+        self.steps += 1;
+        Ok(rep)
+    }
+
+    /// One implicit stage of size dt (a whole step but for TR-BDF2), its rows of `kind`.
+    fn stage(&mut self, dt: f64, kind: Stage3) -> Result<StepReport3, Solve3Error> {
+        self.bdf_begin(kind, dt);
         let g = self.gravity;
         for (sim, w) in self.rods.iter_mut().zip(&mut self.work) {
             sim.gravity = [g.x, g.y, g.z];
@@ -420,9 +441,12 @@ impl World3 {
     }
 
     fn accept(&mut self, dt: f64) {
+        let second = self.bdf_accept();
         for (sim, w) in self.rods.iter_mut().zip(&self.work) {
-            for k in 0..sim.q.len() {
-                sim.v[k] = (w.qn[k] - sim.q[k]) / dt;
+            if !second {
+                for k in 0..sim.q.len() {
+                    sim.v[k] = (w.qn[k] - sim.q[k]) / dt;
+                }
             }
             sim.q.copy_from_slice(&w.qn);
             sim.advance_frames();
@@ -432,10 +456,11 @@ impl World3 {
             b.finish(dt);
         }
         self.time += dt;
-        self.steps += 1;
     }
 }
 
+mod bdf3;
+use bdf3::Stage3;
 mod compliant3;
 mod edges3;
 mod newton3;

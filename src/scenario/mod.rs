@@ -846,24 +846,7 @@ fn parse_solve(s: &TableReader) -> Result<Solve, ScenarioError> {
         ));
     }
     let time_of_impact = s.opt_bool("time_of_impact")?.unwrap_or(false);
-    let integrator = match s.opt_str("integrator")?.unwrap_or("backward_euler") {
-        "backward_euler" => Integrator::BackwardEuler,
-        "bdf2" => Integrator::Bdf2,
-        "tr_bdf2" => Integrator::TrBdf2,
-        other => {
-            let names = ["backward_euler", "bdf2", "tr_bdf2"];
-            let hint = match reader::did_you_mean(other, &names) {
-                Some(m) => format!("did you mean \"{m}\"?"),
-                None => "use \"backward_euler\", \"bdf2\" or \"tr_bdf2\"".into(),
-            };
-            return Err(s.err_hint(
-                "integrator",
-                s.get("integrator"),
-                format!("unknown integrator {other:?}"),
-                hint,
-            ));
-        }
-    };
+    let integrator = parse_integrator(s)?;
     let gravity = s.opt_vec2("gravity")?.unwrap_or([0.0, -9.81]);
     check_magnitude(s, "gravity", &gravity, MAX_ACCELERATION, "m/s²")?;
     let force_tol = s.opt_positive("force_tol")?.unwrap_or(1e-9);
@@ -1399,5 +1382,27 @@ fn parse_particle(r: &TableReader, mode: Mode) -> Result<RodSpec, ScenarioError>
         nu: 0.5,
         damping_time: 0.0,
         source: r.key_path("").trim_end_matches('.').to_string(),
+    })
+}
+
+/// `[solve] integrator` (both dimensions): "backward_euler" (default), "bdf2" or "tr_bdf2".
+pub(crate) fn parse_integrator(s: &TableReader) -> Result<Integrator, ScenarioError> {
+    Ok(match s.opt_str("integrator")?.unwrap_or("backward_euler") {
+        "backward_euler" => Integrator::BackwardEuler,
+        "bdf2" => Integrator::Bdf2,
+        "tr_bdf2" => Integrator::TrBdf2,
+        other => {
+            let names = ["backward_euler", "bdf2", "tr_bdf2"];
+            let hint = match reader::did_you_mean(other, &names) {
+                Some(m) => format!("did you mean \"{m}\"?"),
+                None => "use \"backward_euler\", \"bdf2\" or \"tr_bdf2\"".into(),
+            };
+            return Err(s.err_hint(
+                "integrator",
+                s.get("integrator"),
+                format!("unknown integrator {other:?}"),
+                hint,
+            ));
+        }
     })
 }

@@ -11,6 +11,7 @@
 //! dt = 2e-4
 //! t_end = 0.2                      # optional: default, when the moves end
 //! gravity = [0.0, 0.0, -9.81]
+//! integrator = "backward_euler"    # optional: or "bdf2", "tr_bdf2" (fixed dt)
 //! [prong]                          # in the finger frame: hanging along −z, closing along +x
 //! nodes = 10
 //! shape = { kind = "parabola", a = 0.8, length = 0.1 }   # x = −a (length − s)², z = −s
@@ -85,6 +86,7 @@ const SOLVE: &[&str] = &[
     "force_tol",
     "step_tol",
     "max_newton_iterations",
+    "integrator",
 ];
 const PRONG: &[&str] = &[
     "nodes",
@@ -164,6 +166,8 @@ pub struct Scenario3 {
     pub force_tol: f64,
     pub step_tol: f64,
     pub max_newton_iterations: u32,
+    /// `[solve] integrator` (the planar key and values; src/rod3d/world/bdf3.rs).
+    pub integrator: super::Integrator,
     /// The prong in its finger frame.
     pub prong: Rod3Spec,
     pub clamped_edges: usize,
@@ -381,6 +385,8 @@ impl Scenario3 {
         let force_tol = solve.opt_positive("force_tol")?.unwrap_or(1e-9);
         let step_tol = solve.opt_positive("step_tol")?.unwrap_or(1e-12);
         let max_newton_iterations = super::positive_int(&solve, "max_newton_iterations", 40)?;
+        let integrator = super::parse_integrator(&solve)?;
+        refuse_adaptive(&solve)?;
         solve.finish()?;
         let (prong, clamped_edges, damping_time) = parse_prong(&top.table("prong", PRONG)?)?;
         let (fingers, radius, centre, sensor_tau) = parse_gripper(&top)?;
@@ -418,6 +424,7 @@ impl Scenario3 {
             force_tol,
             step_tol,
             max_newton_iterations,
+            integrator,
             prong,
             clamped_edges,
             damping_time,
@@ -1035,4 +1042,32 @@ fn parse_moves(top: &TableReader<'_>) -> Result<Vec<Move3>, ScenarioError> {
         ));
     }
     Ok(out)
+}
+
+/// The planar step-size keys: a 3D run takes fixed steps, so each is refused by name (not
+/// accepted and ignored).
+fn refuse_adaptive(solve: &TableReader<'_>) -> Result<(), ScenarioError> {
+    const KEYS: [&str; 8] = [
+        "stepping",
+        "rtol",
+        "atol",
+        "dt_min",
+        "dt_max",
+        "time_of_impact",
+        "dt_near",
+        "near_distance",
+    ];
+    for key in KEYS {
+        if solve.has(key) {
+            return Err(solve.err_hint(
+                key,
+                solve.get(key),
+                "a 3D run takes fixed steps: adaptive stepping and time of impact are planar \
+                 only",
+                "remove the key; [solve] dt is the 3D step (integrator = \"bdf2\" or \
+                 \"tr_bdf2\" for second order)",
+            ));
+        }
+    }
+    Ok(())
 }

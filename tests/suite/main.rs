@@ -25,6 +25,7 @@ mod fruit_records;
 mod grasp3d;
 mod hostile3d;
 mod integrator;
+mod integrator3d;
 mod joints;
 mod joints_bodies;
 mod no_data_loss;

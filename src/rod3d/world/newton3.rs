@@ -1,7 +1,7 @@
 //! Newton on every rod and body of the world at once, with the current contact sets.
 
 use super::*;
-use crate::rod3d::solver::{assemble_into, damping_into};
+use crate::rod3d::solver::{assemble_into, damping_into, damping_rates_into};
 use crate::rod3d::symband::BandSink;
 use crate::rod3d::system::band_range;
 
@@ -58,6 +58,7 @@ impl World3 {
         fb: &mut DVector<f64>,
         jac: bool,
     ) -> f64 {
+        self.bdf_rows(r);
         let w = &mut self.work[r];
         let contacts = &self.contacts[r];
         inertia_and_elasticity(&self.rods[r], w, dt, jac);
@@ -226,9 +227,22 @@ fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, jac: bool) {
     } else {
         None
     };
-    let (rod, f, b) = (&sim.rod, &sim.frames, &sim.ref_twist);
+    if w.bdf.active() {
+        w.bdf.frames_at(sim, &w.qn);
+    }
+    let (rod, f, b) = if w.bdf.active() {
+        (&sim.rod, &w.bdf.frames[..], &w.bdf.ref_twist[..])
+    } else {
+        (&sim.rod, &sim.frames[..], &sim.ref_twist[..])
+    };
     assemble_into(rod, f, b, &w.qn, &mut w.grad, band, &sim.fixed);
-    if sim.damping_time > 0.0 {
+    if sim.damping_time > 0.0 && w.bdf.active() {
+        let band = jac.then_some(&mut w.band);
+        let (qn, bd) = (&w.qn, &w.bdf);
+        let rate = |k: usize| (qn[k] - bd.e[k], bd.b[k]);
+        let tau = sim.damping_time;
+        damping_rates_into(rod, f, qn, &rate, tau, &mut w.grad, band, &sim.fixed);
+    } else if sim.damping_time > 0.0 {
         let band = jac.then_some(&mut w.band);
         let tau = sim.damping_time;
         damping_into(
@@ -254,7 +268,15 @@ fn inertia_and_elasticity(sim: &Sim3, w: &mut Work3, dt: f64, jac: bool) {
             continue;
         }
         let m = sim.rod.mass[k];
-        w.rhs[k] = -(c * m * (w.qn[k] - sim.q[k] - dt * sim.v[k]) + w.grad[k] - sim.external(k));
+        let (c, inertia) = if w.bdf.active() {
+            // The stage's row (src/rod3d/world/bdf3.rs): m (q − e − b w)/b².
+            let (e, u, b) = (w.bdf.e[k], w.bdf.w[k], w.bdf.b[k]);
+            let c = 1.0 / (b * b);
+            (c, c * m * (w.qn[k] - e - b * u))
+        } else {
+            (c, c * m * (w.qn[k] - sim.q[k] - dt * sim.v[k]))
+        };
+        w.rhs[k] = -(inertia + w.grad[k] - sim.external(k));
         if jac {
             BandSink::add(&mut w.band, k, k, c * m);
         }
