@@ -7,9 +7,19 @@ contacts and events as numpy arrays and pandas DataFrames.
     r.summary["peak_contact_force_n"], r.positions[0].shape   # steps × nodes × dimension
 """
 
-from ._errors import ScenarioError
+from ._errors import RecordingError, ScenarioError
+from ._replay import check, read
 from ._gripsim import __version__
 from ._run import Run, run
 from ._scenario import Scenario
 
-__all__ = ["Run", "Scenario", "ScenarioError", "run", "__version__"]
+__all__ = [
+    "RecordingError",
+    "Run",
+    "Scenario",
+    "ScenarioError",
+    "__version__",
+    "check",
+    "read",
+    "run",
+]

@@ -15,3 +15,13 @@ class ScenarioError(ValueError):
         self.value = value
         self.hint = hint
         self.message = message or text
+
+
+class RecordingError(ValueError):
+    """A recording that cannot be read (missing, damaged, foreign, or of a kind not read
+    here). Attributes: ``file`` (``None`` when the error concerns no one file), ``message``."""
+
+    def __init__(self, text, file=None, message=""):
+        super().__init__(text)
+        self.file = file
+        self.message = message or text

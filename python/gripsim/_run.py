@@ -35,12 +35,22 @@ class Run:
     - ``events``: DataFrame of contact changes, stick/slip switches, phases, dt changes and
       warnings (kind, step, t, text).
 
-    What was not kept (``gripsim.run(..., keep=...)``) is ``None``."""
+    What was not kept (``gripsim.run(..., keep=...)``) is ``None``. A run read from a
+    recording (:func:`gripsim.read`) has no ``summary`` (``None``), its recorded contacts
+    (rod, node, obstacle, point, peak pressure) and events (kind, step, t, text), and
+    ``warning`` set when the file was read only in part."""
 
     def __init__(self, raw: dict):
-        self.summary = json.loads(raw["summary"])
-        self.error = raw["error"]
-        self.completed = bool(self.summary.get("completed"))
+        if "summary" in raw:
+            self.summary = json.loads(raw["summary"])
+            self.error = raw["error"]
+            self.completed = bool(self.summary.get("completed"))
+        else:
+            # Read from a recording: its run end says whether it completed.
+            self.summary = None
+            self.error = None
+            self.completed = raw["completed"]
+        self.warning = raw.get("warning")
         self.dimension = raw["dimension"]
         self.rods = [tuple(r) for r in raw["rods"]]
         self.steps = np.frombuffer(raw["steps"], dtype=np.int64)
@@ -70,9 +80,8 @@ class Run:
             self.events = pd.DataFrame(raw["events"], columns=["kind", "step", "t", "text"])
 
     def __repr__(self) -> str:
-        s = self.summary
         state = "completed" if self.completed else f"stopped: {self.error}"
-        return f"Run({s.get('scenario')!r}, {s.get('steps')} steps, {state})"
+        return f"Run({self.rods!r}, {len(self.t)} states, {state})"
 
 
 def _scenario(scenario) -> Scenario:

@@ -7,6 +7,7 @@
 //! (Ctrl-C: `KeyboardInterrupt`) stops the run between steps.
 
 mod keep;
+mod read;
 
 use gripsim::run::{AnyScenario, Stop};
 use gripsim::scenario::ScenarioError;
@@ -161,5 +162,7 @@ fn gripsim_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(toml_from_json, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(read::read_mcap, m)?)?;
+    m.add_function(wrap_pyfunction!(read::check_mcap, m)?)?;
     Ok(())
 }
