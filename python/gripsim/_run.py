@@ -92,17 +92,25 @@ def _scenario(scenario) -> Scenario:
     raise TypeError(f"a Scenario or the path of a scenario file, not {type(scenario).__name__}")
 
 
-def run(scenario, keep=KEEP) -> Run:
+def run(scenario, keep=KEEP, *, rrd=None, mcap=None, csv=None, detail="auto") -> Run:
     """Run ``scenario`` (a :class:`Scenario` or a scenario file's path) to its end.
 
     The GIL is released while it runs; Ctrl-C stops it between steps and raises
-    ``KeyboardInterrupt``. A run that stops on a failure (a divergence) returns its
-    :class:`Run` as far as it went, with ``completed`` False and ``error`` set.
+    ``KeyboardInterrupt``, its files closed and readable under their ``.partial`` names. A
+    run that stops on a failure (a divergence) returns its :class:`Run` as far as it went,
+    with ``completed`` False and ``error`` set.
+
     ``keep``: what to keep in memory (any of ``positions``, ``velocities``, ``contacts``,
-    ``bodies``, ``events``); the summary, ``steps`` and ``t`` are always there."""
+    ``bodies``, ``events``); the summary, ``steps`` and ``t`` are always there. ``keep=()``
+    with files streams a long run to disk without holding it.
+
+    ``rrd``, ``mcap``, ``csv``: the files ``gripsim run --rrd/--mcap/--csv`` writes (planar
+    runs), at ``detail`` ``"auto"``, ``"step"`` or ``"iteration"``; each is written under its
+    ``.partial`` name and renamed into place when the run completed."""
     sc = _scenario(scenario)
     keep = list(keep)
     unknown = [k for k in keep if k not in KEEP]
     if unknown:
         raise ValueError(f"keep: unknown {unknown!r}; choose from {list(KEEP)!r}")
-    return Run(_gripsim.run(sc.text, sc.file, sc.dir, sc.sets, keep))
+    paths = [None if p is None else os.fspath(p) for p in (rrd, mcap, csv)]
+    return Run(_gripsim.run(sc.text, sc.file, sc.dir, sc.sets, keep, *paths, detail))

@@ -6,6 +6,7 @@
 //! signal handlers are run at most every [`SIGNAL_CHECK`] of wall time, and a raised one
 //! (Ctrl-C: `KeyboardInterrupt`) stops the run between steps.
 
+mod files;
 mod keep;
 mod read;
 
@@ -126,9 +127,14 @@ fn signal_stop(raised: Arc<Mutex<Option<PyErr>>>) -> Stop {
 
 /// Run a scenario (its text, name, folder and `--set`s as for [`validate`]) to its end with
 /// the GIL released. Keeps in memory what `keep` names (`positions`, `velocities`,
-/// `contacts`, `bodies`, `events`); returns a dict of the summary's JSON, the error (None
-/// when it completed), `t` and the kept arrays as native-order f64/i64 bytes.
+/// `contacts`, `bodies`, `events`) and writes the files named (`rrd`, `mcap`, `csv`, a
+/// planar run's, at `detail` `auto`, `step` or `iteration`) as `gripsim run` does: under
+/// their `.partial` names, renamed into place when the run completed. Returns a dict of the
+/// summary's JSON, the error (None when it completed), `t` and the kept arrays as
+/// native-order f64/i64 bytes.
 #[pyfunction]
+#[pyo3(signature = (text, file, dir, sets, keep, rrd=None, mcap=None, csv=None, detail="auto"))]
+#[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
     text: &str,
@@ -136,12 +142,21 @@ fn run<'py>(
     dir: &str,
     sets: Vec<String>,
     keep: Vec<String>,
+    rrd: Option<String>,
+    mcap: Option<String>,
+    csv: Option<String>,
+    detail: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let sc = parse(py, text, file, dir, sets)?;
+    let sc = parse(py, text, file, dir, sets.clone())?;
     let mut kept = keep::Keep::new(&keep);
     let raised = Arc::new(Mutex::new(None));
     let stop = signal_stop(raised.clone());
-    let outcome = py.detach(|| gripsim::run::run(&sc, text, &mut kept, Some(stop)));
+    let files = files::Files::new(rrd, mcap, csv, detail);
+    let outcome = if files.is_empty() {
+        py.detach(|| gripsim::run::run(&sc, text, &mut kept, Some(stop)))
+    } else {
+        files.run(py, &sc, (text, file, &sets), &mut kept, stop)?
+    };
     if let Some(e) = raised.lock().unwrap_or_else(|p| p.into_inner()).take() {
         return Err(e);
     }
