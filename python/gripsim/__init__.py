@@ -12,6 +12,7 @@ from ._replay import check, read
 from ._gripsim import __version__
 from ._run import Run, run
 from ._scenario import Scenario
+from ._study import sweep
 
 __all__ = [
     "RecordingError",
@@ -22,4 +23,5 @@ __all__ = [
     "check",
     "read",
     "run",
+    "sweep",
 ]

@@ -97,3 +97,13 @@ def read(path: _Path) -> Run:
 
 def check(path: _Path) -> dict:
     """``gripsim replay check`` of a planar ``.mcap``: its report as a dict."""
+
+def sweep(
+    scenario: Scenario | _Path,
+    vary: dict[str, str | list],
+    out: _Path | None = ...,
+    jobs: int = ...,
+    client: object | None = ...,
+) -> pd.DataFrame:
+    """``gripsim sweep``: its ``summary.csv`` as a DataFrame, one row per case; with a
+    ``dask.distributed.Client`` each case runs on its workers."""

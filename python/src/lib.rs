@@ -9,6 +9,7 @@
 mod files;
 mod keep;
 mod read;
+mod study;
 
 use gripsim::run::{AnyScenario, Stop};
 use gripsim::scenario::ScenarioError;
@@ -179,5 +180,8 @@ fn gripsim_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(read::read_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(read::check_mcap, m)?)?;
+    m.add_function(wrap_pyfunction!(study::sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(study::vary_values, m)?)?;
+    m.add_function(wrap_pyfunction!(study::merge, m)?)?;
     Ok(())
 }
