@@ -8,7 +8,7 @@ contacts and events as numpy arrays and pandas DataFrames.
 """
 
 from ._errors import RecordingError, ScenarioError
-from ._replay import check, read
+from ._replay import check, diff, read
 from ._gripsim import __version__
 from ._run import Run, run
 from ._scenario import Scenario
@@ -21,6 +21,7 @@ __all__ = [
     "ScenarioError",
     "__version__",
     "check",
+    "diff",
     "read",
     "run",
     "sweep",

@@ -98,6 +98,9 @@ def read(path: _Path) -> Run:
 def check(path: _Path) -> dict:
     """``gripsim replay check`` of a planar ``.mcap``: its report as a dict."""
 
+def diff(a: _Path, b: _Path) -> dict:
+    """``gripsim replay diff A B``: its report as a dict."""
+
 def sweep(
     scenario: Scenario | _Path,
     vary: dict[str, str | list],

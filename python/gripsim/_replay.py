@@ -32,3 +32,10 @@ def check(path: str | os.PathLike) -> dict:
     out = json.loads(report)
     out["warning"] = warning
     return out
+
+
+def diff(a: str | os.PathLike, b: str | os.PathLike) -> dict:
+    """``gripsim replay diff A B`` of two recordings (``.mcap``) with the default tolerances:
+    its report as a dict (``within_tolerance``, ``first_divergence``, ``parameters``, … as
+    the CLI's ``--json`` writes them)."""
+    return json.loads(_gripsim.diff_mcap(os.fspath(a), os.fspath(b)))

@@ -180,6 +180,7 @@ fn gripsim_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(read::read_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(read::check_mcap, m)?)?;
+    m.add_function(wrap_pyfunction!(read::diff_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(study::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(study::vary_values, m)?)?;
     m.add_function(wrap_pyfunction!(study::merge, m)?)?;

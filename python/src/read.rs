@@ -115,3 +115,19 @@ pub fn check_mcap(py: Python<'_>, path: &str) -> PyResult<(String, Option<String
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     Ok((json, warning))
 }
+
+/// `gripsim replay diff A B` of two recordings with the default tolerances and thresholds:
+/// its report as JSON text (the CLI's `--json`).
+#[pyfunction]
+pub fn diff_mcap(py: Python<'_>, a: &str, b: &str) -> PyResult<String> {
+    use gripsim::replay::diff::diff_files;
+    let (tol, th) = (
+        gripsim::replay::Tolerances::DEFAULT,
+        gripsim::replay::Thresholds::DEFAULT,
+    );
+    let report = py
+        .detach(|| diff_files(Path::new(a), Path::new(b), &tol, &th))
+        .map_err(|e| recording_error(py, &e))?;
+    serde_json::to_string(&report)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))
+}

@@ -45,3 +45,14 @@ def test_a_damaged_recording_raises_naming_the_file(tmp):
     assert e.value.file == str(bad)
     with pytest.raises(gripsim.RecordingError):
         gripsim.check(bad)
+
+
+def test_diff_of_a_recording_with_itself_and_with_another_run(recorded, tmp):
+    same = gripsim.diff(recorded, recorded)
+    assert same["within_tolerance"] is True and same["first_divergence"] is None
+    other = tmp / "softer.mcap"
+    gripsim.run(gripsim.Scenario.load(scenario("jaw-grasp-hold")).set("obstacle.1.mass", 0.2),
+                keep=[], mcap=other, detail="step")
+    d = gripsim.diff(recorded, other)
+    assert d["within_tolerance"] is False
+    assert any(p["key"] == "obstacle.1.mass" for p in d["parameters"]), d["parameters"]
