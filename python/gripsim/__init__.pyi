@@ -80,6 +80,8 @@ class Run:
     body_names: list[str]
     events: pd.DataFrame | None
     """kind, step, t, text."""
+    check: dict | None
+    """``run(check=True)``: the live replay check's report."""
 
 def run(
     scenario: Scenario | _Path,
@@ -89,6 +91,7 @@ def run(
     mcap: _Path | None = ...,
     csv: _Path | None = ...,
     detail: Literal["auto", "step", "iteration"] = ...,
+    check: bool = ...,
 ) -> Run:
     """Run ``scenario`` to its end with the GIL released (Ctrl-C: ``KeyboardInterrupt``)."""
 

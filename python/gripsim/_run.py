@@ -34,6 +34,7 @@ class Run:
       contact force).
     - ``events``: DataFrame of contact changes, stick/slip switches, phases, dt changes and
       warnings (kind, step, t, text).
+    - ``check``: with ``check=True``, the live replay check's report (dict), else ``None``.
 
     What was not kept (``gripsim.run(..., keep=...)``) is ``None``. A run read from a
     recording (:func:`gripsim.read`) has no ``summary`` (``None``), its recorded contacts
@@ -51,6 +52,7 @@ class Run:
             self.error = None
             self.completed = raw["completed"]
         self.warning = raw.get("warning")
+        self.check = json.loads(raw["check"]) if "check" in raw else None
         self.dimension = raw["dimension"]
         self.rods = [tuple(r) for r in raw["rods"]]
         self.steps = np.frombuffer(raw["steps"], dtype=np.int64)
@@ -92,7 +94,8 @@ def _scenario(scenario) -> Scenario:
     raise TypeError(f"a Scenario or the path of a scenario file, not {type(scenario).__name__}")
 
 
-def run(scenario, keep=KEEP, *, rrd=None, mcap=None, csv=None, detail="auto") -> Run:
+def run(scenario, keep=KEEP, *, rrd=None, mcap=None, csv=None, detail="auto",
+        check=False) -> Run:
     """Run ``scenario`` (a :class:`Scenario` or a scenario file's path) to its end.
 
     The GIL is released while it runs; Ctrl-C stops it between steps and raises
@@ -106,11 +109,14 @@ def run(scenario, keep=KEEP, *, rrd=None, mcap=None, csv=None, detail="auto") ->
 
     ``rrd``, ``mcap``, ``csv``: the files ``gripsim run --rrd/--mcap/--csv`` writes (planar
     runs), at ``detail`` ``"auto"``, ``"step"`` or ``"iteration"``; each is written under its
-    ``.partial`` name and renamed into place when the run completed."""
+    ``.partial`` name and renamed into place when the run completed.
+
+    ``check``: run ``gripsim replay check``'s rules on the live run (planar), as ``gripsim
+    run --check`` does; its report (a dict) is ``Run.check``."""
     sc = _scenario(scenario)
     keep = list(keep)
     unknown = [k for k in keep if k not in KEEP]
     if unknown:
         raise ValueError(f"keep: unknown {unknown!r}; choose from {list(KEEP)!r}")
     paths = [None if p is None else os.fspath(p) for p in (rrd, mcap, csv)]
-    return Run(_gripsim.run(sc.text, sc.file, sc.dir, sc.sets, keep, *paths, detail))
+    return Run(_gripsim.run(sc.text, sc.file, sc.dir, sc.sets, keep, *paths, detail, check))

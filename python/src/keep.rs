@@ -66,6 +66,8 @@ pub struct Keep {
     body_names: Vec<String>,
     /// (kind, step, t, text).
     event_rows: Vec<(&'static str, u64, f64, String)>,
+    /// `check=True`: the replay check's detector on the live run (planar).
+    pub check: Option<gripsim::replay::detect::DetectObserver>,
 }
 
 impl Keep {
@@ -88,6 +90,7 @@ impl Keep {
             body_rows: Table::default(),
             body_names: Vec::new(),
             event_rows: Vec::new(),
+            check: None,
         }
     }
 
@@ -267,6 +270,9 @@ impl Observer for Keep {
         true
     }
     fn on_event(&mut self, event: &Event<'_>) {
+        if let Some(c) = self.check.as_mut() {
+            c.on_event(event);
+        }
         match *event {
             Event::RunStart(info) => {
                 self.dim = info.dimension;

@@ -134,7 +134,7 @@ fn signal_stop(raised: Arc<Mutex<Option<PyErr>>>) -> Stop {
 /// summary's JSON, the error (None when it completed), `t` and the kept arrays as
 /// native-order f64/i64 bytes.
 #[pyfunction]
-#[pyo3(signature = (text, file, dir, sets, keep, rrd=None, mcap=None, csv=None, detail="auto"))]
+#[pyo3(signature = (text, file, dir, sets, keep, rrd=None, mcap=None, csv=None, detail="auto", check=false))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -147,9 +147,19 @@ fn run<'py>(
     mcap: Option<String>,
     csv: Option<String>,
     detail: &str,
+    check: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let sc = parse(py, text, file, dir, sets.clone())?;
     let mut kept = keep::Keep::new(&keep);
+    if check {
+        let AnyScenario::Planar(psc) = &sc else {
+            return Err(pyo3::exceptions::PyValueError::new_err(
+                "check=True checks planar runs; check a 3D run with `gripsim run --check`",
+            ));
+        };
+        let th = gripsim::replay::Thresholds::DEFAULT;
+        kept.check = Some(gripsim::replay::detect::DetectObserver::new(psc, &th));
+    }
     let raised = Arc::new(Mutex::new(None));
     let stop = signal_stop(raised.clone());
     let files = files::Files::new(rrd, mcap, csv, detail);
@@ -166,7 +176,26 @@ fn run<'py>(
     let summary = serde_json::to_string(&outcome.summary)
         .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     d.set_item("summary", summary)?;
+    let completed = outcome.error.is_none();
     d.set_item("error", outcome.error.map(|e| e.to_string()))?;
+    if let (Some(c), AnyScenario::Planar(psc)) = (kept.check.take(), &sc) {
+        // As `gripsim run --check` reports it.
+        let mode = match psc.solve.mode {
+            gripsim::scenario::Mode::Dynamic => "dynamic",
+            _ => "static",
+        };
+        let report = gripsim::replay::CheckReport::of(
+            format!("(run of {file})"),
+            &psc.name,
+            mode,
+            c.detector,
+            None,
+            Some(completed),
+        );
+        let json = serde_json::to_string(&report)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        d.set_item("check", json)?;
+    }
     kept.to_python(py, &d)?;
     Ok(d)
 }

@@ -99,3 +99,16 @@ def test_set_follows_the_cli_set(tmp):
 
     want = json.loads(js.read_text())
     assert without_wall(gripsim.run(sc, keep=[]).summary) == without_wall(want)
+
+
+def test_check_gives_the_cli_run_check_report(tmp):
+    import json
+
+    path = scenario("jaw-grasp-hold")
+    r = gripsim.run(path, keep=[], check=True)
+    js = tmp / "check.json"
+    cli("run", "--no-record", "--quiet", "--check", "--check-json", js, path)
+    want = json.loads(js.read_text())
+    assert r.check == want
+    assert r.check["flagged"] is False
+    assert gripsim.run(path, keep=[]).check is None
