@@ -2,13 +2,10 @@
 
 use clap::{Parser, Subcommand, ValueEnum};
 use gripsim::events::{Fanout, Observer};
-use gripsim::record::auto::{AutoDetail, AutoStats};
-use gripsim::record::background::Background;
-use gripsim::record::csv::CsvSink;
-use gripsim::record::mcap::McapSink;
-use gripsim::record::rerun::RerunSink;
+use gripsim::record::auto::AutoStats;
+use gripsim::record::files::PlanarFiles;
 use gripsim::record::summary::SummaryCollector;
-use gripsim::record::{AutoRule, Detail, Finished, RecordOptions, Recording};
+use gripsim::record::{Detail, Finished, RecordOptions};
 use gripsim::run::AnyScenario;
 use gripsim::{Scenario, Simulation};
 use std::path::{Path, PathBuf};
@@ -601,31 +598,17 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         out.rrd = Some(base.with_extension("rrd"));
         out.mcap = Some(base.with_extension("mcap"));
     }
-    let flush_every = out.flush_every.unwrap_or(sc.flush_every);
-    let detail = match (out.detail, out.auto_every) {
-        // `auto`: its numbers from the scenario, or the step interval given.
-        (Detail::Auto(_), None) => Detail::Auto(AutoRule::for_scenario(&sc)),
-        (Detail::Auto(_), Some(k)) => Detail::Auto(AutoRule {
-            every: k,
-            window: gripsim::record::auto::WINDOW,
-        }),
-        (d, None) => d,
-        (d, Some(_)) => {
-            eprintln!(
-                "error: --auto-every applies to --detail auto only (got --detail {})",
-                d.as_str()
-            );
+    let opts = match gripsim::record::files::record_options(
+        &sc,
+        out.detail,
+        out.auto_every,
+        out.flush_every,
+    ) {
+        Ok(opts) => opts,
+        Err(e) => {
+            eprintln!("error: {e}");
             return ExitCode::from(2);
         }
-    };
-    let opts = RecordOptions {
-        detail,
-        // `auto`: the files are made readable every `flush_every` sampled steps (a multiple of
-        // k, so always a recorded step), as many recorded steps per chunk as at step detail.
-        flush_every: match detail {
-            Detail::Auto(a) => flush_every.saturating_mul(a.every),
-            _ => flush_every,
-        },
     };
     // Every output its own file, none of them an input, each one a path that can take a file:
     // checked before anything is created. The outputs are renamed into place together, when
@@ -647,66 +630,29 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
     install_signal_handlers();
     // Wall time from here: the survey and the recording are part of what the command costs.
     let start = std::time::Instant::now();
-    // The drawing sinks draw every frame with one force scale and one box, chosen from the
-    // whole run: an unrecorded first run of the physics (deterministic) surveys it.
-    // The `.rrd` sink (the Rerun SDK's stream and the blueprint: milliseconds) is made beside
-    // the survey, which it does not need until the run starts.
-    let (view, rrd) = std::thread::scope(|s| {
-        let rrd = out.rrd.as_deref().map(|p| {
-            s.spawn(|| {
-                // The SDK's threads, started here, run as writers (as the sink's own
-                // thread will).
-                gripsim::record::background::as_writer_thread();
-                RerunSink::create(p, opts, &sc)
-            })
-        });
-        let view = if out.rrd.is_some() || out.mcap.is_some() {
-            gripsim::record::ViewOptions {
-                survey: Some(gripsim::record::Survey::of(
-                    &sc,
-                    Some(Box::new(|| STOP.load(Ordering::Relaxed) != 0)),
-                )),
-                arrows: out.arrows,
-            }
-        } else {
-            gripsim::record::ViewOptions::default()
-        };
-        let rrd = rrd.map(|h| h.join().expect("the .rrd setup does not panic"));
-        (view, rrd)
-    });
-    let mut sinks: Vec<Box<dyn Recording>> = Vec::new();
-    let created = (|| {
-        if let (Some(p), Some(rrd)) = (&out.rrd, rrd) {
-            // The `.rrd` sink runs on a thread of its own, beside the simulation.
-            let rrd = rrd?.with_view(view);
-            sinks.push(Box::new(Background::start(Box::new(rrd), p, "rrd-sink")?));
+    let files = gripsim::record::files::FileOptions {
+        rrd: out.rrd.as_deref(),
+        mcap: out.mcap.as_deref(),
+        csv: out.csv.as_deref(),
+        opts,
+        precision: out.precision.unwrap_or(sc.precision),
+        arrows: out.arrows,
+    };
+    let stopped = Box::new(|| STOP.load(Ordering::Relaxed) != 0);
+    let mut recording = match PlanarFiles::create(&sc, &files, Some(stopped)) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: cannot create a recording: {e}");
+            // Nothing half made: the partial files created so far go.
+            held.discard();
+            return ExitCode::from(2);
         }
-        if let Some(p) = &out.mcap {
-            let mcap = gripsim::record::mcap::McapOptions {
-                precision: out.precision.unwrap_or(sc.precision),
-                ..Default::default()
-            };
-            sinks.push(Box::new(
-                McapSink::create_with(p, opts, mcap)?.with_view(view),
-            ));
-        }
-        if let Some(p) = &out.csv {
-            sinks.push(Box::new(CsvSink::create(p, opts)?));
-        }
-        Ok::<_, gripsim::record::RecordError>(())
-    })();
-    if let Err(e) = created {
-        eprintln!("error: cannot create a recording: {e}");
-        // Nothing half made: the partial files created so far go.
-        drop(sinks);
-        held.discard();
-        return ExitCode::from(2);
-    }
+    };
 
     let mut sim = Simulation::new(&sc);
     // A recording that cannot be written (disk full) stops the run too: the other files are
     // then closed properly and the error is reported.
-    let failures: Vec<_> = sinks.iter().filter_map(|s| s.failure()).collect();
+    let failures = recording.failures();
     let sink_failed = {
         let failures = failures.clone();
         move || failures.iter().any(|f| f.load(Ordering::Relaxed))
@@ -719,50 +665,25 @@ fn run(path: &Path, mut out: Outputs, no_record: bool, sets: &[String], quiet: b
         .check
         .as_ref()
         .map(|(th, _)| gripsim::replay::detect::DetectObserver::new(&sc, th));
-    let any_file = !sinks.is_empty();
-    let (result, auto_stats) = {
+    let th = out
+        .check
+        .as_ref()
+        .map_or(gripsim::replay::Thresholds::DEFAULT, |(th, _)| *th);
+    let (result, auto_stats) = recording.feed(&sc, &th, |files| {
         let mut fan = Fanout::new();
         fan.push(&mut collector as &mut dyn Observer);
         if let Some(d) = detector.as_mut() {
             fan.push(d as &mut dyn Observer);
         }
-        let mut files = Fanout::new();
-        for s in sinks.iter_mut() {
-            files.push(s.as_mut() as &mut dyn Observer);
-        }
-        // `--detail auto`: one layer in front of all the files chooses the steps they get; the
-        // live spike detector (with --check's thresholds) lets a spike open a window.
-        let mut auto = None;
-        let mut plain = None;
-        match opts.detail.auto().filter(|_| any_file) {
-            Some(rule) => {
-                let th = out
-                    .check
-                    .as_ref()
-                    .map_or(gripsim::replay::Thresholds::DEFAULT, |(th, _)| *th);
-                let spikes = gripsim::replay::detect::Detector::new(&sc, &th);
-                fan.push(
-                    auto.insert(AutoDetail::new(files, rule, Some(spikes))) as &mut dyn Observer
-                );
-            }
-            None => fan.push(plain.insert(files) as &mut dyn Observer),
-        }
+        fan.push(files);
         // Only accepted steps' contact changes reach the sinks.
-        let mut accepted = gripsim::record::accepted::AcceptedContacts::new(fan);
-        let result = sim.run(&mut accepted);
-        drop(accepted);
-        (result, auto.map(|a| a.stats))
-    };
+        sim.run(&mut gripsim::record::accepted::AcceptedContacts::new(fan))
+    });
     let mut failed = false;
-    let mut files = Vec::new();
-    for s in sinks.iter_mut() {
-        match s.finish() {
-            Ok(f) => files.push((s.format(), f)),
-            Err(e) => {
-                eprintln!("error: the {} recording failed: {e}", s.format());
-                failed = true;
-            }
-        }
+    let (mut files, errors) = recording.finish();
+    for e in errors {
+        eprintln!("error: {e}");
+        failed = true;
     }
     let wall = start.elapsed().as_secs_f64();
     let summary = collector.finish(&sim.stats, wall);

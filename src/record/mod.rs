@@ -14,6 +14,7 @@ pub mod auto;
 pub mod background;
 pub mod csv;
 pub mod csv3;
+pub mod files;
 pub mod foxglove;
 pub mod grasp;
 pub mod mcap;

@@ -2,7 +2,7 @@
 """Create the test venv `.venv` at the repository root with the independent readers that
 `tests/recordings.rs` checks recordings with (the Rerun CLI from rerun-sdk, the mcap Python
 reader with its protobuf decoder (mcap-protobuf-support, which brings Google's `protobuf`),
-jsonschema).
+jsonschema), and what the Python package's tests need (numpy, pandas, pytest, dask.distributed).
 
 Idempotent and safe to run concurrently: an exclusive file lock serialises callers, and a
 marker file inside the venv records which requirements are installed, so a second call only
@@ -22,6 +22,13 @@ REQUIREMENTS = [
     "jsonschema==4.26.0",
     "mcap-protobuf-support==0.6.0",
     "protobuf==7.36.2",
+    # The Python package's pytest suite (python/tests, run by tests/suite/python.rs).
+    "numpy==2.4.6",
+    "pandas==3.1.1",
+    "pytest==9.2.0",
+    # gripsim.sweep on a dask.distributed cluster (python/tests/test_sweep.py).
+    "dask==2026.8.0",
+    "distributed==2026.8.0",
 ]
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -32,6 +32,7 @@ mod no_data_loss;
 mod pick_and_place;
 mod planar_identity;
 mod properties;
+mod python;
 mod rec3d;
 mod recordings;
 mod regressions;

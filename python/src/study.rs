@@ -1,0 +1,91 @@
+//! `gripsim.sweep`: the CLI's sweep ([`gripsim::study::sweep::run_sweep`]) on local cores with
+//! the GIL released, stopped between steps by a Python signal (Ctrl-C).
+
+use gripsim::study::sweep::{
+    merge as merge_shards, run_sweep, CasePlots, MergeOptions, SweepOptions,
+};
+use gripsim::study::Shard;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+/// Sweep the scenario file `scenario` (with `sets` in every case) over the `--vary` specs
+/// `vary` into the folder `out` (a re-run resumes) on `jobs` threads (0: one per core), with
+/// no figures. Returns the report: `summary` (the path of summary.csv; None when
+/// interrupted), `cases`, `ran`, `skipped`, `failed`, `warned`.
+/// `shard` (I, N): only the cases k with k mod N = I (`--shard I/N`), whose rows go to
+/// `summary.shard-I-of-N.csv` for [`merge`].
+#[pyfunction]
+#[pyo3(signature = (scenario, sets, vary, out, jobs, shard=None))]
+pub fn sweep<'py>(
+    py: Python<'py>,
+    scenario: String,
+    sets: Vec<String>,
+    vary: Vec<String>,
+    out: String,
+    jobs: usize,
+    shard: Option<(usize, usize)>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let shard = match shard {
+        Some((index, count)) if index < count => Some(Shard { index, count }),
+        Some((i, n)) => return Err(PyValueError::new_err(format!("shard {i}/{n}: I < N"))),
+        None => None,
+    };
+    let vary = vary
+        .iter()
+        .map(|v| gripsim::study::parse_vary(v))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(PyValueError::new_err)?;
+    let raised = Arc::new(Mutex::new(None));
+    let opts = SweepOptions {
+        scenario: PathBuf::from(scenario),
+        vary,
+        sets,
+        jobs,
+        out: PathBuf::from(out),
+        shard,
+        plots: false,
+        case_plots: CasePlots::None,
+        window: None,
+        quiet: true,
+        stop: Some(super::signal_stop(raised.clone())),
+    };
+    let report = py.detach(|| run_sweep(&opts));
+    if let Some(e) = raised.lock().unwrap_or_else(|p| p.into_inner()).take() {
+        return Err(e);
+    }
+    let report = report.map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let d = PyDict::new(py);
+    d.set_item("summary", report.summary)?;
+    d.set_item("cases", report.cases)?;
+    d.set_item("ran", report.ran)?;
+    d.set_item("skipped", report.skipped)?;
+    d.set_item("failed", report.failed)?;
+    d.set_item("warned", report.warned)?;
+    Ok(d)
+}
+
+/// The values of one `--vary` spec (`KEY=V1,V2` or `KEY=START:STOP:COUNT[:log]`), as `--set`
+/// text.
+#[pyfunction]
+pub fn vary_values(spec: &str) -> PyResult<Vec<String>> {
+    gripsim::study::parse_vary(spec)
+        .map(|v| v.values)
+        .map_err(PyValueError::new_err)
+}
+
+/// `gripsim sweep merge DIRS… --out OUT --no-plots`: the path of the merged summary.csv.
+#[pyfunction]
+pub fn merge(py: Python<'_>, dirs: Vec<String>, out: String) -> PyResult<String> {
+    let opts = MergeOptions {
+        dirs: dirs.into_iter().map(PathBuf::from).collect(),
+        out: Some(PathBuf::from(out)),
+        plots: false,
+    };
+    let report = py
+        .detach(|| merge_shards(&opts))
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(report.summary.display().to_string())
+}
