@@ -1097,6 +1097,7 @@ impl Records {
     /// Open `path` and check its first 8 bytes (the MCAP magic) before anything else is read.
     fn open(path: &Path) -> Result<Records, String> {
         use std::io::Read;
+        not_a_pipe(path)?;
         let file = std::fs::File::open(path).map_err(|e| format!("cannot read the file: {e}"))?;
         let meta = file
             .metadata()
@@ -1330,6 +1331,23 @@ pub fn recorded_files(path: &Path) -> Vec<std::path::PathBuf> {
         ),
         None => Vec::new(),
     }
+}
+
+/// A recording is read more than once (which reader, then the data; `diff` and `show` again):
+/// a FIFO or a socket is refused before it is opened (opening a FIFO without a writer blocks).
+pub(crate) fn not_a_pipe(path: &Path) -> Result<(), String> {
+    use std::os::unix::fs::FileTypeExt;
+    let kind = std::fs::metadata(path)
+        .map_err(|e| format!("cannot read the file: {e}"))?
+        .file_type();
+    if kind.is_fifo() || kind.is_socket() {
+        return Err(
+            "is a FIFO or a socket, not a file: replay reads a recording more than \
+                    once; save it to a file first"
+                .into(),
+        );
+    }
+    Ok(())
 }
 
 /// Whether every record of an uncompressed chunk ends within the chunk's records length, as far

@@ -529,6 +529,7 @@ fn first_message_says_3d(path: &Path) -> bool {
 /// `gripsim.Meta3`; None when the file has no readable footer.
 fn summary_says_3d(path: &Path) -> Option<bool> {
     use std::io::{Read as _, Seek as _, SeekFrom};
+    super::read::not_a_pipe(path).ok()?;
     let Ok(mut f) = std::fs::File::open(path) else {
         return None;
     };

@@ -468,6 +468,46 @@ fn item7_a_3d_recording_without_steps_is_refused() {
     refused3(&bad, &good, &["no /sim/step message"]);
 }
 
+/// A FIFO nobody writes to (and one a writer feeds) is refused at once, never waited on: a
+/// replay reads its recording more than once (it blocked forever in `open`).
+#[test]
+fn a_fifo_is_refused_without_blocking() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("fifo.mcap");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    for args in [&["check"][..], &["show", "--rrd", "x.rrd"][..]] {
+        let mut child = gripsim()
+            .current_dir(dir.path())
+            .arg("replay")
+            .arg(args[0])
+            .arg(&fifo)
+            .args(&args[1..])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break Some(s);
+            }
+            if start.elapsed().as_secs() > 60 {
+                child.kill().unwrap();
+                break None;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        };
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(status.and_then(|s| s.code()), Some(2), "{args:?}: {err}");
+        assert!(err.contains("is a FIFO or a socket, not a file"), "{err}");
+        assert!(!dir.path().join("x.rrd").exists());
+    }
+}
+
 /// 3D or planar `replay check` as the CLI runs it, in process: the report as JSON (its
 /// `file` left out), or the error (exit 2).
 fn check_any(path: &Path) -> Result<serde_json::Value, String> {
