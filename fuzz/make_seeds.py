@@ -6,7 +6,9 @@
 Needs the `mcap` Python package (the tests install it into .venv: .venv/bin/python works).
 Writes fuzz/seeds/replay_mcap/*.mcap (as gripsim writes them, and the same messages
 unchunked and uncompressed) and fuzz/seeds/replay_messages/*.txt (the line form that the
-replay_messages target reads: `<kind> <json body>`).
+replay_messages target reads: `<kind> <json body>`), and the seeds of the 3D reader,
+fuzz/seeds/replay_mcap3d/*.mcap (a 3-step two-finger run as written, and plain: unchunked,
+uncompressed, without /scene). `main3d()` alone writes the 3D seeds.
 """
 import os
 import subprocess
@@ -31,6 +33,8 @@ RUNS = {
     "static": ["scenarios/cantilever-tip-load.toml", "--set", "rod.0.nodes=5",
                "--set", "rod.0.loads.0.node=4"],
 }
+RAW3 = os.path.join(ROOT, "fuzz", "seeds", "replay_mcap3d")
+RUN3 = ["scenarios/3d-two-finger-sphere.toml", "--set", "solve.t_end=0.0003"]
 KIND = {"/sim/meta": "meta", "/sim/step": "step", "/sim/contact": "contact",
         "/sim/event": "event", "/sim/iteration": "iteration"}
 
@@ -89,6 +93,45 @@ def main():
     for d in (RAW, MSG):
         for f in sorted(os.listdir(d)):
             print(f"{os.path.join(d, f)}: {os.path.getsize(os.path.join(d, f))} bytes")
+    main3d()
+
+
+def plain(path, out, skip):
+    """The messages of `path` unchunked and uncompressed, without the topics in `skip`."""
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        metadata = list(reader.iter_metadata())
+        messages = list(reader.iter_messages())
+        summary = reader.get_summary()
+    with open(out, "wb") as f:
+        w = Writer(f, compression=CompressionType.NONE, use_chunking=False)
+        w.start("", "make_seeds.py")
+        schemas, channels = {}, {}
+        for channel in summary.channels.values():
+            if channel.topic in skip:
+                continue
+            schema = summary.schemas[channel.schema_id]
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding, b"")
+            channels[channel.id] = w.register_channel(
+                channel.topic, channel.message_encoding, schemas[schema.id])
+        for schema, channel, message in messages:
+            if channel.topic in skip:
+                continue
+            w.add_message(channels[channel.id], message.log_time, message.data,
+                          message.publish_time, message.sequence)
+        for m in metadata:
+            w.add_metadata(m.name, m.metadata)
+        w.finish()
+
+
+def main3d():
+    os.makedirs(RAW3, exist_ok=True)
+    path = os.path.join(RAW3, "two-finger.mcap")
+    subprocess.run([BIN, "run", *RUN3, "--mcap", path, "-q"], cwd=ROOT, check=True)
+    plain(path, os.path.join(RAW3, "two-finger-plain.mcap"), {"/scene", "/scene/static"})
+    for f in sorted(os.listdir(RAW3)):
+        print(f"{os.path.join(RAW3, f)}: {os.path.getsize(os.path.join(RAW3, f))} bytes")
 
 
 if __name__ == "__main__":

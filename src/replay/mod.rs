@@ -19,6 +19,7 @@ pub mod grasp;
 pub mod overlay;
 pub mod overlay3;
 pub mod read;
+pub mod read3;
 pub mod three;
 
 pub use detect::{Detector, Effective, Findings, Scales, Thresholds};

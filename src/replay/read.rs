@@ -546,85 +546,48 @@ struct Shape {
 }
 
 fn check_step(s: &Step, shape: &Shape) -> Result<(), String> {
-    if s.rods.len() != shape.nodes.len() {
-        return Err(format!(
-            "/sim/step step {} has {} rods, /sim/meta lists {}",
-            s.step,
-            s.rods.len(),
-            shape.nodes.len()
-        ));
-    }
-    if !s.t.is_finite() || !s.dt.is_finite() || s.dt < 0.0 {
-        return Err(format!(
-            "/sim/step step {} has t = {}, dt = {}",
-            s.step, s.t, s.dt
-        ));
-    }
+    let at = format!("/sim/step step {}", s.step);
+    check_rod_count(&at, s.rods.len(), shape.nodes.len())?;
+    check_clock(&at, s.t, s.dt, false)?;
     for (r, (v, &n)) in s.rods.iter().zip(&shape.nodes).enumerate() {
-        let vectors: [(&str, usize); 7] = [
-            ("q", v.q.len()),
-            ("u", v.u.len()),
-            ("reaction", v.reaction.len()),
-            ("impulse", v.impulse.len()),
-            ("drive_force", v.drive_force.len()),
-            ("normal", v.normal.len()),
-            ("q_predictor", v.q_predictor.len()),
+        let at = format!("/sim/step step {} rod {r}", s.step);
+        if !v.normal2.is_empty() {
+            check_len(&at, "normal2", v.normal2.len(), 2, n, "node")?;
+        }
+        if !v.contact_obstacle2.is_empty() {
+            check_len(
+                &at,
+                "contact_obstacle2",
+                v.contact_obstacle2.len(),
+                1,
+                n,
+                "node",
+            )?;
+        }
+        check_finite(&at, "normal2", &v.normal2, 2, "node")?;
+        let vectors: [(&str, &[f64]); 7] = [
+            ("q", &v.q),
+            ("u", &v.u),
+            ("reaction", &v.reaction),
+            ("impulse", &v.impulse),
+            ("drive_force", &v.drive_force),
+            ("normal", &v.normal),
+            ("q_predictor", &v.q_predictor),
         ];
-        if !v.normal2.is_empty() && v.normal2.len() != 2 * n {
-            return Err(format!(
-                "/sim/step step {} rod {r}: `normal2` has {} numbers, expected 2 x {n} nodes",
-                s.step,
-                v.normal2.len()
-            ));
-        }
-        if !v.contact_obstacle2.is_empty() && v.contact_obstacle2.len() != n {
-            return Err(format!(
-                "/sim/step step {} rod {r}: `contact_obstacle2` has {} entries, expected {n}",
-                s.step,
-                v.contact_obstacle2.len()
-            ));
-        }
-        if v.normal2.iter().any(|x| !x.is_finite()) {
-            return Err(format!(
-                "/sim/step step {} rod {r} holds a non-finite number",
-                s.step
-            ));
-        }
         let scalars: [(&str, usize); 4] = [
             ("in_contact", v.in_contact.len()),
             ("contact_obstacle", v.contact_obstacle.len()),
             ("bending_stress", v.bending_stress.len()),
             ("gap", v.gap.len()),
         ];
-        for (name, len) in vectors {
-            if len != 2 * n {
-                return Err(format!(
-                    "/sim/step step {} rod {r}: `{name}` has {len} numbers, expected 2 x {n} nodes",
-                    s.step
-                ));
-            }
+        for (name, x) in vectors {
+            check_len(&at, name, x.len(), 2, n, "node")?;
         }
         for (name, len) in scalars {
-            if len != n {
-                return Err(format!(
-                    "/sim/step step {} rod {r}: `{name}` has {len} entries, expected {n} (one per node)",
-                    s.step
-                ));
-            }
+            check_len(&at, name, len, 1, n, "node")?;
         }
-        let finite = [
-            &v.q,
-            &v.u,
-            &v.reaction,
-            &v.normal,
-            &v.q_predictor,
-            &v.drive_force,
-        ];
-        if finite.iter().any(|x| x.iter().any(|y| !y.is_finite())) {
-            return Err(format!(
-                "/sim/step step {} rod {r} holds a non-finite number",
-                s.step
-            ));
+        for (name, x) in vectors.iter().filter(|(name, _)| *name != "impulse") {
+            check_finite(&at, name, x, 2, "node")?;
         }
         if let Some(k) = v
             .contact_obstacle
@@ -634,8 +597,8 @@ fn check_step(s: &Step, shape: &Shape) -> Result<(), String> {
             .find(|&&k| k >= shape.obstacles)
         {
             return Err(format!(
-                "/sim/step step {} rod {r}: contact_obstacle {k} but the run has {} obstacle(s)",
-                s.step, shape.obstacles
+                "{at}: contact_obstacle {k} but the run has {} obstacle(s)",
+                shape.obstacles
             ));
         }
     }
@@ -667,12 +630,8 @@ pub fn read_messages(
     mut visit: impl FnMut(Message) -> Result<(), ReplayError>,
 ) -> Result<ReadStatus, ReplayError> {
     let err = |m: String| ReplayError::file(path, m);
-    let mut records = Records::open(path).map_err(err)?;
-
-    // id -> (name, encoding)
-    let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
-    // id -> topic
-    let mut channels: HashMap<u16, String> = HashMap::new();
+    // topics of the channels defined
+    let mut topics: Vec<String> = Vec::new();
     // ids of the channels whose messages are protobuf (format 2 /sim/step, /sim/iteration),
     // with whether their schema is the f64 twin (`gripsim.Step64`, `gripsim.Iteration64`)
     let mut protobuf: HashMap<u16, bool> = HashMap::new();
@@ -682,234 +641,205 @@ pub fn read_messages(
     let mut shape: Option<Shape> = None;
     let mut steps = 0u64;
     let mut last_step: Option<(u64, f64)> = None;
-    let mut ended = false;
 
-    while let Some(record) = records.next() {
-        let record = match record {
-            Ok(r) => r,
-            Err(e) => {
-                let e = records.explain(e);
-                if steps == 0 {
-                    return Err(err(format!(
-                        "not a readable MCAP file: its data stop before the first \
-                         /sim/step message ({e})"
-                    )));
-                }
-                status.truncated = Some(format!("reading stopped early: {e}"));
-                break;
-            }
-        };
-        use mcap::records::Record;
-        match record {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, (header.name.clone(), header.encoding.clone()));
-            }
-            Record::Channel(c) => {
-                let got = schemas.get(&c.schema_id);
+    let end = read_raw(path, |raw| {
+        let (channel, topic, data) = match raw {
+            Raw::Channel {
+                id,
+                topic,
+                encoding,
+                schema,
+            } => {
                 // Format 2 writes these as protobuf, format 1 as JSON: both are read.
-                let binary = ["/sim/step", "/sim/iteration"].contains(&c.topic.as_str())
-                    && c.message_encoding == "protobuf"
-                    && got.is_some_and(|(_, enc)| enc == "protobuf");
-                let wide = got.is_some_and(|(name, _)| name.ends_with("64"));
+                let binary = ["/sim/step", "/sim/iteration"].contains(&topic)
+                    && encoding == "protobuf"
+                    && schema.is_some_and(|(_, enc)| enc == "protobuf");
+                let wide = schema.is_some_and(|(name, _)| name.ends_with("64"));
                 if binary {
-                    protobuf.insert(c.id, wide);
+                    protobuf.insert(id, wide);
                 }
-                if let Some((_, want)) = REQUIRED.iter().find(|(t, _)| *t == c.topic) {
+                if let Some((_, want)) = REQUIRED.iter().find(|(t, _)| *t == topic) {
                     // Format 4 at precision f64: `gripsim.Step64`.
-                    let named = |name: &String| {
-                        name == want || (binary && name.strip_suffix("64") == Some(*want))
+                    let named = |name: &str| {
+                        name == *want || (binary && name.strip_suffix("64") == Some(*want))
                     };
-                    let ok = got
+                    let ok = schema
                         .is_some_and(|(name, enc)| named(name) && (enc == "jsonschema" || binary))
-                        && (c.message_encoding == "json" || binary);
+                        && (encoding == "json" || binary);
                     if !ok {
-                        return Err(err(format!(
-                            "wrong schema on {}: expected {want} (jsonschema, json messages; \
-                             or protobuf), found {} ({} messages); not a gripsim recording of \
-                             this format",
-                            c.topic,
-                            got.map(|(n, e)| format!("{n} ({e})"))
-                                .unwrap_or_else(|| "no schema".into()),
-                            c.message_encoding
-                        )));
+                        return Err(wrong_schema(path, topic, want, schema, encoding));
                     }
                 }
-                channels.insert(c.id, c.topic.clone());
+                topics.push(topic.to_string());
+                return Ok(());
             }
-            Record::Metadata(m) => {
+            Raw::Metadata(m) => {
                 if m.name == "gripsim" {
-                    check_version(
+                    check_format(
                         path,
                         m.metadata.get("format_version").map(|s| s.as_str()),
                         m.metadata.get("gripsim_version").map(|s| s.as_str()),
+                        FORMAT_VERSION,
                     )?;
                 } else if m.name == "gripsim.run_end" {
                     status.run_end = Some(m.metadata.clone());
                 }
+                return Ok(());
             }
-            Record::DataEnd(_) | Record::Footer(_) => ended = true,
-            Record::Message { header, data } => {
-                let Some(topic) = channels.get(&header.channel_id) else {
+            Raw::Message {
+                channel,
+                topic,
+                data,
+                ..
+            } => (channel, topic, data),
+        };
+        let msg = match topic {
+            "/sim/meta" => {
+                let raw: serde_json::Value = serde_json::from_slice(data)
+                    .map_err(|e| err(format!("/sim/meta is not JSON: {e}")))?;
+                check_format(
+                    path,
+                    raw.get("format_version").map(|v| v.to_string()).as_deref(),
+                    raw.get("gripsim_version").and_then(|v| v.as_str()),
+                    FORMAT_VERSION,
+                )?;
+                let meta: Meta = serde_json::from_value(raw).map_err(|e| {
+                    err(format!("/sim/meta does not match schema gripsim.Meta: {e}"))
+                })?;
+                if shape.is_some() {
+                    return Err(err("a second /sim/meta message".into()));
+                }
+                format = meta.format_version;
+                for (r, rod) in meta.rods.iter().enumerate() {
+                    let n = rod.nodes;
+                    let ok = n > 0
+                        && rod.mass.len() == n
+                        && rod.clamped.len() == n
+                        && rod.rest_length.len() == n.saturating_sub(1)
+                        && rod.rest_curvature.len() == n
+                        && rod.mass.iter().all(|m| m.is_finite() && *m > 0.0);
+                    if !ok {
+                        return Err(err(format!(
+                            "/sim/meta rod {r} ({:?}): its per-node arrays do not match \
+                             its {n} nodes, or a mass is not positive",
+                            rod.name
+                        )));
+                    }
+                }
+                if meta.rods.is_empty() {
+                    return Err(err("/sim/meta lists no rods".into()));
+                }
+                let obstacles = raw_obstacle_count(data);
+                shape = Some(Shape {
+                    nodes: meta.rods.iter().map(|r| r.nodes).collect(),
+                    obstacles,
+                });
+                Message::Meta(Box::new(meta))
+            }
+            "/sim/step" => {
+                let Some(sh) = shape.as_ref() else {
+                    return Err(err("a /sim/step message before /sim/meta".into()));
+                };
+                let bad = |e: String| {
+                    err(format!(
+                        "/sim/step message {} does not match schema gripsim.Step: {e}",
+                        steps + 1
+                    ))
+                };
+                let mut s: Step = if let Some(&wide) = protobuf.get(&channel) {
+                    use prost::Message as _;
+                    if wide || format <= 3 {
+                        let pb = proto::Step64::decode(data).map_err(|e| bad(e.to_string()))?;
+                        Step::try_from(pb).map_err(bad)?
+                    } else {
+                        let pb = proto::Step::decode(data).map_err(|e| bad(e.to_string()))?;
+                        Step::try_from(pb).map_err(bad)?
+                    }
+                } else {
+                    serde_json::from_slice(data).map_err(|e| bad(e.to_string()))?
+                };
+                // Format 3 leaves `q_predictor` out on steps without a corrector
+                // pass, where it is `q`.
+                for r in s.rods.iter_mut().filter(|r| r.q_predictor.is_empty()) {
+                    r.q_predictor.clone_from(&r.q);
+                }
+                check_step(&s, sh).map_err(err)?;
+                check_order(last_step, s.step, s.t).map_err(err)?;
+                last_step = Some((s.step, s.t));
+                steps += 1;
+                Message::Step(s)
+            }
+            "/sim/contact" => {
+                let Some(sh) = shape.as_ref() else {
+                    return Err(err("a /sim/contact message before /sim/meta".into()));
+                };
+                let c: Contact = serde_json::from_slice(data).map_err(|e| {
+                    err(format!(
+                        "a /sim/contact message does not match schema gripsim.Contact: {e}"
+                    ))
+                })?;
+                check_node("/sim/contact", c.step, c.rod, c.node, sh).map_err(err)?;
+                if c.change != "added" && c.change != "released" {
                     return Err(err(format!(
-                        "a message on channel {} that was never defined",
-                        header.channel_id
+                        "/sim/contact at step {}: change {:?} is neither added nor released",
+                        c.step, c.change
                     )));
-                };
-                let msg = match topic.as_str() {
-                    "/sim/meta" => {
-                        let raw: serde_json::Value = serde_json::from_slice(&data)
-                            .map_err(|e| err(format!("/sim/meta is not JSON: {e}")))?;
-                        check_version(
-                            path,
-                            raw.get("format_version").map(|v| v.to_string()).as_deref(),
-                            raw.get("gripsim_version").and_then(|v| v.as_str()),
-                        )?;
-                        let meta: Meta = serde_json::from_value(raw).map_err(|e| {
-                            err(format!("/sim/meta does not match schema gripsim.Meta: {e}"))
-                        })?;
-                        if shape.is_some() {
-                            return Err(err("a second /sim/meta message".into()));
-                        }
-                        format = meta.format_version;
-                        for (r, rod) in meta.rods.iter().enumerate() {
-                            let n = rod.nodes;
-                            let ok = n > 0
-                                && rod.mass.len() == n
-                                && rod.clamped.len() == n
-                                && rod.rest_length.len() == n.saturating_sub(1)
-                                && rod.rest_curvature.len() == n
-                                && rod.mass.iter().all(|m| m.is_finite() && *m > 0.0);
-                            if !ok {
-                                return Err(err(format!(
-                                    "/sim/meta rod {r} ({:?}): its per-node arrays do not match \
-                                     its {n} nodes, or a mass is not positive",
-                                    rod.name
-                                )));
-                            }
-                        }
-                        if meta.rods.is_empty() {
-                            return Err(err("/sim/meta lists no rods".into()));
-                        }
-                        let obstacles = raw_obstacle_count(&data);
-                        shape = Some(Shape {
-                            nodes: meta.rods.iter().map(|r| r.nodes).collect(),
-                            obstacles,
-                        });
-                        Message::Meta(Box::new(meta))
-                    }
-                    "/sim/step" => {
-                        let Some(sh) = shape.as_ref() else {
-                            return Err(err("a /sim/step message before /sim/meta".into()));
-                        };
-                        let bad = |e: String| {
-                            err(format!(
-                                "/sim/step message {} does not match schema gripsim.Step: {e}",
-                                steps + 1
-                            ))
-                        };
-                        let mut s: Step = if let Some(&wide) = protobuf.get(&header.channel_id) {
-                            use prost::Message as _;
-                            if wide || format <= 3 {
-                                let pb = proto::Step64::decode(data.as_ref())
-                                    .map_err(|e| bad(e.to_string()))?;
-                                Step::try_from(pb).map_err(bad)?
-                            } else {
-                                let pb = proto::Step::decode(data.as_ref())
-                                    .map_err(|e| bad(e.to_string()))?;
-                                Step::try_from(pb).map_err(bad)?
-                            }
-                        } else {
-                            serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
-                        };
-                        // Format 3 leaves `q_predictor` out on steps without a corrector
-                        // pass, where it is `q`.
-                        for r in s.rods.iter_mut().filter(|r| r.q_predictor.is_empty()) {
-                            r.q_predictor.clone_from(&r.q);
-                        }
-                        check_step(&s, sh).map_err(err)?;
-                        if let Some((k, t)) = last_step {
-                            if s.step <= k || s.t < t {
-                                return Err(err(format!(
-                                    "/sim/step step {} at t = {} follows step {k} at t = {t}: \
-                                     steps must increase",
-                                    s.step, s.t
-                                )));
-                            }
-                        }
-                        last_step = Some((s.step, s.t));
-                        steps += 1;
-                        Message::Step(s)
-                    }
-                    "/sim/contact" => {
-                        let Some(sh) = shape.as_ref() else {
-                            return Err(err("a /sim/contact message before /sim/meta".into()));
-                        };
-                        let c: Contact = serde_json::from_slice(&data).map_err(|e| {
-                            err(format!(
-                                "a /sim/contact message does not match schema gripsim.Contact: {e}"
-                            ))
-                        })?;
-                        check_node("/sim/contact", c.step, c.rod, c.node, sh).map_err(err)?;
-                        if c.change != "added" && c.change != "released" {
-                            return Err(err(format!(
-                                "/sim/contact at step {}: change {:?} is neither added nor released",
-                                c.step, c.change
-                            )));
-                        }
-                        Message::Contact(c)
-                    }
-                    "/sim/event" => {
-                        let e: SimEvent = serde_json::from_slice(&data).map_err(|e| {
-                            err(format!(
-                                "a /sim/event message does not match schema gripsim.Event: {e}"
-                            ))
-                        })?;
-                        Message::Event(e)
-                    }
-                    "/sim/iteration" if iterations => {
-                        let Some(sh) = shape.as_ref() else {
-                            return Err(err("a /sim/iteration message before /sim/meta".into()));
-                        };
-                        let bad = |e: String| {
-                            err(format!(
-                                "a /sim/iteration message does not match schema gripsim.Iteration: {e}"
-                            ))
-                        };
-                        let it: Iteration = if let Some(&wide) = protobuf.get(&header.channel_id) {
-                            use prost::Message as _;
-                            if wide || format <= 3 {
-                                let pb = proto::Iteration64::decode(data.as_ref())
-                                    .map_err(|e| bad(e.to_string()))?;
-                                Iteration::try_from(pb).map_err(bad)?
-                            } else {
-                                let pb = proto::Iteration::decode(data.as_ref())
-                                    .map_err(|e| bad(e.to_string()))?;
-                                Iteration::try_from(pb).map_err(bad)?
-                            }
-                        } else {
-                            serde_json::from_slice(&data).map_err(|e| bad(e.to_string()))?
-                        };
-                        check_node("/sim/iteration", it.step, it.rod, 0, sh).map_err(err)?;
-                        if it.q.len() != 2 * sh.nodes[it.rod] {
-                            return Err(err(format!(
-                                "/sim/iteration at step {}: q has {} numbers for {} nodes",
-                                it.step,
-                                it.q.len(),
-                                sh.nodes[it.rod]
-                            )));
-                        }
-                        Message::Iteration(it)
-                    }
-                    _ => continue,
-                };
-                visit(msg)?;
+                }
+                Message::Contact(c)
             }
-            _ => {}
+            "/sim/event" => {
+                let e: SimEvent = serde_json::from_slice(data).map_err(|e| {
+                    err(format!(
+                        "a /sim/event message does not match schema gripsim.Event: {e}"
+                    ))
+                })?;
+                Message::Event(e)
+            }
+            "/sim/iteration" if iterations => {
+                let Some(sh) = shape.as_ref() else {
+                    return Err(err("a /sim/iteration message before /sim/meta".into()));
+                };
+                let bad = |e: String| {
+                    err(format!(
+                        "a /sim/iteration message does not match schema gripsim.Iteration: {e}"
+                    ))
+                };
+                let it: Iteration = if let Some(&wide) = protobuf.get(&channel) {
+                    use prost::Message as _;
+                    if wide || format <= 3 {
+                        let pb =
+                            proto::Iteration64::decode(data).map_err(|e| bad(e.to_string()))?;
+                        Iteration::try_from(pb).map_err(bad)?
+                    } else {
+                        let pb = proto::Iteration::decode(data).map_err(|e| bad(e.to_string()))?;
+                        Iteration::try_from(pb).map_err(bad)?
+                    }
+                } else {
+                    serde_json::from_slice(data).map_err(|e| bad(e.to_string()))?
+                };
+                check_node("/sim/iteration", it.step, it.rod, 0, sh).map_err(err)?;
+                if it.q.len() != 2 * sh.nodes[it.rod] {
+                    return Err(err(format!(
+                        "/sim/iteration at step {}: q has {} numbers for {} nodes",
+                        it.step,
+                        it.q.len(),
+                        sh.nodes[it.rod]
+                    )));
+                }
+                Message::Iteration(it)
+            }
+            _ => return Ok(()),
+        };
+        visit(msg)
+    })?;
+    if let Some(e) = &end.error {
+        if steps == 0 {
+            return Err(err(unreadable(e)));
         }
     }
     for (topic, schema) in REQUIRED {
-        if !channels.values().any(|t| t == topic) {
-            let why = if steps == 0 && status.truncated.is_none() {
+        if !topics.iter().any(|t| t == topic) {
+            let why = if steps == 0 && end.error.is_none() {
                 "the file holds no gripsim run"
             } else {
                 "not a gripsim recording, or one cut before the channel was written"
@@ -923,17 +853,220 @@ pub fn read_messages(
         return Err(err("no /sim/meta message: not a gripsim recording".into()));
     }
     if steps == 0 {
-        return Err(err(
-            "no /sim/step message: the run was cut before its first chunk was written".into(),
-        ));
+        return Err(err(NO_STEP.into()));
     }
-    if status.truncated.is_none() {
-        status.truncated = records.stopped.take();
-    }
-    if status.truncated.is_none() && !ended {
-        status.truncated = Some("the file ends without a summary or footer".into());
-    }
+    status.truncated = end.truncated();
     Ok(status)
+}
+
+/// The error of a file whose data stop (damage, a cut) before its first `/sim/step`.
+pub(crate) fn unreadable(e: &str) -> String {
+    format!("not a readable MCAP file: its data stop before the first /sim/step message ({e})")
+}
+
+/// The error of a whole readable file without a `/sim/step` message (both dimensions).
+pub(crate) const NO_STEP: &str =
+    "no /sim/step message: the run was cut before its first chunk was written";
+
+/// The error of a required channel with another schema than `want`.
+pub(crate) fn wrong_schema(
+    path: &Path,
+    topic: &str,
+    want: &str,
+    schema: Option<(&str, &str)>,
+    encoding: &str,
+) -> ReplayError {
+    ReplayError::file(
+        path,
+        format!(
+            "wrong schema on {topic}: expected {want} (jsonschema, json messages; or \
+             protobuf), found {} ({encoding} messages); not a gripsim recording of this format",
+            schema
+                .map(|(n, e)| format!("{n} ({e})"))
+                .unwrap_or_else(|| "no schema".into()),
+        ),
+    )
+}
+
+// ---- the rules both dimensions check a recording's steps with --------------------------------
+
+/// Steps in order: each step's number above the last one's (a number recorded twice is a
+/// duplicated step), its time not before the last one's.
+pub(crate) fn check_order(last: Option<(u64, f64)>, step: u64, t: f64) -> Result<(), String> {
+    match last {
+        Some((k, t0)) if step <= k || t < t0 => Err(format!(
+            "/sim/step step {step} at t = {t} follows step {k} at t = {t0}: steps must \
+             increase{}",
+            if step == k {
+                " (a step recorded twice)"
+            } else {
+                ""
+            }
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// A step's clock: t finite, dt finite and not negative (and above 0 where `positive`).
+pub(crate) fn check_clock(at: &str, t: f64, dt: f64, positive: bool) -> Result<(), String> {
+    if !t.is_finite() || !dt.is_finite() || dt < 0.0 || (positive && dt <= 0.0) {
+        let rule = if positive { " (dt must be > 0)" } else { "" };
+        return Err(format!("{at} has t = {t}, dt = {dt}{rule}"));
+    }
+    Ok(())
+}
+
+/// A step holds every rod `/sim/meta` lists, and no other.
+pub(crate) fn check_rod_count(at: &str, found: usize, listed: usize) -> Result<(), String> {
+    if found != listed {
+        return Err(format!("{at} has {found} rods, /sim/meta lists {listed}"));
+    }
+    Ok(())
+}
+
+/// An array of `per` numbers per `unit` (node, edge) holds them for `count` of them.
+pub(crate) fn check_len(
+    at: &str,
+    name: &str,
+    len: usize,
+    per: usize,
+    count: usize,
+    unit: &str,
+) -> Result<(), String> {
+    if len == per * count {
+        return Ok(());
+    }
+    Err(if per == 1 {
+        format!("{at}: `{name}` has {len} entries, expected {count} (one per {unit})")
+    } else {
+        format!("{at}: `{name}` has {len} numbers, expected {per} x {count} {unit}s")
+    })
+}
+
+/// Every recorded number is finite; else where the first one that is not is (its `unit`, the
+/// index over `per` numbers each).
+pub(crate) fn check_finite(
+    at: &str,
+    name: &str,
+    values: &[f64],
+    per: usize,
+    unit: &str,
+) -> Result<(), String> {
+    match values.iter().position(|x| !x.is_finite()) {
+        Some(k) => Err(format!(
+            "{at} holds a non-finite number: `{name}`[{k}] = {} ({unit} {})",
+            values[k],
+            k / per.max(1)
+        )),
+        None => Ok(()),
+    }
+}
+
+/// One record of a recording as [`read_raw`] hands it over, in file order.
+pub(crate) enum Raw<'a> {
+    /// A channel, with its schema's name and encoding (None: a schema never defined).
+    Channel {
+        id: u16,
+        topic: &'a str,
+        encoding: &'a str,
+        schema: Option<(&'a str, &'a str)>,
+    },
+    Metadata(&'a mcap::records::Metadata),
+    /// A message, with its channel's topic.
+    Message {
+        channel: u16,
+        topic: &'a str,
+        data: &'a [u8],
+    },
+}
+
+/// How [`read_raw`] ended.
+pub(crate) struct RawEnd {
+    /// The reader's error where reading stopped (damage, a cut), naming the chunk.
+    pub error: Option<String>,
+    /// Why the records stopped before the end of the file without a reader error.
+    pub stopped: Option<String>,
+    /// A data end or footer record was read.
+    pub ended: bool,
+}
+
+impl RawEnd {
+    /// Why the file was read only in part (None: whole).
+    pub fn truncated(&self) -> Option<String> {
+        if let Some(e) = &self.error {
+            return Some(format!("reading stopped early: {e}"));
+        }
+        if let Some(s) = &self.stopped {
+            return Some(s.clone());
+        }
+        (!self.ended).then(|| "the file ends without a summary or footer".into())
+    }
+}
+
+/// Read `path` with the guarded, streaming record reader ([`Records`]: one chunk in memory at
+/// a time, chunk CRCs checked before any of its records is handed out, record lengths bounded)
+/// and hand `visit` its channels, metadata and messages in file order. The reader of both
+/// dimensions: [`read_messages`] (planar) and [`super::read3`] (3D) decode the messages. A
+/// reader error ends the reading ([`RawEnd::error`]); what `visit` returns as an error is
+/// returned.
+pub(crate) fn read_raw(
+    path: &Path,
+    mut visit: impl FnMut(Raw<'_>) -> Result<(), ReplayError>,
+) -> Result<RawEnd, ReplayError> {
+    use mcap::records::Record;
+    let err = |m: String| ReplayError::file(path, m);
+    let mut records = Records::open(path).map_err(err)?;
+    // id -> (name, encoding)
+    let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
+    // id -> topic
+    let mut channels: HashMap<u16, String> = HashMap::new();
+    let mut end = RawEnd {
+        error: None,
+        stopped: None,
+        ended: false,
+    };
+    while let Some(record) = records.next() {
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                end.error = Some(records.explain(e));
+                break;
+            }
+        };
+        match record {
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, (header.name.clone(), header.encoding.clone()));
+            }
+            Record::Channel(c) => {
+                let schema = schemas.get(&c.schema_id);
+                visit(Raw::Channel {
+                    id: c.id,
+                    topic: &c.topic,
+                    encoding: &c.message_encoding,
+                    schema: schema.map(|(n, e)| (n.as_str(), e.as_str())),
+                })?;
+                channels.insert(c.id, c.topic.clone());
+            }
+            Record::Metadata(m) => visit(Raw::Metadata(&m))?,
+            Record::DataEnd(_) | Record::Footer(_) => end.ended = true,
+            Record::Message { header, data } => {
+                let Some(topic) = channels.get(&header.channel_id) else {
+                    return Err(err(format!(
+                        "a message on channel {} that was never defined",
+                        header.channel_id
+                    )));
+                };
+                visit(Raw::Message {
+                    channel: header.channel_id,
+                    topic,
+                    data: &data,
+                })?;
+            }
+            _ => {}
+        }
+    }
+    end.stopped = records.stopped.take();
+    Ok(end)
 }
 
 /// Every record of an MCAP file in file order, read from the file record by record (memory:
@@ -964,6 +1097,7 @@ impl Records {
     /// Open `path` and check its first 8 bytes (the MCAP magic) before anything else is read.
     fn open(path: &Path) -> Result<Records, String> {
         use std::io::Read;
+        not_a_pipe(path)?;
         let file = std::fs::File::open(path).map_err(|e| format!("cannot read the file: {e}"))?;
         let meta = file
             .metadata()
@@ -1199,6 +1333,23 @@ pub fn recorded_files(path: &Path) -> Vec<std::path::PathBuf> {
     }
 }
 
+/// A recording is read more than once (which reader, then the data; `diff` and `show` again):
+/// a FIFO or a socket is refused before it is opened (opening a FIFO without a writer blocks).
+pub(crate) fn not_a_pipe(path: &Path) -> Result<(), String> {
+    use std::os::unix::fs::FileTypeExt;
+    let kind = std::fs::metadata(path)
+        .map_err(|e| format!("cannot read the file: {e}"))?
+        .file_type();
+    if kind.is_fifo() || kind.is_socket() {
+        return Err(
+            "is a FIFO or a socket, not a file: replay reads a recording more than \
+                    once; save it to a file first"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
 /// Whether every record of an uncompressed chunk ends within the chunk's records length, as far
 /// as `body` (the chunk record's body, perhaps cut short) shows. True for a compressed chunk.
 fn chunk_records_fit(body: &[u8]) -> bool {
@@ -1248,22 +1399,25 @@ fn raw_obstacle_count(data: &[u8]) -> usize {
         .unwrap_or(0)
 }
 
-fn check_version(
+/// The rule of the format version (both dimensions): a recording of a format newer than
+/// `newest` (what this gripsim reads) is refused, naming the writer.
+pub(crate) fn check_format(
     path: &Path,
     version: Option<&str>,
     writer: Option<&str>,
+    newest: u32,
 ) -> Result<(), ReplayError> {
     let Some(v) = version else { return Ok(()) };
     let v: u64 = v
         .trim_matches('"')
         .parse()
         .map_err(|_| ReplayError::file(path, format!("format_version {v:?} is not a number")))?;
-    if v > FORMAT_VERSION as u64 {
+    if v > newest as u64 {
         return Err(ReplayError::file(
             path,
             format!(
                 "recorded with format version {v} by gripsim {}; this gripsim ({}) reads format \
-                 version {FORMAT_VERSION} and older: replay it with a newer gripsim",
+                 version {newest} and older: replay it with a newer gripsim",
                 writer.unwrap_or("(unknown)"),
                 env!("CARGO_PKG_VERSION")
             ),

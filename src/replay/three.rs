@@ -19,6 +19,7 @@
 //! scenario's.
 
 use super::detect::{Effective, Scales, Sticking, Thresholds};
+use super::read3::{read3, Message3, Meta3In};
 use super::ReplayError;
 use crate::obstacle3::Shape3;
 use crate::record::mcap3::Step3;
@@ -26,7 +27,6 @@ use crate::rod3d::rod::{angle, pos};
 use crate::rod3d::solver::assemble;
 use crate::rod3d::Sim3;
 use crate::scenario::three::Scenario3;
-use prost::Message as _;
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::path::Path;
@@ -505,35 +505,9 @@ impl Run3 {
     }
 }
 
-#[derive(serde::Deserialize)]
-struct EventIn {
-    kind: String,
-    #[serde(default)]
-    completed: Option<bool>,
-    #[serde(default)]
-    error: Option<String>,
-}
-
-#[derive(serde::Deserialize)]
-struct MetaIn {
-    scenario_name: String,
-    scenario_text: String,
-    #[serde(default)]
-    sets: Vec<String>,
-    #[serde(default)]
-    shapes: Vec<ShapeIn>,
-}
-
-#[derive(serde::Deserialize)]
-struct ShapeIn {
-    name: String,
-    #[serde(default)]
-    mesh_hash: Option<String>,
-}
-
 /// Each mesh the recording hashed must be the mesh the re-read scenario found (beside the
 /// recording): a different file at that path is refused, never replayed silently.
-fn same_meshes(sc: &Scenario3, shapes: &[ShapeIn]) -> Result<(), String> {
+fn same_meshes(sc: &Scenario3, shapes: &[super::read3::ShapeIn]) -> Result<(), String> {
     use crate::obstacle3::Shape3;
     let fruit = sc.fruit.iter().map(|f| (f.name.as_str(), &f.shape));
     let obstacles = sc.obstacles.iter().map(|o| (o.name.as_str(), &o.shape));
@@ -556,7 +530,7 @@ fn same_meshes(sc: &Scenario3, shapes: &[ShapeIn]) -> Result<(), String> {
     Ok(())
 }
 
-/// Whether `path` is the MCAP of a 3D run (its `/sim/step` carries `gripsim.Step3`): the
+/// Whether `path` is the MCAP of a 3D run (`gripsim.Step3`, `gripsim.Meta3`): the
 /// summary section's schema records are looked at (found through the footer), so a planar
 /// recording is not read whole to find out.
 pub fn is_3d_mcap(path: &Path) -> bool {
@@ -570,10 +544,11 @@ fn first_message_says_3d(path: &Path) -> bool {
     super::read::first_message_schema(path).is_some_and(|s| s == "gripsim.Meta3")
 }
 
-/// Whether the summary section (found through the footer) names `gripsim.Step3`; None when
-/// the file has no readable footer.
+/// Whether the summary section (found through the footer) names `gripsim.Step3` or
+/// `gripsim.Meta3`; None when the file has no readable footer.
 fn summary_says_3d(path: &Path) -> Option<bool> {
     use std::io::{Read as _, Seek as _, SeekFrom};
+    super::read::not_a_pipe(path).ok()?;
     let Ok(mut f) = std::fs::File::open(path) else {
         return None;
     };
@@ -600,56 +575,55 @@ fn summary_says_3d(path: &Path) -> Option<bool> {
     if f.seek(SeekFrom::Start(start)).is_err() || f.read_to_end(&mut summary).is_err() {
         return None;
     }
-    let needle = b"gripsim.Step3";
-    Some(summary.windows(needle.len()).any(|w| w == needle))
+    // `gripsim.Meta3` too: a 3D file without steps is a 3D file refused as such.
+    let has = |needle: &[u8]| summary.windows(needle.len()).any(|w| w == needle);
+    Some(has(b"gripsim.Step3") || has(b"gripsim.Meta3"))
+}
+
+/// The recorded scenario of a 3D run, its meshes those the run used and its rods those
+/// `/sim/meta` lists.
+fn recorded_scenario3(path: &Path, meta: &Meta3In) -> Result<Scenario3, ReplayError> {
+    let err = |m: String| ReplayError::file(path, m);
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let scenario = Scenario3::from_str_with(
+        &meta.scenario_text,
+        &format!("{} (/sim/meta)", path.display()),
+        dir,
+        &meta.sets,
+    )
+    .map_err(|e| err(format!("the recorded scenario: {e}")))?;
+    same_meshes(&scenario, &meta.shapes).map_err(err)?;
+    let (w, _) = crate::rod3d::run3::build(&scenario).map_err(err)?;
+    let built: Vec<usize> = w.rods.iter().map(|s| s.rod.n).collect();
+    let listed: Vec<usize> = meta.rods.iter().map(|r| r.nodes).collect();
+    if built != listed {
+        return Err(err(format!(
+            "/sim/meta rods do not match its own scenario_text: /sim/meta lists {} rod(s) of \
+             {listed:?} nodes, the scenario builds {} of {built:?}",
+            listed.len(),
+            built.len()
+        )));
+    }
+    Ok(scenario)
 }
 
 impl Run3 {
+    /// Read a 3D run (every step checked, `/scene` skipped): a damaged or self-contradicting
+    /// file is an error naming it and where; a file cut short is read up to its last complete
+    /// chunk ([`Run3::truncated`]).
     pub fn load(path: &Path) -> Result<Run3, ReplayError> {
-        let err = |m: String| ReplayError::file(path, m);
-        let bytes = std::fs::read(path).map_err(|e| err(format!("cannot read: {e}")))?;
-        let mut meta = None;
+        let mut head: Option<(Scenario3, Meta3In)> = None;
         let mut steps = Vec::new();
-        let (mut completed, mut truncated, mut run_error) = (None, None, None);
-        for m in mcap::MessageStream::new(&bytes).map_err(|e| err(e.to_string()))? {
-            let m = match m {
-                Ok(m) => m,
-                Err(e) => {
-                    // A file cut short (a killed run): the messages before the damage.
-                    truncated = Some(format!("unreadable message: {e}"));
-                    break;
-                }
-            };
-            match (m.channel.topic.as_str(), m.channel.schema.as_ref()) {
-                ("/sim/event", _) => {
-                    let e: EventIn = serde_json::from_slice(&m.data)
-                        .map_err(|e| err(format!("/sim/event: {e}")))?;
-                    if e.kind == "run_end" {
-                        completed = e.completed;
-                        run_error = e.error;
-                    }
-                }
-                ("/sim/meta", _) => {
-                    let v: MetaIn = serde_json::from_slice(&m.data)
-                        .map_err(|e| err(format!("/sim/meta: {e}")))?;
-                    meta = Some(v);
-                }
-                ("/sim/step", Some(s)) if s.name == "gripsim.Step3" => {
-                    steps.push(Step3::decode(&*m.data).map_err(|e| err(format!("/sim/step: {e}")))?)
-                }
-                _ => {}
+        let (mut completed, mut run_error) = (None, None);
+        let truncated = read3(path, |m| {
+            match m {
+                Message3::Meta(m) => head = Some((recorded_scenario3(path, &m)?, *m)),
+                Message3::Step(s) => steps.push(*s),
+                Message3::End(c, e) => (completed, run_error) = (c, e),
             }
-        }
-        let meta = meta.ok_or_else(|| err("no /sim/meta message: not a gripsim 3D run".into()))?;
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let scenario = Scenario3::from_str_with(
-            &meta.scenario_text,
-            &format!("{} (/sim/meta)", path.display()),
-            dir,
-            &meta.sets,
-        )
-        .map_err(|e| err(format!("the recorded scenario: {e}")))?;
-        same_meshes(&scenario, &meta.shapes).map_err(err)?;
+            Ok(())
+        })?;
+        let (scenario, meta) = head.expect("read3 checks /sim/meta");
         Ok(Run3 {
             scenario,
             name: meta.scenario_name,
@@ -663,19 +637,34 @@ impl Run3 {
     }
 }
 
-/// `replay check` on a 3D run.
+/// `replay check` on a 3D run: the steps fed to the detector as they are read (the file is
+/// streamed, never held whole), every one checked before the report is made.
 pub fn check(path: &Path, th: &Thresholds) -> Result<Check3Report, ReplayError> {
     th.validate().map_err(ReplayError::new)?;
-    let run = Run3::load(path)?;
-    let mut d = Detector3::new(&run.scenario, th).map_err(|e| ReplayError::file(path, e))?;
-    for s in &run.steps {
-        d.step(s);
-    }
-    let mut rep = d.finish(&path.display().to_string(), &run.name);
-    rep.incomplete = run.incomplete();
-    rep.completed = run.completed;
-    rep.run_error = run.run_error;
-    rep.truncated = run.truncated;
+    let mut head: Option<(Detector3, String)> = None;
+    let (mut completed, mut run_error) = (None, None);
+    let truncated = read3(path, |m| {
+        match m {
+            Message3::Meta(m) => {
+                let sc = recorded_scenario3(path, &m)?;
+                let d = Detector3::new(&sc, th).map_err(|e| ReplayError::file(path, e))?;
+                head = Some((d, m.scenario_name));
+            }
+            Message3::Step(s) => {
+                if let Some((d, _)) = head.as_mut() {
+                    d.step(&s);
+                }
+            }
+            Message3::End(c, e) => (completed, run_error) = (c, e),
+        }
+        Ok(())
+    })?;
+    let (d, name) = head.expect("read3 checks /sim/meta");
+    let mut rep = d.finish(&path.display().to_string(), &name);
+    rep.incomplete = truncated.is_some() || completed != Some(true);
+    rep.completed = completed;
+    rep.run_error = run_error;
+    rep.truncated = truncated;
     Ok(rep)
 }
 

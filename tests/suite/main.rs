@@ -5,6 +5,7 @@
 mod auto_detail;
 mod bad_input;
 mod bad_recordings;
+mod bad_recordings3d;
 mod bench;
 mod common;
 mod compliant3d;
