@@ -83,6 +83,9 @@ pub enum RunError {
     Planar(#[from] SimError),
     #[error("{message}")]
     Spatial { message: String, interrupted: bool },
+    /// The run could not start: its check's thresholds, or a 3D world from its scenario.
+    #[error("{0}")]
+    Setup(String),
 }
 
 impl RunError {
@@ -91,6 +94,7 @@ impl RunError {
         match self {
             RunError::Planar(e) => matches!(e, SimError::Interrupted { .. }),
             RunError::Spatial { interrupted, .. } => *interrupted,
+            RunError::Setup(_) => false,
         }
     }
 }
@@ -109,7 +113,7 @@ pub struct Outcome {
 
 /// Run `sc` (whose text is `text`: the `RunStart` event carries it) to its end, sending the
 /// event stream to `obs` (only accepted steps' contact changes reach it) and asking `stop`
-/// between steps. `Err` only when a 3D world cannot be built from the scenario.
+/// between steps. `Err` ([`RunError::Setup`]) only when the run cannot start.
 pub fn run<O: Observer>(
     sc: &AnyScenario,
     text: &str,
@@ -130,10 +134,7 @@ pub fn run_with<O: Observer>(
     check: Option<&Thresholds>,
 ) -> Result<Outcome, RunError> {
     if let Some(th) = check {
-        th.validate().map_err(|message| RunError::Spatial {
-            message,
-            interrupted: false,
-        })?;
+        th.validate().map_err(RunError::Setup)?;
     }
     match sc {
         AnyScenario::Planar(sc) => Ok(run_planar(sc, obs, stop, check)),
@@ -180,10 +181,6 @@ fn run_spatial<O: Observer>(
     use crate::rod3d::run3;
     let start = Instant::now();
     let asked = || stop.as_ref().is_some_and(|s| s());
-    let failed = |message| RunError::Spatial {
-        message,
-        interrupted: false,
-    };
     let (s, result, found) = match check {
         None => {
             let mut events = run3::Events { text, obs };
@@ -194,11 +191,11 @@ fn run_spatial<O: Observer>(
                 &mut events,
                 &asked,
             )
-            .map_err(failed)?;
+            .map_err(RunError::Setup)?;
             (s, r, None)
         }
         Some(th) => {
-            let detector = crate::replay::three::Detector3::new(sc, th).map_err(failed)?;
+            let detector = crate::replay::three::Detector3::new(sc, th).map_err(RunError::Setup)?;
             let mut spikes = crate::replay::three::Detect3Observer { detector };
             let mut bruise = crate::replay::bruise::BruiseObserver::new(sc.expect.bruised);
             let (s, r) = {
@@ -209,7 +206,8 @@ fn run_spatial<O: Observer>(
                     text,
                     obs: &mut fan,
                 };
-                run3::run_full(sc, None, &mut spikes, &mut events, &asked).map_err(failed)?
+                run3::run_full(sc, None, &mut spikes, &mut events, &asked)
+                    .map_err(RunError::Setup)?
             };
             let rep = spikes.detector.finish("", &sc.name);
             (

@@ -25,6 +25,18 @@ pub struct PressureSample {
 }
 
 impl PressureSample {
+    /// A live contact view's pressure, when it has one (a compliant contact).
+    pub fn of_view(c: &crate::events::ContactView) -> Option<PressureSample> {
+        (c.peak_pressure > 0.0).then_some(PressureSample {
+            rod: c.rod,
+            node: c.node,
+            obstacle: c.obstacle,
+            peak_pressure: c.peak_pressure,
+            bruise_pressure: c.bruise_pressure,
+            bruise_half_width: c.bruise_half_width,
+        })
+    }
+
     fn over(&self) -> bool {
         self.bruise_pressure > 0.0 && self.peak_pressure > self.bruise_pressure
     }
@@ -220,16 +232,7 @@ impl crate::events::Observer for BruiseObserver {
             } => {
                 self.samples.clear();
                 self.samples
-                    .extend(contacts.iter().filter(|c| c.peak_pressure > 0.0).map(|c| {
-                        PressureSample {
-                            rod: c.rod,
-                            node: c.node,
-                            obstacle: c.obstacle,
-                            peak_pressure: c.peak_pressure,
-                            bruise_pressure: c.bruise_pressure,
-                            bruise_half_width: c.bruise_half_width,
-                        }
-                    }));
+                    .extend(contacts.iter().filter_map(PressureSample::of_view));
                 let places = Places {
                     rods: &self.rods,
                     obstacles: &self.obstacles,

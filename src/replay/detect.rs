@@ -1137,15 +1137,7 @@ impl Observer for DetectObserver {
                 self.detector.step(*step, *t, *dt, &samples);
                 let pressures: Vec<PressureSample> = contacts
                     .iter()
-                    .filter(|c| c.peak_pressure > 0.0)
-                    .map(|c| PressureSample {
-                        rod: c.rod,
-                        node: c.node,
-                        obstacle: c.obstacle,
-                        peak_pressure: c.peak_pressure,
-                        bruise_pressure: c.bruise_pressure,
-                        bruise_half_width: c.bruise_half_width,
-                    })
+                    .filter_map(PressureSample::of_view)
                     .collect();
                 if !pressures.is_empty() {
                     self.detector.pressure(*step, *t, &pressures);

@@ -7,28 +7,17 @@
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 const LIFT: &str = "scenarios/3d-lift.toml";
 const APPLE: &str = "scenarios/3d-apple.toml";
 
 fn gripsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gripsim"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .unwrap()
+    crate::common::gripsim().args(args).output().unwrap()
 }
 
 fn ok(args: &[&str]) -> String {
-    let out = gripsim(args);
-    assert!(
-        out.status.success(),
-        "gripsim {args:?} failed ({:?}):\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = crate::common::run_ok(crate::common::gripsim().args(args));
     format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),

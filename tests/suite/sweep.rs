@@ -15,22 +15,11 @@ const VARY_R: &str = "obstacle.0.radius=0.05,0.048";
 const VARY_E: &str = "rod.0.E=1e6,1e9";
 
 fn gripsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gripsim"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .unwrap()
+    crate::common::gripsim().args(args).output().unwrap()
 }
 
 fn ok(args: &[&str]) -> String {
-    let out = gripsim(args);
-    assert!(
-        out.status.success(),
-        "gripsim {args:?} failed ({:?}):\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = crate::common::run_ok(crate::common::gripsim().args(args));
     String::from_utf8(out.stdout).unwrap()
 }
 

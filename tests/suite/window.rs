@@ -6,7 +6,7 @@
 
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 const JAW: &str = "scenarios/jaw-grasp-hold.toml";
 const BRUISE: &str = "tests/data/window-bruise.toml";
@@ -14,22 +14,11 @@ const GRIP: &str = "actuator.0.phase.0.end.grip_force";
 const APPLE: &str = "scenarios/apple-pick-and-place.toml";
 
 fn gripsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_gripsim"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .output()
-        .unwrap()
+    crate::common::gripsim().args(args).output().unwrap()
 }
 
 fn ok(args: &[&str]) -> String {
-    let out = gripsim(args);
-    assert!(
-        out.status.success(),
-        "gripsim {args:?} failed ({:?}):\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = crate::common::run_ok(crate::common::gripsim().args(args));
     String::from_utf8(out.stdout).unwrap()
 }
 
