@@ -307,7 +307,7 @@ pub fn check(path: &Path, th: &Thresholds) -> Result<(CheckReport, Option<String
 /// At most this many rows per table in the human output (the JSON has them all).
 const MAX_ROWS: usize = 40;
 
-fn g(x: f64) -> String {
+pub(crate) fn g(x: f64) -> String {
     if x == 0.0 {
         "0".into()
     } else if (1e-3..1e5).contains(&x.abs()) {

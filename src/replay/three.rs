@@ -675,7 +675,7 @@ pub fn format_check(r: &Check3Report) -> String {
         r.file,
         r.scenario,
         r.steps,
-        r.t_end,
+        super::g(r.t_end),
         r.spikes.len(),
         r.sticking.len(),
         r.grasp.len()
