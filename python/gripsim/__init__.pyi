@@ -113,3 +113,17 @@ def sweep(
 ) -> pd.DataFrame:
     """``gripsim sweep``: its ``summary.csv`` as a DataFrame, one row per case; with a
     ``dask.distributed.Client`` each case runs on its workers."""
+
+def window(
+    scenario: Scenario | _Path,
+    vary: dict[str, str | list],
+    knob: str | None = ...,
+    range: tuple[float, float] | None = ...,
+    rtol: float = ...,
+    out: _Path | None = ...,
+    jobs: int = ...,
+    client: object | None = ...,
+) -> pd.DataFrame:
+    """``gripsim window --vary``: its ``window.csv`` as a DataFrame, one row per design
+    (``g_hold``, ``g_bruise``, their statuses, ``window_ratio``); with a
+    ``dask.distributed.Client`` each design's search runs on its workers."""
