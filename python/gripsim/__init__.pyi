@@ -96,10 +96,10 @@ def run(
     """Run ``scenario`` to its end with the GIL released (Ctrl-C: ``KeyboardInterrupt``)."""
 
 def read(path: _Path) -> Run:
-    """The run recorded in a planar ``.mcap``."""
+    """The run recorded in a ``.mcap`` (planar or 3D)."""
 
 def check(path: _Path) -> dict:
-    """``gripsim replay check`` of a planar ``.mcap``: its report as a dict."""
+    """``gripsim replay check`` of a ``.mcap`` (planar or 3D): its report as a dict."""
 
 def diff(a: _Path, b: _Path) -> dict:
     """``gripsim replay diff A B``: its report as a dict."""
