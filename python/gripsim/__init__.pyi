@@ -116,7 +116,7 @@ def sweep(
 
 def window(
     scenario: Scenario | _Path,
-    vary: dict[str, str | list],
+    vary: dict[str, str | list] | None = ...,
     knob: str | None = ...,
     range: tuple[float, float] | None = ...,
     rtol: float = ...,
@@ -124,6 +124,7 @@ def window(
     jobs: int = ...,
     client: object | None = ...,
 ) -> pd.DataFrame:
-    """``gripsim window --vary``: its ``window.csv`` as a DataFrame, one row per design
+    """``gripsim window``: without ``vary`` one search, its runs as a DataFrame (the result
+    in ``df.attrs["window"]``); with ``vary`` its ``window.csv``, one row per design
     (``g_hold``, ``g_bruise``, their statuses, ``window_ratio``); with a
     ``dask.distributed.Client`` each design's search runs on its workers."""

@@ -49,10 +49,20 @@ def sweep(scenario, vary: dict, out: str | os.PathLike | None = None, jobs: int 
     return _study(scenario, vary, out, jobs, client, None)
 
 
-def window(scenario, vary: dict, knob: str | None = None, range: tuple | None = None,
+def window(scenario, vary: dict | None = None, knob: str | None = None, range: tuple | None = None,
            rtol: float = 0.01, out: str | os.PathLike | None = None, jobs: int = 0,
            client=None):
-    """``gripsim window --vary``: a map of the grasp window over design parameters. Each
+    """``gripsim window``. Without ``vary``: one grasp-window search of the scenario along
+    ``knob`` (by default the squeeze's grip target) over ``range`` ``(LO, HI)`` (by default
+    the scenario's value / 8 to × 8) to the relative tolerance ``rtol``, on ``jobs`` threads.
+    Returns its runs as a DataFrame sorted by knob ``value`` (the CLI's table: ``value``,
+    ``outcome``, ``safety_margin_at_lift``, ``bruise_ratio``, …, ``run`` the order run), and
+    the result (``hold`` and ``bruise`` boundaries with ``value``, ``status`` and ``note``,
+    ``window_ratio``, ``headline``, the resolved ``knob``) as ``df.attrs["window"]``, what
+    ``gripsim window --json`` writes.
+
+    With ``vary``: ``gripsim window --vary``, a map of the grasp window over design
+    parameters. Each
     design (a case of ``vary``, as in :func:`sweep`) is one grasp-window search along
     ``knob`` (by default the squeeze's grip target) over ``range`` ``(LO, HI)`` (by default
     the scenario's value / 8 to × 8) to the relative tolerance ``rtol``. Returns
@@ -60,11 +70,33 @@ def window(scenario, vary: dict, knob: str | None = None, range: tuple | None = 
     ``g_hold`` and ``g_bruise`` with their brackets and statuses, ``window_ratio``, the
     number of runs. ``out``, ``jobs`` and ``client`` as for :func:`sweep` (with a client each
     design is one task)."""
-    if not vary:
-        raise ValueError("window: vary is empty; a map needs at least one design parameter "
-                         "(the CLI's `gripsim window` without --vary is one search)")
     spec = (knob, None if range is None else (float(range[0]), float(range[1])), float(rtol))
-    return _study(scenario, vary, out, jobs, client, spec)
+    if vary:
+        return _study(scenario, vary, out, jobs, client, spec)
+    if client is not None or out is not None:
+        raise ValueError("window: out= and client= go with vary (a map of windows); one "
+                         "search runs here")
+    return _search(scenario, spec, jobs)
+
+
+def _search(scenario, spec, jobs):
+    """One window search (``gripsim window`` without ``--vary``): its runs as a DataFrame."""
+    import json
+
+    import pandas as pd
+
+    sc = _scenario(scenario)
+    with tempfile.TemporaryDirectory(prefix="gripsim-window-") as tmp:
+        path = Path(sc.file)
+        if not path.is_file():
+            path = Path(tmp) / "scenario.toml"
+            path.write_text(sc.text)
+        result = json.loads(_gripsim.window_search(str(path.resolve()), sc.sets, spec, jobs))
+    runs = pd.DataFrame(result.pop("runs"))
+    runs.insert(len(runs.columns), "run", range(1, len(runs) + 1))
+    runs = runs.sort_values("value", kind="stable").reset_index(drop=True)
+    runs.attrs["window"] = result
+    return runs
 
 
 def _study(scenario, vary, out, jobs, client, window_spec):

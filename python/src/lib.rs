@@ -219,6 +219,7 @@ fn gripsim_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read::diff_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(study::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(study::vary_values, m)?)?;
+    m.add_function(wrap_pyfunction!(study::window_search, m)?)?;
     m.add_function(wrap_pyfunction!(study::merge, m)?)?;
     Ok(())
 }

@@ -4,7 +4,9 @@
 use gripsim::study::sweep::{
     merge as merge_shards, run_sweep, CasePlots, MergeOptions, SweepOptions,
 };
-use gripsim::study::window::{parse_range, parse_rtol, resolve_file, Resolved, WindowSpec};
+use gripsim::study::window::{
+    parse_range, parse_rtol, resolve_file, run_window, Resolved, WindowOptions, WindowSpec,
+};
 use gripsim::study::Shard;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -93,6 +95,53 @@ fn resolve_window(scenario: &str, sets: &[String], w: WindowArgs) -> PyResult<Re
     resolve_file(Path::new(scenario), sets, &spec)
         .map(|(_, r)| r)
         .map_err(|e| bad(e.to_string()))
+}
+
+/// `gripsim window SCENARIO` without `--vary`: one grasp-window search of the scenario file
+/// with `sets`, on `jobs` threads (0: one per core), the GIL released; its result as the JSON
+/// `--json FILE` writes, each run with its `outcome` in words. Ctrl-C stops it (nothing is kept) and raises `KeyboardInterrupt`.
+#[pyfunction]
+pub fn window_search(
+    py: Python<'_>,
+    scenario: String,
+    sets: Vec<String>,
+    window: WindowArgs,
+    jobs: usize,
+) -> PyResult<String> {
+    let (knob, range, rtol) = window;
+    let range = range
+        .map(|(lo, hi)| parse_range(&format!("{lo:?}:{hi:?}")))
+        .transpose()
+        .map_err(PyValueError::new_err)?;
+    let rtol = parse_rtol(&format!("{rtol:?}")).map_err(PyValueError::new_err)?;
+    let raised = Arc::new(Mutex::new(None));
+    let opts = WindowOptions {
+        scenario: PathBuf::from(scenario),
+        sets,
+        spec: WindowSpec { knob, range, rtol },
+        jobs,
+        stop: Some(super::signal_stop(raised.clone())),
+    };
+    let result = py.detach(|| run_window(&opts, None));
+    if let Some(e) = raised.lock().unwrap_or_else(|p| p.into_inner()).take() {
+        return Err(e);
+    }
+    match result.map_err(|e| PyValueError::new_err(e.to_string()))? {
+        Some(r) => {
+            // Each run with its outcome in words, as the CLI's table says it.
+            let mut v = serde_json::to_value(&r)
+                .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+            if let Some(runs) = v.get_mut("runs").and_then(|x| x.as_array_mut()) {
+                for (j, e) in runs.iter_mut().zip(&r.runs) {
+                    j["outcome"] = e.outcome().into();
+                }
+            }
+            Ok(v.to_string())
+        }
+        None => Err(pyo3::exceptions::PyKeyboardInterrupt::new_err(
+            "window search stopped",
+        )),
+    }
 }
 
 /// The values of one `--vary` spec (`KEY=V1,V2` or `KEY=START:STOP:COUNT[:log]`), as `--set`

@@ -40,5 +40,40 @@ def test_a_window_with_a_bad_range_or_no_vary_raises():
     path = scenario("jaw-grasp-hold")
     with pytest.raises(ValueError, match="LO = 4 is not below HI = 0.5"):
         gripsim.window(path, {"obstacle.1.mass": [0.05]}, range=(4, 0.5))
-    with pytest.raises(ValueError, match="vary is empty"):
-        gripsim.window(path, {})
+    with pytest.raises(ValueError, match="out= and client= go with vary"):
+        gripsim.window(path, out="x")
+
+
+def no_wall(v):
+    """`v` without its wall times (the one number two runs do not share)."""
+    if isinstance(v, dict):
+        return {k: no_wall(x) for k, x in v.items() if k != "wall_time_s"}
+    if isinstance(v, list):
+        return [no_wall(x) for x in v]
+    return v
+
+
+def test_one_window_search_gives_the_cli_result_and_table(tmp):
+    import json
+
+    path = scenario("jaw-grasp-hold")
+    got = gripsim.window(path, range=(0.5, 4), rtol=0.05, jobs=2)
+    cli("window", path, "--range", "0.5:4", "--rtol", "0.05", "--json", tmp / "w.json",
+        "--quiet", "--jobs", "2")
+    want = json.loads((tmp / "w.json").read_text())
+    runs = want.pop("runs")
+    assert no_wall(got.attrs["window"]) == no_wall(want)
+    assert want["hold"]["status"] == "found" and want["bruise"]["status"] == "not_applicable"
+    assert want["hold"]["value"] == pytest.approx(got.attrs["window"]["hold"]["value"])
+    # The table: one row per run, sorted by knob value, the CLI's numbers (wall time aside).
+    assert len(got) == len(runs) == 6
+    assert list(got["value"]) == sorted(r["value"] for r in runs)
+    by_value = {r["value"]: r for r in runs}
+    for _, row in got.iterrows():
+        r = by_value[row["value"]]
+        assert row["run"] == runs.index(r) + 1
+        for k in ["held", "safety_margin_at_lift", "peak_grip_force_n", "steps"]:
+            assert row[k] == r[k] or (row[k] != row[k] and r[k] is None)
+    held = got[got["outcome"] == "held"]
+    assert held["value"].min() == pytest.approx(want["hold"]["value"])
+    assert (got[got["value"] < held["value"].min()]["outcome"] != "held").all()
