@@ -12,7 +12,7 @@ from ._replay import check, diff, read
 from ._gripsim import __version__
 from ._run import Run, run
 from ._scenario import Scenario
-from ._study import sweep
+from ._study import sweep, window
 
 __all__ = [
     "RecordingError",
@@ -25,4 +25,5 @@ __all__ = [
     "read",
     "run",
     "sweep",
+    "window",
 ]

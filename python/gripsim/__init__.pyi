@@ -96,10 +96,10 @@ def run(
     """Run ``scenario`` to its end with the GIL released (Ctrl-C: ``KeyboardInterrupt``)."""
 
 def read(path: _Path) -> Run:
-    """The run recorded in a planar ``.mcap``."""
+    """The run recorded in a ``.mcap`` (planar or 3D)."""
 
 def check(path: _Path) -> dict:
-    """``gripsim replay check`` of a planar ``.mcap``: its report as a dict."""
+    """``gripsim replay check`` of a ``.mcap`` (planar or 3D): its report as a dict."""
 
 def diff(a: _Path, b: _Path) -> dict:
     """``gripsim replay diff A B``: its report as a dict."""
@@ -113,3 +113,18 @@ def sweep(
 ) -> pd.DataFrame:
     """``gripsim sweep``: its ``summary.csv`` as a DataFrame, one row per case; with a
     ``dask.distributed.Client`` each case runs on its workers."""
+
+def window(
+    scenario: Scenario | _Path,
+    vary: dict[str, str | list] | None = ...,
+    knob: str | None = ...,
+    range: tuple[float, float] | None = ...,
+    rtol: float = ...,
+    out: _Path | None = ...,
+    jobs: int = ...,
+    client: object | None = ...,
+) -> pd.DataFrame:
+    """``gripsim window``: without ``vary`` one search, its runs as a DataFrame (the result
+    in ``df.attrs["window"]``); with ``vary`` its ``window.csv``, one row per design
+    (``g_hold``, ``g_bruise``, their statuses, ``window_ratio``); with a
+    ``dask.distributed.Client`` each design's search runs on its workers."""

@@ -10,9 +10,10 @@ from ._run import Run
 
 
 def read(path: str | os.PathLike) -> Run:
-    """The run recorded in the planar ``.mcap`` at ``path``, as a :class:`Run`: ``t``,
-    ``positions`` and ``velocities`` at the recording's precision (f32 by default), the
-    recorded contacts and events. A file cut short (a killed run) is read up to its last
+    """The run recorded in the ``.mcap`` at ``path``, as a :class:`Run`: ``t``,
+    ``positions`` and ``velocities`` at the recording's precision (planar: f32 by default;
+    3D: f64, steps × nodes × 3), the recorded contacts (3D: step, rod, node, shape, stuck,
+    t, x, y, z, normal_force, gap) and events (planar; a 3D recording has none). A file cut short (a killed run) is read up to its last
     complete chunk and ``Run.warning`` says so; a damaged or foreign file raises
     :class:`gripsim.RecordingError` naming it."""
     path = os.fspath(path)
@@ -25,8 +26,8 @@ def read(path: str | os.PathLike) -> Run:
 
 
 def check(path: str | os.PathLike) -> dict:
-    """``gripsim replay check`` of the planar ``.mcap`` at ``path`` with the default
-    thresholds: its report as a dict (``flagged``, ``findings`` and the figures the CLI's
+    """``gripsim replay check`` of the ``.mcap`` at ``path`` (planar or 3D) with the default
+    thresholds: its report as a dict (``flagged``, the findings and the figures the CLI's
     ``--json`` writes), with ``warning`` set when the file was read only in part."""
     report, warning = _gripsim.check_mcap(os.fspath(path))
     out = json.loads(report)

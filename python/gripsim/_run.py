@@ -111,8 +111,11 @@ def run(scenario, keep=KEEP, *, rrd=None, mcap=None, csv=None, detail="auto",
     runs), at ``detail`` ``"auto"``, ``"step"`` or ``"iteration"``; each is written under its
     ``.partial`` name and renamed into place when the run completed.
 
-    ``check``: run ``gripsim replay check``'s rules on the live run (planar), as ``gripsim
-    run --check`` does; its report (a dict) is ``Run.check``."""
+    ``check``: run ``gripsim replay check``'s rules on the live run, as ``gripsim run
+    --check`` does; its report (a dict) is ``Run.check``. A 3D run's is the counts of what
+    the check found: ``{"dimension": 3, "flagged": bool, "counts": {"spikes": …,
+    "sticking": …, "slip": …, "drop": …, "held": …, "bruise": …, …}}`` (files of a 3D run:
+    ``gripsim run``)."""
     sc = _scenario(scenario)
     keep = list(keep)
     unknown = [k for k in keep if k not in KEEP]

@@ -19,11 +19,13 @@ def _vary_spec(key: str, values) -> str:
     return f"{key}=" + ",".join(_set_text(v) for v in values)
 
 
-def _case(scenario: str, sets: list, specs: list, folder: str, index: int, count: int) -> int:
-    """One case of a sweep on a Dask worker: the shard ``index``/``count`` of one case."""
+def _case(scenario: str, sets: list, specs: list, folder: str, index: int, count: int,
+          window=None) -> int:
+    """One case of a sweep (or one design of a window map) on a Dask worker: the shard
+    ``index``/``count`` of one case."""
     from gripsim import _gripsim as native
 
-    report = native.sweep(scenario, sets, specs, folder, 1, (index, count))
+    report = native.sweep(scenario, sets, specs, folder, 1, (index, count), window)
     return report["ran"]
 
 
@@ -44,6 +46,61 @@ def sweep(scenario, vary: dict, out: str | os.PathLike | None = None, jobs: int 
     cases are skipped); by default a temporary folder that is removed (then, with a client,
     the workers must see this machine's temporary folder). Ctrl-C stops a local sweep
     (finished cases stay in ``out``) and raises ``KeyboardInterrupt``."""
+    return _study(scenario, vary, out, jobs, client, None)
+
+
+def window(scenario, vary: dict | None = None, knob: str | None = None, range: tuple | None = None,
+           rtol: float = 0.01, out: str | os.PathLike | None = None, jobs: int = 0,
+           client=None):
+    """``gripsim window``. Without ``vary``: one grasp-window search of the scenario along
+    ``knob`` (by default the squeeze's grip target) over ``range`` ``(LO, HI)`` (by default
+    the scenario's value / 8 to × 8) to the relative tolerance ``rtol``, on ``jobs`` threads.
+    Returns its runs as a DataFrame sorted by knob ``value`` (the CLI's table: ``value``,
+    ``outcome``, ``safety_margin_at_lift``, ``bruise_ratio``, …, ``run`` the order run), and
+    the result (``hold`` and ``bruise`` boundaries with ``value``, ``status`` and ``note``,
+    ``window_ratio``, ``headline``, the resolved ``knob``) as ``df.attrs["window"]``, what
+    ``gripsim window --json`` writes.
+
+    With ``vary``: ``gripsim window --vary``, a map of the grasp window over design
+    parameters. Each
+    design (a case of ``vary``, as in :func:`sweep`) is one grasp-window search along
+    ``knob`` (by default the squeeze's grip target) over ``range`` ``(LO, HI)`` (by default
+    the scenario's value / 8 to × 8) to the relative tolerance ``rtol``. Returns
+    ``window.csv`` as a DataFrame, one row per design in grid order: the design's values,
+    ``g_hold`` and ``g_bruise`` with their brackets and statuses, ``window_ratio``, the
+    number of runs. ``out``, ``jobs`` and ``client`` as for :func:`sweep` (with a client each
+    design is one task)."""
+    spec = (knob, None if range is None else (float(range[0]), float(range[1])), float(rtol))
+    if vary:
+        return _study(scenario, vary, out, jobs, client, spec)
+    if client is not None or out is not None:
+        raise ValueError("window: out= and client= go with vary (a map of windows); one "
+                         "search runs here")
+    return _search(scenario, spec, jobs)
+
+
+def _search(scenario, spec, jobs):
+    """One window search (``gripsim window`` without ``--vary``): its runs as a DataFrame."""
+    import json
+
+    import pandas as pd
+
+    sc = _scenario(scenario)
+    with tempfile.TemporaryDirectory(prefix="gripsim-window-") as tmp:
+        path = Path(sc.file)
+        if not path.is_file():
+            path = Path(tmp) / "scenario.toml"
+            path.write_text(sc.text)
+        result = json.loads(_gripsim.window_search(str(path.resolve()), sc.sets, spec, jobs))
+    runs = pd.DataFrame(result.pop("runs"))
+    runs.insert(len(runs.columns), "run", range(1, len(runs) + 1))
+    runs = runs.sort_values("value", kind="stable").reset_index(drop=True)
+    runs.attrs["window"] = result
+    return runs
+
+
+def _study(scenario, vary, out, jobs, client, window_spec):
+    """A sweep (``window_spec`` None) or a window map, locally or on a Dask client."""
     import pandas as pd
 
     sc = _scenario(scenario)
@@ -57,14 +114,15 @@ def sweep(scenario, vary: dict, out: str | os.PathLike | None = None, jobs: int 
             path.write_text(sc.text)
         folder = Path(out) if out is not None else Path(tmp) / "sweep"
         if client is None:
-            report = _gripsim.sweep(str(path.resolve()), sc.sets, specs, str(folder), jobs)
+            report = _gripsim.sweep(str(path.resolve()), sc.sets, specs, str(folder), jobs,
+                                    None, window_spec)
             return pd.read_csv(report["summary"])
         n = 1
         for spec in specs:
             n *= len(_gripsim.vary_values(spec))
         futures = [
             client.submit(_case, str(path.resolve()), sc.sets, specs, str(folder.resolve()), k,
-                          n, pure=False)
+                          n, window_spec, pure=False)
             for k in range(n)
         ]
         client.gather(futures)

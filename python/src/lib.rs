@@ -151,20 +151,22 @@ fn run<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let sc = parse(py, text, file, dir, sets.clone())?;
     let mut kept = keep::Keep::new(&keep);
-    if check {
-        let AnyScenario::Planar(psc) = &sc else {
-            return Err(pyo3::exceptions::PyValueError::new_err(
-                "check=True checks planar runs; check a 3D run with `gripsim run --check`",
-            ));
-        };
-        let th = gripsim::replay::Thresholds::DEFAULT;
+    let th = gripsim::replay::Thresholds::DEFAULT;
+    if let (true, AnyScenario::Planar(psc)) = (check, &sc) {
         kept.check = Some(gripsim::replay::detect::DetectObserver::new(psc, &th));
     }
+    // A 3D run's check: the library's live check ([`gripsim::run::run_with`]), its counts.
+    let check3 = check && sc.dimension() == 3;
     let raised = Arc::new(Mutex::new(None));
     let stop = signal_stop(raised.clone());
     let files = files::Files::new(rrd, mcap, csv, detail);
-    let outcome = if files.is_empty() {
-        py.detach(|| gripsim::run::run(&sc, text, &mut kept, Some(stop)))
+    let outcome = if check3 && !files.is_empty() {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "rrd=, mcap= and csv= record planar runs; record a 3D run with `gripsim run`",
+        ));
+    } else if files.is_empty() {
+        let th = check3.then_some(&th);
+        py.detach(|| gripsim::run::run_with(&sc, text, &mut kept, Some(stop), th))
     } else {
         files.run(py, &sc, (text, file, &sets), &mut kept, stop)?
     };
@@ -196,6 +198,11 @@ fn run<'py>(
             .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
         d.set_item("check", json)?;
     }
+    if let (true, Some(c)) = (check3, &outcome.check) {
+        let flagged = c.spikes + c.sticking + c.slip + c.drop + c.held + c.bruise > 0;
+        let json = serde_json::json!({ "dimension": 3, "flagged": flagged, "counts": c });
+        d.set_item("check", json.to_string())?;
+    }
     kept.to_python(py, &d)?;
     Ok(d)
 }
@@ -212,6 +219,7 @@ fn gripsim_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read::diff_mcap, m)?)?;
     m.add_function(wrap_pyfunction!(study::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(study::vary_values, m)?)?;
+    m.add_function(wrap_pyfunction!(study::window_search, m)?)?;
     m.add_function(wrap_pyfunction!(study::merge, m)?)?;
     Ok(())
 }

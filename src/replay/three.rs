@@ -489,6 +489,8 @@ pub struct Run3 {
     /// `/sim/meta` `scenario_text` and `sets`: the scenario as written and its overrides.
     pub scenario_text: String,
     pub sets: Vec<String>,
+    /// `/sim/meta` rods: name and node count, in the steps' order.
+    pub rods: Vec<(String, usize)>,
     pub steps: Vec<Step3>,
     /// The run-end record's `completed` (None: the file has none, e.g. a killed run's).
     pub completed: Option<bool>,
@@ -629,6 +631,11 @@ impl Run3 {
             name: meta.scenario_name,
             scenario_text: meta.scenario_text,
             sets: meta.sets,
+            rods: meta
+                .rods
+                .iter()
+                .map(|r| (r.name.clone(), r.nodes))
+                .collect(),
             steps,
             completed,
             run_error,

@@ -2,7 +2,8 @@
 """Create the test venv `.venv` at the repository root with the independent readers that
 `tests/recordings.rs` checks recordings with (the Rerun CLI from rerun-sdk, the mcap Python
 reader with its protobuf decoder (mcap-protobuf-support, which brings Google's `protobuf`),
-jsonschema), and what the Python package's tests need (numpy, pandas, pytest, dask.distributed).
+jsonschema), and what the Python package's tests need (numpy, pandas, pytest, dask.distributed,
+and nbclient, ipykernel and matplotlib for the notebook).
 
 Idempotent and safe to run concurrently: an exclusive file lock serialises callers, and a
 marker file inside the venv records which requirements are installed, so a second call only
@@ -29,6 +30,11 @@ REQUIREMENTS = [
     # gripsim.sweep on a dask.distributed cluster (python/tests/test_sweep.py).
     "dask==2026.8.0",
     "distributed==2026.8.0",
+    # docs/notebooks/design-study.ipynb, executed by python/tests/test_notebook.py.
+    "nbclient==0.11.0",
+    "nbformat==5.11.1",
+    "ipykernel==7.4.0",
+    "matplotlib==3.11.2",
 ]
 
 ROOT = Path(__file__).resolve().parents[2]
