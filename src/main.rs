@@ -935,7 +935,22 @@ fn run3(
     // From here a signal stops the run after the current step and the files are closed.
     install_signal_handlers();
     let stop = || STOP.load(Ordering::Relaxed) != 0;
-    let result = gripsim::rod3d::run3::run_until(&sc, out.csv.as_deref(), &mut sinks, &stop);
+    // With --check, the bruise rule reads the contact pressures of the one event stream.
+    let mut bruise = out
+        .check
+        .as_ref()
+        .map(|_| gripsim::replay::bruise::BruiseObserver::new(sc.expect.bruised));
+    let result = {
+        let mut live = Fanout::new();
+        if let Some(b) = bruise.as_mut() {
+            live.push(b as &mut dyn Observer);
+        }
+        let mut events = gripsim::rod3d::run3::Events {
+            text,
+            obs: &mut live,
+        };
+        gripsim::rod3d::run3::run_both(&sc, out.csv.as_deref(), &mut sinks, &mut events, &stop)
+    };
     drop(sinks);
     // The recordings are closed either way: moved into place, or (a failed run) kept under
     // their `.partial` names with the error as the run's end, as a planar run's.
@@ -963,8 +978,13 @@ fn run3(
         }
     }
     let report = check.map(|c| {
-        c.detector
-            .finish(&format!("{} (live)", path.display()), &s.name)
+        let mut report = c
+            .detector
+            .finish(&format!("{} (live)", path.display()), &s.name);
+        if let Some(b) = bruise {
+            report.add_bruise(b);
+        }
+        report
     });
     if let (Some(report), Some((_, Some(p)))) = (&report, &out.check) {
         let text = serde_json::to_string_pretty(report).expect("a report serialises");

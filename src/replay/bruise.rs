@@ -202,6 +202,11 @@ impl BruiseObserver {
         }
     }
 
+    /// The scenario expects its fruit to bruise (`[expect] bruised = true`).
+    pub fn expected(&self) -> bool {
+        self.expected
+    }
+
     /// The flags `replay check` counts as `bruise`: every stretch above the threshold, or,
     /// where the scenario expects a bruise, 1 when there was none.
     pub fn count(&self) -> usize {

@@ -350,6 +350,53 @@ pub fn describe_decimated(d: &[detect::Decimated]) -> String {
     )
 }
 
+/// The bruise rule's lines of a check report (both dimensions): the stretches above the
+/// bruise pressure, a bruise the scenario expects and did not get, the ones it expects.
+pub(crate) fn bruise_lines(
+    count: usize,
+    bruise: &[bruise::BruiseFlag],
+    expected: &[bruise::BruiseFlag],
+    missing: bool,
+) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    if !bruise.is_empty() {
+        let _ = writeln!(
+            s,
+            "bruise    {count:>5}  (contacts above the fruit's bruise pressure)"
+        );
+        for f in bruise.iter().take(MAX_ROWS) {
+            let _ = writeln!(
+                s,
+                "  {} steps {}-{} (t = {:.6}-{:.6} s): peak pressure {:.4e} Pa at t = {:.6} s, {:.2}x the threshold {:.4e} Pa, up to {:.3e} m wide above it",
+                f.place(), f.step, f.last_step, f.t, f.last_t, f.max_pressure_pa,
+                f.max_pressure_t, f.ratio, f.bruise_pressure_pa, f.max_bruise_width_m
+            );
+        }
+    }
+    if missing {
+        let _ = writeln!(
+            s,
+            "bruise    missing: the scenario expects its fruit to bruise ([expect] bruised = true) and no contact went above its bruise pressure"
+        );
+    }
+    if !expected.is_empty() {
+        let f = expected
+            .iter()
+            .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
+            .expect("not empty");
+        let _ = writeln!(
+            s,
+            "expected  bruised as the scenario expects ([expect] bruised = true): {} stretch(es) above the bruise pressure, the highest {:.2}x at {} (t = {:.6} s)",
+            expected.len(),
+            f.ratio,
+            f.place(),
+            f.max_pressure_t
+        );
+    }
+    s
+}
+
 /// The human form of a check report.
 pub fn format_check(rep: &CheckReport) -> String {
     use std::fmt::Write;
@@ -399,42 +446,12 @@ pub fn format_check(rep: &CheckReport) -> String {
             );
         }
     }
-    if !rep.bruise.is_empty() {
-        let _ = writeln!(
-            s,
-            "bruise    {:>5}  (contacts above the fruit's bruise pressure)",
-            c.bruise
-        );
-        for f in rep.bruise.iter().take(MAX_ROWS) {
-            let _ = writeln!(
-                s,
-                "  {} steps {}-{} (t = {:.6}-{:.6} s): peak pressure {:.4e} Pa at t = {:.6} s, {:.2}x the threshold {:.4e} Pa, up to {:.3e} m wide above it",
-                f.place(), f.step, f.last_step, f.t, f.last_t, f.max_pressure_pa,
-                f.max_pressure_t, f.ratio, f.bruise_pressure_pa, f.max_bruise_width_m
-            );
-        }
-    }
-    if rep.bruise_missing {
-        let _ = writeln!(
-            s,
-            "bruise    missing: the scenario expects its fruit to bruise ([expect] bruised = true) and no contact went above its bruise pressure"
-        );
-    }
-    if !rep.bruise_expected.is_empty() {
-        let f = rep
-            .bruise_expected
-            .iter()
-            .max_by(|a, b| a.ratio.total_cmp(&b.ratio))
-            .expect("not empty");
-        let _ = writeln!(
-            s,
-            "expected  bruised as the scenario expects ([expect] bruised = true): {} stretch(es) above the bruise pressure, the highest {:.2}x at {} (t = {:.6} s)",
-            rep.bruise_expected.len(),
-            f.ratio,
-            f.place(),
-            f.max_pressure_t
-        );
-    }
+    s += &bruise_lines(
+        c.bruise,
+        &rep.bruise,
+        &rep.bruise_expected,
+        rep.bruise_missing,
+    );
     if !rep.spikes.is_empty() {
         let _ = writeln!(s, "\nspikes");
         let _ = writeln!(

@@ -87,10 +87,34 @@ pub struct Check3Report {
     /// The slips and drops the scenario expects (`[expect] grasp`): not flagged.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub grasp_expected: Vec<super::grasp::GraspFlag>,
-    /// Contacts above the fruit's bruise pressure: always empty, a 3D fruit is rigid (no
-    /// pressure), as the planar rule has it for a rigid fruit.
+    /// Contacts above the compliant fruit's bruise pressure, found on the live run's contact
+    /// pressures (`gripsim run --check`; [`Check3Report::add_bruise`]). A 3D recording does
+    /// not keep the pressures, so `replay check` of a 3D file finds none; a rigid fruit has
+    /// none.
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
     pub bruise: Vec<super::bruise::BruiseFlag>,
+    /// The bruises the scenario expects (`[expect] bruised = true`): not flagged.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub bruise_expected: Vec<super::bruise::BruiseFlag>,
+    /// The scenario expects a bruise and the run made none (flagged).
+    #[serde(skip_serializing_if = "std::ops::Not::not", default)]
+    pub bruise_missing: bool,
+}
+
+impl Check3Report {
+    /// What the live bruise rule found: flagged unless the scenario expects it; a bruise the
+    /// scenario expects and the run did not make is flagged.
+    pub fn add_bruise(&mut self, found: super::bruise::BruiseObserver) {
+        let (expected, count) = (found.expected(), found.count());
+        let flags = found.finish();
+        if expected {
+            self.bruise_missing = flags.is_empty();
+            self.bruise_expected = flags;
+        } else {
+            self.bruise = flags;
+        }
+        self.flagged |= count > 0;
+    }
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -443,6 +467,8 @@ impl Detector3 {
             grasp: grasp.flags,
             grasp_expected: grasp.expected,
             bruise: Vec::new(),
+            bruise_expected: Vec::new(),
+            bruise_missing: false,
         }
     }
 }
@@ -687,6 +713,14 @@ pub fn format_check(r: &Check3Report) -> String {
         r.sticking.len(),
         r.grasp.len()
     );
+    if !r.bruise.is_empty() || !r.bruise_expected.is_empty() || r.bruise_missing {
+        s += &super::bruise_lines(
+            r.bruise.len(),
+            &r.bruise,
+            &r.bruise_expected,
+            r.bruise_missing,
+        );
+    }
     for k in &r.spikes {
         s += &format!(
             "  spike {}: {} node {} step {} t = {:.6} s: jump {:.3e} m/s (impact {:.3e}, unexplained {:.3e}), displacement {:.3e} m, accel ratio {:.3}\n",

@@ -361,3 +361,53 @@ fn a_compliant_fruit_may_start_resting_in_its_table_but_not_deeper() {
         "{err}"
     );
 }
+
+/// `gripsim run --check` on a 3D compliant apple applies the bruise rule to the live contact
+/// pressures, as on a planar run: squeezed with 5 N per finger both prongs' node 4 go 1.14x
+/// over the bruise pressure (flagged, exit 1, in the JSON too); as shipped (0.90x) it is clean;
+/// `[expect] bruised = true` turns the first into "expected" and the second into "missing".
+#[test]
+fn a_live_3d_check_flags_a_bruise() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("check.json");
+    let run = |sets: &[&str]| {
+        let mut c = gripsim();
+        c.args(["run", "--no-record", "-q", "--check", "--check-json"])
+            .arg(&json)
+            .arg(scenario("3d-apple"));
+        for s in sets {
+            c.args(["--set", s]);
+        }
+        c.output().unwrap()
+    };
+    let squeezed = run(&["move.0.force=5"]);
+    let out = text(&squeezed);
+    assert_eq!(squeezed.status.code(), Some(1), "{out}");
+    assert!(
+        out.contains("bruise        2") && out.contains("1.14x the threshold"),
+        "{out}"
+    );
+    assert!(
+        out.contains("rod finger0 node 4") && out.contains("rod finger1 node 4"),
+        "{out}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["bruise"].as_array().unwrap().len(), 2, "{report}");
+    assert_eq!(report["flagged"], true);
+
+    let shipped = run(&[]);
+    assert_eq!(shipped.status.code(), Some(0), "{}", text(&shipped));
+
+    let expected = run(&["move.0.force=5", "expect.bruised=true"]);
+    let out = text(&expected);
+    assert_eq!(expected.status.code(), Some(0), "{out}");
+    assert!(
+        out.contains("expected  bruised as the scenario expects"),
+        "{out}"
+    );
+    let missing = run(&["expect.bruised=true"]);
+    let out = text(&missing);
+    assert_eq!(missing.status.code(), Some(1), "{out}");
+    assert!(out.contains("bruise    missing"), "{out}");
+}
