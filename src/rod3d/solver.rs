@@ -28,13 +28,13 @@ impl std::fmt::Display for Solve3Error {
         match &self.at {
             Some((rod, node)) => write!(
                 f,
-                "rod {rod:?} node {node}: {} (residual {:e} N after {} iterations; the \
+                "rod {rod:?} node {node}: {} (residual {:.3e} N after {} iterations; the \
                  largest rod residual at that node)",
                 self.reason, self.residual, self.iterations
             ),
             None => write!(
                 f,
-                "3D rod: {} (residual {:e} N after {} iterations)",
+                "3D rod: {} (residual {:.3e} N after {} iterations)",
                 self.reason, self.residual, self.iterations
             ),
         }
