@@ -9,7 +9,6 @@
 
 use super::{node_norm, Finished, OutputFile, RecordError, RecordOptions, Recording};
 use crate::events::{ContactView, Event, Observer};
-use std::io::Write as _;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -89,26 +88,45 @@ impl<W: std::io::Write> PagedRows<W> {
     }
 
     fn write_rows(&mut self, all: bool) -> std::io::Result<()> {
-        let keep = if all {
-            self.buf.len()
-        } else {
-            let body = &self.buf[..self.buf.len().saturating_sub(1)];
-            body.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1)
-        };
-        let next = self.buf.len() - keep;
-        self.scratch.clear();
-        page_aligned(&self.buf[..keep], self.offset, next, &mut self.scratch);
-        self.buf.drain(..keep);
-        let mut at = 0;
-        while at < self.scratch.len() {
-            let room = (PAGE - self.offset % PAGE) as usize;
-            let n = room.min(self.scratch.len() - at);
-            self.out.write_all(&self.scratch[at..at + n])?;
-            at += n;
-            self.offset += n as u64;
-        }
-        Ok(())
+        write_paged(
+            &mut self.out,
+            &mut self.buf,
+            &mut self.scratch,
+            &mut self.offset,
+            all,
+        )
     }
+}
+
+/// Write the whole rows of `buf` to `out` at file offset `offset`, page-aligned ([`PAGE`]),
+/// one page at most per `write`, and drop them from `buf`. Unless `all`, the last row stays
+/// buffered: whether it needs the row before it padded is known only once the row after it is.
+fn write_paged<W: std::io::Write>(
+    out: &mut W,
+    buf: &mut Vec<u8>,
+    scratch: &mut Vec<u8>,
+    offset: &mut u64,
+    all: bool,
+) -> std::io::Result<()> {
+    let keep = if all {
+        buf.len()
+    } else {
+        let body = &buf[..buf.len().saturating_sub(1)];
+        body.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1)
+    };
+    let next = buf.len() - keep;
+    scratch.clear();
+    page_aligned(&buf[..keep], *offset, next, scratch);
+    buf.drain(..keep);
+    let mut at = 0;
+    while at < scratch.len() {
+        let room = (PAGE - *offset % PAGE) as usize;
+        let n = room.min(scratch.len() - at);
+        out.write_all(&scratch[at..at + n])?;
+        at += n;
+        *offset += n as u64;
+    }
+    Ok(())
 }
 
 impl<W: std::io::Write> std::io::Write for PagedRows<W> {
@@ -334,32 +352,18 @@ impl CsvSink {
         }
     }
 
-    /// Write the buffered rows (whole lines) to the file, page-aligned ([`PAGE`]), one page at
-    /// most per `write`. Unless `all`, the last row stays buffered: whether it needs the row
-    /// before it padded is known only once the row after it is.
+    /// Write the buffered rows (whole lines) to the file ([`write_paged`]).
     fn write_out(&mut self, all: bool) {
         let Some(file) = self.file.as_mut() else {
             return;
         };
-        let keep = if all {
-            self.buf.len()
-        } else {
-            let body = &self.buf[..self.buf.len().saturating_sub(1)];
-            body.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1)
-        };
-        let next = self.buf.len() - keep;
-        self.scratch.clear();
-        page_aligned(&self.buf[..keep], self.offset, next, &mut self.scratch);
-        let mut r = Ok(());
-        let mut at = 0;
-        while at < self.scratch.len() && r.is_ok() {
-            let room = (PAGE - self.offset % PAGE) as usize;
-            let n = room.min(self.scratch.len() - at);
-            r = file.write_all(&self.scratch[at..at + n]);
-            at += n;
-            self.offset += n as u64;
-        }
-        self.buf.drain(..keep);
+        let r = write_paged(
+            file,
+            &mut self.buf,
+            &mut self.scratch,
+            &mut self.offset,
+            all,
+        );
         if let Err(e) = r {
             self.fail(e);
         }

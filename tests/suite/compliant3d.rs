@@ -36,20 +36,21 @@ fn e_star() -> f64 {
     1.0 / apple().compliance()
 }
 
-#[test]
-fn a_flat_face_pressed_on_a_compliant_sphere_settles_on_hertz() {
-    let (r, h, f) = (0.0375, 0.002, 2.0);
-    let section = Section3::Rect { b: 0.01, h };
-    // Three nodes along x, the h side vertical: the middle node's face rests on the top of the
-    // sphere (the others are 1.3 mm above it), pushed down by F at the middle node.
+/// A three-node rigid-faced prong lying along x on the top of a compliant `shape` (centred at
+/// the origin, its top at z = `top`), the h side vertical, its middle node pushed down by `f`,
+/// after 100 steps of 1 ms. Stuck by friction (μ 1): frictionless, a point pressed on the top
+/// of a sphere is in unstable equilibrium (it slides off).
+fn press_on_top(shape: Shape3, top: f64, section: Section3, f: f64) -> World3 {
+    let Section3::Rect { h, .. } = section else {
+        panic!("a rect section")
+    };
+    let z = top + h / 2.0;
     let rod = spec(
-        line(3, [-0.01, 0.0, r + h / 2.0], [0.01, 0.0, r + h / 2.0]),
+        line(3, [-0.01, 0.0, z], [0.01, 0.0, z]),
         [0.0, 0.0, 1.0],
         section,
     );
     let mut w = World3::new([0.0, 0.0, 0.0]);
-    // Stuck by friction: frictionless, a point pressed on the top of a sphere is in unstable
-    // equilibrium (it slides off).
     w.friction = FrictionTable {
         default: Coulomb {
             mu_s: 1.0,
@@ -60,16 +61,23 @@ fn a_flat_face_pressed_on_a_compliant_sphere_settles_on_hertz() {
     let mut sim = Sim3::new(Rod3::new(&rod));
     sim.load[pos(1) + 2] = -f;
     w.add_rod("prong", sim, section);
-    w.obstacles.push(Obstacle3::new(
-        "apple",
-        Shape3::Sphere { radius: r },
-        Pose3::at([0.0; 3]),
-    ));
+    w.obstacles
+        .push(Obstacle3::new("apple", shape, Pose3::at([0.0; 3])));
     w.materials.push(Some(apple()));
     w.prong_compliance = vec![0.0];
     for _ in 0..100 {
         w.step(1e-3).unwrap();
     }
+    w
+}
+
+#[test]
+fn a_flat_face_pressed_on_a_compliant_sphere_settles_on_hertz() {
+    let (r, h, f) = (0.0375, 0.002, 2.0);
+    let section = Section3::Rect { b: 0.01, h };
+    // Three nodes along x, the h side vertical: the middle node's face rests on the top of the
+    // sphere (the others are 1.3 mm above it), pushed down by F at the middle node.
+    let w = press_on_top(Shape3::Sphere { radius: r }, r, section, f);
     let pressed = w.pressed();
     assert_eq!(pressed.len(), 1, "{pressed:?}");
     let p = pressed[0];
@@ -110,33 +118,8 @@ fn a_flat_face_pressed_on_a_compliant_ellipsoid_settles_on_elliptical_hertz() {
     // and c/b² along y (closed form), so A = c/(2a²), B = c/(2b²).
     let (sa, h, f) = ([0.05, 0.03, 0.04], 0.002, 2.0);
     let section = Section3::Rect { b: 0.01, h };
+    let w = press_on_top(Shape3::Ellipsoid { semi_axes: sa }, sa[2], section, f);
     let top = sa[2] + h / 2.0;
-    let rod = spec(
-        line(3, [-0.01, 0.0, top], [0.01, 0.0, top]),
-        [0.0, 0.0, 1.0],
-        section,
-    );
-    let mut w = World3::new([0.0, 0.0, 0.0]);
-    w.friction = FrictionTable {
-        default: Coulomb {
-            mu_s: 1.0,
-            mu_k: 1.0,
-        },
-        pairs: Vec::new(),
-    };
-    let mut sim = Sim3::new(Rod3::new(&rod));
-    sim.load[pos(1) + 2] = -f;
-    w.add_rod("prong", sim, section);
-    w.obstacles.push(Obstacle3::new(
-        "apple",
-        Shape3::Ellipsoid { semi_axes: sa },
-        Pose3::at([0.0; 3]),
-    ));
-    w.materials.push(Some(apple()));
-    w.prong_compliance = vec![0.0];
-    for _ in 0..100 {
-        w.step(1e-3).unwrap();
-    }
     let p = w.pressed()[0];
     let (ca, cb) = (sa[2] / (2.0 * sa[0] * sa[0]), sa[2] / (2.0 * sa[1] * sa[1]));
     let law = PointContact::new(ca, cb, e_star());
